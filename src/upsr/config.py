@@ -1,0 +1,202 @@
+"""All parameters of the UP-SR pipeline in one typed, documented, validated object.
+
+Every length is in high-resolution pixels (px) unless the name says otherwise, every depth in
+millimetres (mm). The defaults are tuned for depth in mm from ToF / structured-light cameras and
+were chosen by measurement (see ``benchmarks/`` and the README).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import dataclass, field
+from typing import Any, Literal
+
+import numpy as np
+
+from .errors import InputError
+
+__all__ = ["UPSRConfig", "DeblurConfig"]
+
+BlurModel = Literal["none", "box", "gaussian"]
+FlowBackendName = Literal["dis", "farneback"]
+
+
+@dataclass(frozen=True)
+class DeblurConfig:
+    r"""Parameters of the L1 + bilateral-TV deblurring step (paper eq. 29–30).
+
+    Solves :math:`\hat x = \arg\min_x \|B x - z\|_1 + \lambda \Gamma_{BTV}(x)` with
+    :math:`\Gamma_{BTV}(x) = \sum_{l,m=-P}^{P} \alpha^{|l|+|m|} \|x - S_x^l S_y^m x\|_1`
+    by steepest descent on the subgradient (the paper's solver) with a geometric step schedule.
+
+    Attributes
+    ----------
+    enabled : bool
+        Run the deblurring step at all (``False`` returns the fused median, ``upsr_fused``).
+    lam : float
+        Regularisation weight λ of eq. 30 (unitless: both terms are L1 in mm).
+    alpha : float
+        Decay α ∈ (0, 1] of the BTV kernel, eq. 29.
+    radius_px : int
+        BTV half-window P (px); shifts l, m = −P … P.
+    blur : {"none", "box", "gaussian"}
+        Blur model B = A·H. ``"none"`` (B = I): pure BTV-L1 denoising of the fused image.
+        ``"box"``: an r×r box (the upsampling blur A). ``"gaussian"``: a Gaussian of std
+        ``blur_sigma_px``. Blurs are masked to valid pixels (they never mix in invalid ones).
+    blur_sigma_px : float
+        Standard deviation of the Gaussian blur model (px, high-res grid).
+    iterations : int
+        Number of subgradient steps.
+    step_mm : float or None
+        First step length β₀ (mm). ``None``: 0.5 × a robust estimate of the noise left in the
+        fused image (median absolute deviation of its Laplacian), at least 0.5 mm.
+    step_decay : float
+        Geometric decay of the step: β_k = β₀ · step_decay^k.
+    edge_mm : float or None
+        Depth is not an image: BTV pairs whose fused depths differ by more than ``edge_mm`` are
+        not regularised (no smoothing across depth discontinuities). ``None`` is the paper's
+        plain BTV.
+    """
+
+    enabled: bool = True
+    lam: float = 0.5
+    alpha: float = 0.7
+    radius_px: int = 2
+    blur: BlurModel = "none"
+    blur_sigma_px: float = 1.0
+    iterations: int = 30
+    step_mm: float | None = None
+    step_decay: float = 0.9
+    edge_mm: float | None = 100.0
+
+    def __post_init__(self) -> None:
+        _check(self.lam >= 0 and math.isfinite(self.lam), "deblur lam must be a finite number >= 0")
+        _check(0 < self.alpha <= 1, "deblur alpha must be in (0, 1]")
+        _check(isinstance(self.radius_px, int) and self.radius_px >= 1,
+               "deblur radius_px (P) must be an integer >= 1")
+        _check(self.blur in ("none", "box", "gaussian"),
+               f"deblur blur must be 'none', 'box' or 'gaussian', not {self.blur!r}")
+        _check(self.blur_sigma_px > 0, "deblur blur_sigma_px must be > 0")
+        _check(isinstance(self.iterations, int) and self.iterations >= 0,
+               "deblur iterations must be an integer >= 0")
+        _check(self.step_mm is None or (self.step_mm > 0 and math.isfinite(self.step_mm)),
+               "deblur step_mm must be > 0 (or None for automatic)")
+        _check(0 < self.step_decay <= 1, "deblur step_decay must be in (0, 1]")
+        _check(self.edge_mm is None or self.edge_mm > 0, "deblur edge_mm must be > 0 or None")
+
+
+@dataclass(frozen=True)
+class UPSRConfig:
+    """Parameters of UP-SR (paper Table 1).
+
+    Attributes
+    ----------
+    scale : int
+        Super-resolution factor r ≥ 1 (output is r·h × r·w).
+    n_frames : int
+        Window length N ≥ 1. The reference frame sits in the middle of its window
+        (``(N-1)//2`` frames before it); windows are shifted inwards near the ends of a video so
+        that every window holds N frames.
+    prefilter_sigma_mm : float
+        Range std of the bilateral prefilter (mm), §5.2. Used for motion estimation only.
+    prefilter_sigma_px : float or None
+        Spatial std of the bilateral prefilter (high-res px). ``None``: 0.75·r + 0.5.
+    flow : {"dis", "farneback"}
+        Dense optical-flow backend between consecutive upsampled frames (§4). Other backends can
+        be registered with :func:`upsr.motion.register_flow_backend`.
+    flow_preset : {"ultrafast", "fast", "medium"}
+        DIS preset (ignored by other backends).
+    depth_range_mm : tuple of float or None
+        (near, far) depths mapped to the 8-bit images the flow sees. ``None``: fixed once per
+        video from the 1st–99th percentiles of the valid depths of the first window.
+    refine : bool
+        Paper eq. 19: re-estimate each frame's motion against its already registered neighbour
+        (a residual flow on the reference grid, composed into the cumulative motion).
+    min_valid_fraction : float
+        Fusion: a pixel is valid only if more than this share of the registered in-frame samples
+        are valid (ties follow the reference frame). Out-of-frame samples abstain.
+    edge_mm : float
+        Fusion: for an even count of valid samples, the two middle values are averaged only if
+        they differ by at most ``edge_mm``; otherwise the one nearer the reference sample is
+        kept (never a depth between foreground and background).
+    deblur : DeblurConfig
+        Deblurring parameters (eq. 29–30).
+    """
+
+    scale: int = 2
+    n_frames: int = 9
+    prefilter_sigma_mm: float = 40.0
+    prefilter_sigma_px: float | None = None
+    flow: str = "dis"
+    flow_preset: str = "medium"
+    depth_range_mm: tuple[float, float] | None = None
+    refine: bool = True
+    min_valid_fraction: float = 0.5
+    edge_mm: float = 100.0
+    deblur: DeblurConfig = field(default_factory=DeblurConfig)
+
+    def __post_init__(self) -> None:
+        _check(_is_int(self.scale) and self.scale >= 1, f"scale r must be an integer >= 1, got {self.scale!r}")
+        _check(_is_int(self.n_frames) and self.n_frames >= 1,
+               f"n_frames N must be an integer >= 1, got {self.n_frames!r}")
+        _check(self.prefilter_sigma_mm > 0, "prefilter_sigma_mm must be > 0")
+        _check(self.prefilter_sigma_px is None or self.prefilter_sigma_px > 0,
+               "prefilter_sigma_px must be > 0 or None")
+        _check(self.flow_preset in ("ultrafast", "fast", "medium"),
+               f"flow_preset must be 'ultrafast', 'fast' or 'medium', not {self.flow_preset!r}")
+        if self.depth_range_mm is not None:
+            near, far = self.depth_range_mm
+            _check(math.isfinite(near) and math.isfinite(far) and 0 <= near < far,
+                   "depth_range_mm must be (near, far) with 0 <= near < far")
+        _check(0 <= self.min_valid_fraction < 1, "min_valid_fraction must be in [0, 1)")
+        _check(self.edge_mm > 0, "edge_mm must be > 0")
+        object.__setattr__(self, "scale", int(self.scale))
+        object.__setattr__(self, "n_frames", int(self.n_frames))
+
+    @property
+    def half_before(self) -> int:
+        """Frames of the window before the reference: ``(N-1)//2``."""
+        return (self.n_frames - 1) // 2
+
+    @property
+    def spatial_sigma_px(self) -> float:
+        """Spatial std of the bilateral prefilter in high-res px."""
+        if self.prefilter_sigma_px is not None:
+            return float(self.prefilter_sigma_px)
+        return 0.75 * self.scale + 0.5
+
+    @classmethod
+    def from_options(cls, scale: int, n_frames: int = 9, **options: Any) -> UPSRConfig:
+        """Build a config from flat keyword options.
+
+        Deblurring options may be given with a ``deblur_`` prefix (``deblur_lam=0.1``) or as a
+        :class:`DeblurConfig` in ``deblur``; ``deblur=False`` disables the step. Unknown names
+        raise :class:`~upsr.errors.InputError`.
+        """
+        deblur = options.pop("deblur", None)
+        deblur_opts = {k[len("deblur_"):]: options.pop(k) for k in list(options) if k.startswith("deblur_")}
+        names = {f.name for f in dataclasses.fields(cls)}
+        unknown = sorted(set(options) - names)
+        if unknown:
+            raise InputError(f"unknown option(s): {', '.join(unknown)}")
+        if isinstance(deblur, DeblurConfig):
+            dcfg = dataclasses.replace(deblur, **deblur_opts)
+        else:
+            if deblur is not None:
+                deblur_opts.setdefault("enabled", bool(deblur))
+            dnames = {f.name for f in dataclasses.fields(DeblurConfig)}
+            bad = sorted(set(deblur_opts) - dnames)
+            if bad:
+                raise InputError(f"unknown deblur option(s): {', '.join(bad)}")
+            dcfg = DeblurConfig(**deblur_opts)
+        return cls(scale=scale, n_frames=n_frames, deblur=dcfg, **options)
+
+
+def _is_int(value: Any) -> bool:
+    return isinstance(value, (int, np.integer)) and not isinstance(value, bool)
+
+
+def _check(condition: bool, message: str) -> None:
+    if not condition:
+        raise InputError(message)
