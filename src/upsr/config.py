@@ -16,7 +16,7 @@ import numpy as np
 
 from .errors import InputError
 
-__all__ = ["UPSRConfig", "DeblurConfig"]
+__all__ = ["DeblurConfig", "UPSRConfig"]
 
 BlurModel = Literal["none", "box", "gaussian"]
 FlowBackendName = Literal["dis", "farneback"]
@@ -49,14 +49,20 @@ class DeblurConfig:
     iterations : int
         Number of subgradient steps.
     step_mm : float or None
-        First step length β₀ (mm). ``None``: 0.5 × a robust estimate of the noise left in the
-        fused image (median absolute deviation of its Laplacian), at least 0.5 mm.
+        First step length β₀ (mm). ``None``: a robust estimate of the noise left in the fused
+        image (:func:`upsr.deblurring.estimate_noise_mm` at a lag of r px), at least 0.5 mm.
     step_decay : float
         Geometric decay of the step: β_k = β₀ · step_decay^k.
     edge_mm : float or None
         Depth is not an image: BTV pairs whose fused depths differ by more than ``edge_mm`` are
         not regularised (no smoothing across depth discontinuities). ``None`` is the paper's
         plain BTV.
+    smooth_sigma_mm : float or None
+        Beyond the paper: a final edge-preserving smoothing of each surface
+        (:func:`upsr.deblurring.smooth_surfaces`) with this range std (mm), which turns the
+        staircase of dense upsampling on slanted surfaces into ramps. ``None`` disables it.
+    smooth_sigma_px : float or None
+        Its spatial std in high-res px; ``None``: r/2.
     """
 
     enabled: bool = True
@@ -69,19 +75,37 @@ class DeblurConfig:
     step_mm: float | None = None
     step_decay: float = 0.9
     edge_mm: float | None = 100.0
+    smooth_sigma_mm: float | None = 30.0
+    smooth_sigma_px: float | None = None
 
     def __post_init__(self) -> None:
+        _check(
+            self.smooth_sigma_mm is None or self.smooth_sigma_mm > 0,
+            "deblur smooth_sigma_mm must be > 0 or None",
+        )
+        _check(
+            self.smooth_sigma_px is None or self.smooth_sigma_px > 0,
+            "deblur smooth_sigma_px must be > 0 or None",
+        )
         _check(self.lam >= 0 and math.isfinite(self.lam), "deblur lam must be a finite number >= 0")
         _check(0 < self.alpha <= 1, "deblur alpha must be in (0, 1]")
-        _check(isinstance(self.radius_px, int) and self.radius_px >= 1,
-               "deblur radius_px (P) must be an integer >= 1")
-        _check(self.blur in ("none", "box", "gaussian"),
-               f"deblur blur must be 'none', 'box' or 'gaussian', not {self.blur!r}")
+        _check(
+            isinstance(self.radius_px, int) and self.radius_px >= 1,
+            "deblur radius_px (P) must be an integer >= 1",
+        )
+        _check(
+            self.blur in ("none", "box", "gaussian"),
+            f"deblur blur must be 'none', 'box' or 'gaussian', not {self.blur!r}",
+        )
         _check(self.blur_sigma_px > 0, "deblur blur_sigma_px must be > 0")
-        _check(isinstance(self.iterations, int) and self.iterations >= 0,
-               "deblur iterations must be an integer >= 0")
-        _check(self.step_mm is None or (self.step_mm > 0 and math.isfinite(self.step_mm)),
-               "deblur step_mm must be > 0 (or None for automatic)")
+        _check(
+            isinstance(self.iterations, int) and self.iterations >= 0,
+            "deblur iterations must be an integer >= 0",
+        )
+        _check(
+            self.step_mm is None or (self.step_mm > 0 and math.isfinite(self.step_mm)),
+            "deblur step_mm must be > 0 (or None for automatic)",
+        )
         _check(0 < self.step_decay <= 1, "deblur step_decay must be in (0, 1]")
         _check(self.edge_mm is None or self.edge_mm > 0, "deblur edge_mm must be > 0 or None")
 
@@ -110,6 +134,11 @@ class UPSRConfig:
     depth_range_mm : tuple of float or None
         (near, far) depths mapped to the 8-bit images the flow sees. ``None``: fixed once per
         video from the 1st–99th percentiles of the valid depths of the first window.
+    zero_motion_tolerance : float or None
+        Where zero motion explains two consecutive (prefiltered) frames as well as the flow,
+        up to this factor on the local squared residual, the flow is set to 0
+        (:func:`upsr.motion.suppress_spurious_motion`): the flow must not match the noise of
+        static surfaces. ``None`` keeps the raw flow.
     refine : bool
         Paper eq. 19: re-estimate each frame's motion against its already registered neighbour
         (a residual flow on the reference grid, composed into the cumulative motion).
@@ -117,9 +146,20 @@ class UPSRConfig:
         Fusion: a pixel is valid only if more than this share of the registered in-frame samples
         are valid (ties follow the reference frame). Out-of-frame samples abstain.
     edge_mm : float
-        Fusion: for an even count of valid samples, the two middle values are averaged only if
-        they differ by at most ``edge_mm``; otherwise the one nearer the reference sample is
-        kept (never a depth between foreground and background).
+        Fusion: registered samples further apart than this (mm) lie on different surfaces; the
+        surface with the largest vote wins and only its samples are averaged by the median
+        (never a depth between foreground and background). The threshold actually used is at
+        least 4× the noise std estimated once per video, so noise never splits a surface.
+    edge_weight_px : float or None
+        Fusion at depth edges: a sample's vote is weighted by how close (in units of r px) the
+        centre of the low-res pixel it comes from is to the registered position,
+        ``floor + (1 − floor)·exp(−d²/(2·(edge_weight_px·r)²))``. ``None``: equal votes.
+    edge_weight_floor : float
+        Smallest vote weight (see ``edge_weight_px``).
+    occlusion_px : float or None
+        Forward–backward check: a sample whose motion does not come back within this many px
+        *and* whose depth is off the reference's surface is treated as occluded (abstains).
+        ``None`` disables the check.
     deblur : DeblurConfig
         Deblurring parameters (eq. 29–30).
     """
@@ -131,24 +171,39 @@ class UPSRConfig:
     flow: str = "dis"
     flow_preset: str = "medium"
     depth_range_mm: tuple[float, float] | None = None
+    zero_motion_tolerance: float | None = 1.1
     refine: bool = True
+    occlusion_px: float | None = None
     min_valid_fraction: float = 0.5
     edge_mm: float = 100.0
+    edge_weight_px: float | None = 0.35
+    edge_weight_floor: float = 0.25
     deblur: DeblurConfig = field(default_factory=DeblurConfig)
 
     def __post_init__(self) -> None:
-        _check(_is_int(self.scale) and self.scale >= 1, f"scale r must be an integer >= 1, got {self.scale!r}")
-        _check(_is_int(self.n_frames) and self.n_frames >= 1,
-               f"n_frames N must be an integer >= 1, got {self.n_frames!r}")
+        _check(
+            _is_int(self.scale) and self.scale >= 1,
+            f"scale r must be an integer >= 1, got {self.scale!r}",
+        )
+        _check(
+            _is_int(self.n_frames) and self.n_frames >= 1,
+            f"n_frames N must be an integer >= 1, got {self.n_frames!r}",
+        )
         _check(self.prefilter_sigma_mm > 0, "prefilter_sigma_mm must be > 0")
-        _check(self.prefilter_sigma_px is None or self.prefilter_sigma_px > 0,
-               "prefilter_sigma_px must be > 0 or None")
-        _check(self.flow_preset in ("ultrafast", "fast", "medium"),
-               f"flow_preset must be 'ultrafast', 'fast' or 'medium', not {self.flow_preset!r}")
+        _check(
+            self.prefilter_sigma_px is None or self.prefilter_sigma_px > 0,
+            "prefilter_sigma_px must be > 0 or None",
+        )
+        _check(
+            self.flow_preset in ("ultrafast", "fast", "medium"),
+            f"flow_preset must be 'ultrafast', 'fast' or 'medium', not {self.flow_preset!r}",
+        )
         if self.depth_range_mm is not None:
             near, far = self.depth_range_mm
-            _check(math.isfinite(near) and math.isfinite(far) and 0 <= near < far,
-                   "depth_range_mm must be (near, far) with 0 <= near < far")
+            _check(
+                math.isfinite(near) and math.isfinite(far) and 0 <= near < far,
+                "depth_range_mm must be (near, far) with 0 <= near < far",
+            )
         _check(0 <= self.min_valid_fraction < 1, "min_valid_fraction must be in [0, 1)")
         _check(self.edge_mm > 0, "edge_mm must be > 0")
         object.__setattr__(self, "scale", int(self.scale))
@@ -175,7 +230,9 @@ class UPSRConfig:
         raise :class:`~upsr.errors.InputError`.
         """
         deblur = options.pop("deblur", None)
-        deblur_opts = {k[len("deblur_"):]: options.pop(k) for k in list(options) if k.startswith("deblur_")}
+        deblur_opts = {
+            k[len("deblur_") :]: options.pop(k) for k in list(options) if k.startswith("deblur_")
+        }
         names = {f.name for f in dataclasses.fields(cls)}
         unknown = sorted(set(options) - names)
         if unknown:

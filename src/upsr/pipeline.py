@@ -1,15 +1,350 @@
-"""PLACEHOLDER being written: UP-SR video pipeline (streaming engine and batch API)."""
+"""The UP-SR video pipeline (paper Table 1) as a streaming engine and a batch function.
+
+For each reference frame t0 (every frame of the video):
+
+1. dense upsampling y_t↑ = U y_t (eq. 13–15), :mod:`upsr.upsampling`;
+2. bilateral prefilter and fixed 8-bit mapping, for motion only (§5.2), :mod:`upsr.motion`;
+3. optical flow between consecutive upsampled frames (§4, eq. 16–17), :mod:`upsr.motion`;
+4. cumulative motion to t0 by composition, with eq. 19 re-estimation, :mod:`upsr.registration`;
+5. nearest-neighbour warping of y_t↑ to t0 (eq. 20), :mod:`upsr.registration`;
+6. invalid-aware temporal median (eq. 28), :mod:`upsr.fusion`;
+7. L1 + BTV deblurring (eq. 29–30), then (beyond the paper) an edge-preserving smoothing of
+   each surface that turns the staircase of dense upsampling into ramps, :mod:`upsr.deblurring`.
+
+Windows: N frames with the reference in the middle (``(N-1)//2`` before it); near the ends of a
+video the window is shifted inwards so that it still holds N frames. Each consecutive flow (both
+directions), each upsampled and each prefiltered frame is computed once per video and shared
+by every window that needs it.
+"""
 
 from __future__ import annotations
 
+from collections.abc import Iterable, Iterator
+from typing import Any
+
 import numpy as np
+import numpy.typing as npt
 
 from .config import UPSRConfig
+from .deblurring import deblur, estimate_noise_mm
+from .errors import InputError
+from .fusion import temporal_median
+from .motion import (
+    FlowBackend,
+    bilateral_prefilter,
+    depth_range,
+    depth_to_u8,
+    make_flow_backend,
+    suppress_spurious_motion,
+)
+from .registration import (
+    cumulative_flows,
+    flows_to_reference,
+    occlusion_mask,
+    sample_offsets,
+    warp_nearest,
+)
 from .upsampling import upsample_nearest
-from .validation import as_depth_video
+from .validation import as_depth_frame, as_depth_video
+
+__all__ = ["UPSR", "super_resolve", "window_start"]
 
 
-def super_resolve(frames, scale, n_frames=9, *, config=None, progress=None, **options):
-    cfg = config or UPSRConfig.from_options(scale, n_frames, **options)
+def window_start(t: int, n_total: int, cfg: UPSRConfig) -> int:
+    """First frame of the window of reference frame ``t`` in a video of ``n_total`` frames."""
+    return int(min(max(t - cfg.half_before, 0), n_total - cfg.n_frames))
+
+
+class UPSR:
+    """Streaming UP-SR: push low-res frames one by one, get high-res frames back in order.
+
+    ``push(frame)`` returns the next finished high-res frame, or ``None`` while the first window
+    fills (the latency is N−1 frames); ``flush()`` returns the remaining ones at the end of the
+    video and makes the object ready for a new video; ``reset()`` forgets everything. The
+    output is identical to :func:`super_resolve` on the whole video.
+
+    Parameters
+    ----------
+    scale : int
+        SR factor r.
+    n_frames : int
+        Window length N.
+    config : UPSRConfig, optional
+        Full configuration (overrides ``scale``, ``n_frames`` and ``options``).
+    flow_backend : FlowBackend, optional
+        A flow estimator to use instead of ``config.flow``.
+    **options
+        Any :class:`~upsr.config.UPSRConfig` field (``deblur_*`` for :class:`DeblurConfig`).
+
+    Examples
+    --------
+    >>> import numpy as np, upsr
+    >>> engine = upsr.UPSR(scale=2, n_frames=3)
+    >>> video = np.full((5, 8, 8), 1500.0, np.float32)
+    >>> outs = [engine.push(f) for f in video]
+    >>> [o is None for o in outs]
+    [True, True, False, False, False]
+    >>> len(engine.flush())
+    2
+    """
+
+    def __init__(
+        self,
+        scale: int = 2,
+        n_frames: int = 9,
+        *,
+        config: UPSRConfig | None = None,
+        flow_backend: FlowBackend | None = None,
+        **options: Any,
+    ) -> None:
+        self.config = (
+            config if config is not None else UPSRConfig.from_options(scale, n_frames, **options)
+        )
+        self._custom_flow = flow_backend
+        self.reset()
+
+    # -- state -------------------------------------------------------------------------------
+    def reset(self) -> None:
+        """Forget all frames and flows (start a new video)."""
+        self._flow = self._custom_flow or make_flow_backend(
+            self.config.flow, self.config.flow_preset
+        )
+        self._shape: tuple[int, int] | None = None
+        self._count = 0
+        self._next_out = 0
+        self._any_valid = False
+        self._range: tuple[float, float] | None = self.config.depth_range_mm
+        self._edge_mm = self.config.edge_mm
+        self._noise_mm = 0.0
+        self._lowres: dict[int, np.ndarray] = {}
+        self._up: dict[int, np.ndarray] = {}
+        self._pre: dict[int, np.ndarray] = {}
+        self._guide: dict[int, np.ndarray] = {}
+        self._fwd: dict[int, np.ndarray] = {}
+        self._bwd: dict[int, np.ndarray] = {}
+
+    @property
+    def frames_seen(self) -> int:
+        """Number of frames pushed since the last reset/flush."""
+        return self._count
+
+    @property
+    def output_shape(self) -> tuple[int, int] | None:
+        """(r·h, r·w) once the first frame has been pushed."""
+        if self._shape is None:
+            return None
+        r = self.config.scale
+        return self._shape[0] * r, self._shape[1] * r
+
+    # -- per-frame work (once per video) --------------------------------------------------------
+    def _ingest(self, frame: npt.ArrayLike) -> None:
+        t = self._count
+        f = as_depth_frame(frame, name=f"frame {t}")
+        if self._shape is None:
+            self._shape = f.shape
+        elif f.shape != self._shape:
+            raise InputError(
+                f"frame {t}: shape {f.shape} differs from the first frame's {self._shape}"
+            )
+        cfg = self.config
+        self._any_valid = self._any_valid or bool((f > 0).any())
+        up = upsample_nearest(f, cfg.scale)
+        self._lowres[t] = f
+        self._up[t] = up
+        self._pre[t] = bilateral_prefilter(up, cfg.prefilter_sigma_mm, cfg.spatial_sigma_px)
+        self._count = t + 1
+        if self._count == cfg.n_frames:
+            first = [self._lowres[k] for k in sorted(self._lowres)]
+            if self._range is None:
+                self._range = depth_range(np.stack(first))
+            self._noise_mm = float(np.median([estimate_noise_mm(f) for f in first]))
+            self._edge_mm = max(cfg.edge_mm, 4.0 * self._noise_mm)
+        if self._range is not None:
+            for k in sorted(self._pre):
+                if k not in self._guide:
+                    self._guide[k] = depth_to_u8(self._pre[k], *self._range)
+                    if k - 1 in self._guide:
+                        self._fwd[k - 1] = self._consecutive_flow(k - 1, k)
+                        self._bwd[k] = self._consecutive_flow(k, k - 1)
+
+    def _consecutive_flow(self, a: int, b: int) -> np.ndarray:
+        """Flow from frame a to frame b (eq. 17), without motion the depth does not support."""
+        flow = self._flow(self._guide[a], self._guide[b])
+        return self._supported_flow(self._pre[a], self._pre[b], flow, units_per_mm=1.0)
+
+    def _refine_flow(self, first: np.ndarray, second: np.ndarray) -> np.ndarray:
+        """Residual flow between registered guide images (eq. 19), spurious motion removed."""
+        near, far = self._range  # type: ignore[misc]
+        flow = self._flow(first, second)
+        return self._supported_flow(
+            first.astype(np.float32),
+            second.astype(np.float32),
+            flow,
+            units_per_mm=254.0 / max(far - near, 1e-6),
+        )
+
+    def _supported_flow(
+        self, first: np.ndarray, second: np.ndarray, flow: np.ndarray, units_per_mm: float
+    ) -> np.ndarray:
+        """:func:`~upsr.motion.suppress_spurious_motion` on images in mm × ``units_per_mm``."""
+        if self.config.zero_motion_tolerance is None:
+            return flow
+        return suppress_spurious_motion(
+            first,
+            second,
+            flow,
+            window_px=2 * self.config.scale + 1,
+            tolerance=self.config.zero_motion_tolerance,
+            noise_mm=self._noise_mm * units_per_mm,
+            edge_mm=self._edge_mm * units_per_mm,
+        )
+
+    def _finish(self, t: int, n_total: int) -> np.ndarray:
+        cfg = self.config
+        s = window_start(t, n_total, cfg)
+        idx = range(s, s + cfg.n_frames)
+        ref = t - s
+        h, w = self.output_shape  # type: ignore[misc]
+        maps = cumulative_flows(
+            ref,
+            [self._bwd.get(k) for k in idx],
+            [self._fwd.get(k) for k in idx],
+            (h, w),
+            refine=self._refine_flow if cfg.refine else None,
+            guides=[self._guide[k] for k in idx],
+        )
+        stack = np.stack([warp_nearest(self._up[k], m) for k, m in zip(idx, maps, strict=False)])
+        if cfg.occlusion_px is not None and cfg.n_frames > 1:
+            back = flows_to_reference(
+                ref, [self._bwd.get(k) for k in idx], [self._fwd.get(k) for k in idx], (h, w)
+            )
+            ref_depth = stack[ref]
+            for j in range(cfg.n_frames):
+                if j != ref:
+                    other_surface = ~(np.abs(stack[j] - ref_depth) <= self._edge_mm)
+                    occluded = occlusion_mask(maps[j], back[j], cfg.occlusion_px) & other_surface
+                    stack[j][occluded] = np.nan
+        weights = None
+        if cfg.edge_weight_px:
+            d = np.stack([sample_offsets(m, cfg.scale) for m in maps])
+            s2 = 2.0 * (cfg.edge_weight_px * cfg.scale) ** 2
+            weights = cfg.edge_weight_floor + (1.0 - cfg.edge_weight_floor) * np.exp(-d * d / s2)
+        fused = temporal_median(
+            stack,
+            ref,
+            weights=weights,
+            min_valid_fraction=cfg.min_valid_fraction,
+            edge_mm=self._edge_mm,
+        )
+        # never invent depth where no frame of the window measured anything
+        fused[~np.any([self._up[k] > 0 for k in idx], axis=0)] = 0.0
+        out = deblur(fused, cfg.deblur, scale=cfg.scale)
+        # forget what no later window needs: the next window starts at window_start(t + 1, T)
+        # for a video of T >= frames_seen frames, which is at least this
+        keep_from = max(min(t + 1 - cfg.half_before, self._count - cfg.n_frames), 0)
+        for store in (self._lowres, self._up, self._pre, self._guide, self._fwd, self._bwd):
+            for k in [k for k in store if k < keep_from]:
+                del store[k]
+        return out
+
+    # -- public streaming API -------------------------------------------------------------------
+    def push(self, frame: npt.ArrayLike) -> np.ndarray | None:
+        """Add the next low-res frame (h, w) in mm; return the next finished high-res frame.
+
+        Returns
+        -------
+        ndarray float32 (r·h, r·w) or None
+            Output frame number ``frames_seen - N`` once N frames have been pushed, else None.
+        """
+        self._ingest(frame)
+        if self._count < self.config.n_frames:
+            return None
+        out = self._finish(self._next_out, n_total=self._count + self.config.n_frames)
+        self._next_out += 1
+        return out
+
+    def flush(self) -> list[np.ndarray]:
+        """Finish the video: return the high-res frames not returned yet, then reset.
+
+        Raises
+        ------
+        InputError
+            Fewer than N frames were pushed, or none of them had any valid depth.
+        """
+        try:
+            if self._count == 0:
+                return []
+            if self._count < self.config.n_frames:
+                raise InputError(
+                    f"N={self.config.n_frames} frames per window but the video has "
+                    f"only {self._count} frame(s)"
+                )
+            if not self._any_valid:
+                raise InputError("no valid depth in any frame (all pixels are 0 or NaN)")
+            outs = [self._finish(t, self._count) for t in range(self._next_out, self._count)]
+            return outs
+        finally:
+            self.reset()
+
+    def process(self, frames: Iterable[npt.ArrayLike]) -> Iterator[np.ndarray]:
+        """Super-resolve a stream of frames; yields one high-res frame per input frame."""
+        for frame in frames:
+            out = self.push(frame)
+            if out is not None:
+                yield out
+        yield from self.flush()
+
+
+def super_resolve(
+    frames: npt.ArrayLike,
+    scale: int,
+    n_frames: int = 9,
+    *,
+    config: UPSRConfig | None = None,
+    progress: bool | None = None,
+    **options: Any,
+) -> np.ndarray:
+    """Super-resolve a depth video with UP-SR (paper Table 1).
+
+    Parameters
+    ----------
+    frames : array_like, (T, h, w)
+        Depth in mm, float or integer; 0 or NaN = no measurement.
+    scale : int
+        SR factor r ≥ 1.
+    n_frames : int
+        Frames per window N (1 ≤ N ≤ T), reference in the middle.
+    config : UPSRConfig, optional
+        Full configuration; overrides ``scale``, ``n_frames`` and ``options``.
+    progress : bool, optional
+        Show a progress bar on stderr.
+    **options
+        Any :class:`~upsr.config.UPSRConfig` field, ``deblur_*`` for deblurring options.
+
+    Returns
+    -------
+    ndarray float32 (T, r·h, r·w)
+        Depth in mm, 0 where nothing is known.
+
+    Raises
+    ------
+    InputError
+        Bad data (shape, dtype, ±inf, negative depth, no valid depth) or parameters.
+    """
+    cfg = config if config is not None else UPSRConfig.from_options(scale, n_frames, **options)
     video = as_depth_video(frames)
-    return upsample_nearest(video, cfg.scale).astype(np.float32)
+    t_total, h, w = video.shape
+    if cfg.n_frames > t_total:
+        raise InputError(
+            f"N={cfg.n_frames} frames per window but the video has only {t_total} frame(s)"
+        )
+    out = np.empty((t_total, h * cfg.scale, w * cfg.scale), np.float32)
+    engine = UPSR(config=cfg)
+    results = engine.process(video)
+    if progress:
+        from tqdm import tqdm
+
+        results = tqdm(results, total=t_total, unit="frame", desc="upsr", leave=False)
+    for t, frame in enumerate(results):
+        out[t] = frame
+    return out

@@ -11,7 +11,7 @@ import numpy.typing as npt
 
 from .errors import InputError
 
-__all__ = ["upsample_nearest", "decimate", "downsample_mean"]
+__all__ = ["decimate", "downsample_mean", "upsample_nearest"]
 
 
 def _check_scale(r: int) -> int:

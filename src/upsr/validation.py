@@ -30,9 +30,12 @@ def as_depth_frame(frame: npt.ArrayLike, *, name: str = "frame") -> np.ndarray:
         Wrong number of dimensions, empty, non-numeric dtype, ±inf or negative depths.
     """
     arr = np.asarray(frame)
-    if arr.dtype == object or not (np.issubdtype(arr.dtype, np.integer)
-                                   or np.issubdtype(arr.dtype, np.floating)):
-        raise InputError(f"{name}: depth must be a numeric array (float or integer), got dtype {arr.dtype}")
+    if arr.dtype == object or not (
+        np.issubdtype(arr.dtype, np.integer) or np.issubdtype(arr.dtype, np.floating)
+    ):
+        raise InputError(
+            f"{name}: depth must be a numeric array (float or integer), got dtype {arr.dtype}"
+        )
     if arr.ndim != 2:
         raise InputError(f"{name}: expected a 2-D depth frame (h, w), got shape {arr.shape}")
     if arr.size == 0:
@@ -62,7 +65,9 @@ def as_depth_video(frames: npt.ArrayLike, *, name: str = "input") -> np.ndarray:
     if arr.dtype == object:
         raise InputError(f"{name}: object arrays are not depth data")
     if arr.ndim != 3:
-        raise InputError(f"{name}: expected a depth video of shape (T, h, w), got shape {arr.shape}")
+        raise InputError(
+            f"{name}: expected a depth video of shape (T, h, w), got shape {arr.shape}"
+        )
     if 0 in arr.shape:
         raise InputError(f"{name}: empty depth video of shape {arr.shape}")
     out = np.empty(arr.shape, np.float32)

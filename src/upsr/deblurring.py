@@ -1,0 +1,272 @@
+r"""Deblurring of the fused image with an L1 data term and bilateral total variation (eq. 29–30).
+
+.. math::
+
+    \hat x = \arg\min_x \; \|B x - z\|_1 + \lambda\, \Gamma_{BTV}(x), \qquad
+    \Gamma_{BTV}(x) = \sum_{l,m=-P}^{P} \alpha^{|l|+|m|} \, \|x - S_x^l S_y^m x\|_1
+
+(Farsiu et al. 2004). Depth-specific rules:
+
+* only pixels valid in z (> 0) are unknowns; invalid pixels stay 0, never enter a blur or a
+  BTV difference;
+* with ``edge_mm`` set, BTV pairs across a depth discontinuity of the fused image (|Δz| >
+  ``edge_mm``) are left out, so the regulariser never pulls foreground and background towards
+  each other (no flying pixels). ``edge_mm=None`` gives the paper's plain BTV.
+
+Solver: steepest descent on the subgradient (the paper's), normalised so that no pixel moves by
+more than β_k per step, with the geometric schedule β_k = β₀·decay^k.
+"""
+
+from __future__ import annotations
+
+import cv2
+import numba as nb
+import numpy as np
+import numpy.typing as npt
+
+from .config import DeblurConfig
+from .motion import bilateral_prefilter
+
+__all__ = [
+    "btv_energy",
+    "btv_subgradient",
+    "deblur",
+    "deblur_energy",
+    "estimate_noise_mm",
+    "smooth_surfaces",
+]
+
+
+@nb.njit(cache=True, nogil=True, parallel=True)
+def _btv_kernel(x, guide, radius, alpha, edge_mm, out):  # pragma: no cover - numba
+    h, w = x.shape
+    for i in nb.prange(h):
+        for j in range(w):
+            xv = x[i, j]
+            gv = guide[i, j]
+            if gv <= 0:
+                out[i, j] = 0.0
+                continue
+            acc = 0.0
+            for dl in range(-radius, radius + 1):
+                ii = i + dl
+                if ii < 0 or ii >= h:
+                    continue
+                wl = alpha ** abs(dl)
+                for dm in range(-radius, radius + 1):
+                    if dl == 0 and dm == 0:
+                        continue
+                    jj = j + dm
+                    if jj < 0 or jj >= w:
+                        continue
+                    gn = guide[ii, jj]
+                    if gn <= 0 or abs(gn - gv) > edge_mm:
+                        continue
+                    d = xv - x[ii, jj]
+                    if d > 0:
+                        acc += wl * alpha ** abs(dm)
+                    elif d < 0:
+                        acc -= wl * alpha ** abs(dm)
+            out[i, j] = 2.0 * acc
+
+
+@nb.njit(cache=True, nogil=True)
+def _btv_energy_kernel(x, guide, radius, alpha, edge_mm):  # pragma: no cover - numba
+    h, w = x.shape
+    total = 0.0
+    for i in range(h):
+        for j in range(w):
+            gv = guide[i, j]
+            if gv <= 0:
+                continue
+            for dl in range(-radius, radius + 1):
+                ii = i + dl
+                if ii < 0 or ii >= h:
+                    continue
+                for dm in range(-radius, radius + 1):
+                    jj = j + dm
+                    if (dl == 0 and dm == 0) or jj < 0 or jj >= w:
+                        continue
+                    gn = guide[ii, jj]
+                    if gn <= 0 or abs(gn - gv) > edge_mm:
+                        continue
+                    total += alpha ** (abs(dl) + abs(dm)) * abs(x[i, j] - x[ii, jj])
+    return total
+
+
+def _edge(edge_mm: float | None) -> float:
+    return np.inf if edge_mm is None else float(edge_mm)
+
+
+def btv_energy(
+    x: npt.ArrayLike,
+    guide: npt.ArrayLike,
+    *,
+    radius_px: int = 2,
+    alpha: float = 0.7,
+    edge_mm: float | None = None,
+) -> float:
+    """Γ_BTV(x) of eq. 29 over the pairs of pixels valid in ``guide`` (and on one surface)."""
+    return float(
+        _btv_energy_kernel(
+            np.ascontiguousarray(x, np.float64),
+            np.ascontiguousarray(guide, np.float64),
+            int(radius_px),
+            float(alpha),
+            _edge(edge_mm),
+        )
+    )
+
+
+def btv_subgradient(
+    x: npt.ArrayLike,
+    guide: npt.ArrayLike,
+    *,
+    radius_px: int = 2,
+    alpha: float = 0.7,
+    edge_mm: float | None = None,
+) -> np.ndarray:
+    """Subgradient of :func:`btv_energy` with respect to x (one fused pass, no temporaries).
+
+    Because the shifts l, m = −P…P come in opposite pairs, ∂Γ/∂x_p =
+    2 Σ_{(l,m)≠0} α^{|l|+|m|} sign(x_p − x_{p+(l,m)}) over the admissible pairs.
+    """
+    xa = np.ascontiguousarray(x, np.float32)
+    out = np.empty_like(xa)
+    _btv_kernel(
+        xa,
+        np.ascontiguousarray(guide, np.float32),
+        int(radius_px),
+        float(alpha),
+        _edge(edge_mm),
+        out,
+    )
+    return out
+
+
+class _MaskedBlur:
+    """B restricted to the valid pixels: B x = (K ∗ (m·x)) / (K ∗ m) on m, a linear operator
+    with adjoint Bᵀ g = m · K ∗ (m·g / (K ∗ m)) (K symmetric)."""
+
+    def __init__(self, mask: np.ndarray, model: str, sigma_px: float, scale: int) -> None:
+        self.mask = mask.astype(np.float32)
+        if model == "box":
+            k = max(int(scale), 1)
+            self._apply = lambda a: cv2.blur(a, (k, k), borderType=cv2.BORDER_CONSTANT)
+        else:
+            self._apply = lambda a: cv2.GaussianBlur(
+                a, (0, 0), sigma_px, borderType=cv2.BORDER_CONSTANT
+            )
+        norm = self._apply(self.mask)
+        self._inv_norm = np.where(norm > 1e-6, 1.0 / np.maximum(norm, 1e-6), 0.0).astype(np.float32)
+
+    def forward(self, x: np.ndarray) -> np.ndarray:
+        return self._apply(x * self.mask) * self._inv_norm * self.mask
+
+    def adjoint(self, g: np.ndarray) -> np.ndarray:
+        return self._apply(g * self.mask * self._inv_norm) * self.mask
+
+
+def _blur_operator(mask: np.ndarray, cfg: DeblurConfig, scale: int) -> _MaskedBlur | None:
+    if cfg.blur == "none" or (cfg.blur == "box" and scale <= 1):
+        return None
+    return _MaskedBlur(mask, cfg.blur, cfg.blur_sigma_px, scale)
+
+
+def deblur_energy(x: npt.ArrayLike, z: npt.ArrayLike, cfg: DeblurConfig, scale: int = 1) -> float:
+    """The objective of eq. 30, ‖Bx − z‖₁ + λ Γ_BTV(x), over the pixels valid in z."""
+    z = np.asarray(z, np.float32)
+    x = np.asarray(x, np.float32)
+    mask = z > 0
+    op = _blur_operator(mask, cfg, scale)
+    bx = x if op is None else op.forward(x)
+    data = float(np.abs(bx - z)[mask].sum(dtype=np.float64))
+    return data + cfg.lam * btv_energy(
+        x, z, radius_px=cfg.radius_px, alpha=cfg.alpha, edge_mm=cfg.edge_mm
+    )
+
+
+def estimate_noise_mm(z: npt.ArrayLike, lag_px: int = 1) -> float:
+    """Robust std (mm) of the noise in a depth image.
+
+    1.4826·MAD/√2 of the differences between pixels ``lag_px`` apart (horizontally and
+    vertically), over pairs of valid pixels on one surface (|Δ| < 100 mm). Use the SR factor as
+    the lag for a fused image, whose noise comes in r×r blocks.
+    """
+    z = np.asarray(z, np.float32)
+    diffs = []
+    for a, b in ((z[:, lag_px:], z[:, :-lag_px]), (z[lag_px:, :], z[:-lag_px, :])):
+        d = (a - b)[(a > 0) & (b > 0)]
+        diffs.append(d[np.abs(d) < 100.0])
+    d = np.concatenate(diffs)
+    if d.size == 0:
+        return 0.0
+    return float(1.4826 * np.median(np.abs(d - np.median(d))) / np.sqrt(2.0))
+
+
+def deblur(z: npt.ArrayLike, cfg: DeblurConfig | None = None, *, scale: int = 1) -> np.ndarray:
+    """Estimate x̂ of eq. 30 from the fused image z by normalised subgradient descent, then
+    smooth each surface (``cfg.smooth_sigma_mm``, beyond the paper).
+
+    Parameters
+    ----------
+    z : array_like, (H, W)
+        Fused depth (mm), 0 = unknown.
+    cfg : DeblurConfig
+        λ, α, P, blur model, step schedule, iterations, edge rule (see :class:`DeblurConfig`).
+    scale : int
+        SR factor r (size of the ``"box"`` blur model).
+
+    Returns
+    -------
+    ndarray float32 (H, W), 0 exactly where z is 0.
+    """
+    cfg = cfg or DeblurConfig()
+    z = np.ascontiguousarray(z, np.float32)
+    mask = z > 0
+    if not cfg.enabled or not mask.any():
+        return z.copy()
+    op = _blur_operator(mask, cfg, scale)
+    beta = cfg.step_mm if cfg.step_mm is not None else max(0.5, estimate_noise_mm(z, scale))
+    s1 = sum(cfg.alpha ** abs(k) for k in range(-cfg.radius_px, cfg.radius_px + 1))
+    norm = 1.0 + cfg.lam * 2.0 * (s1 * s1 - 1.0)
+    x = z.copy()
+    reg = np.empty_like(z)
+    edge = _edge(cfg.edge_mm)
+    for _ in range(cfg.iterations):
+        if op is None:
+            grad = np.sign(x - z)
+        else:
+            grad = op.adjoint(np.sign(op.forward(x) - z))
+        _btv_kernel(x, z, cfg.radius_px, cfg.alpha, edge, reg)
+        grad += cfg.lam * reg
+        x -= (beta / norm) * grad
+        x[~mask] = 0.0
+        beta *= cfg.step_decay
+    np.maximum(x, np.float32(1e-3), out=x, where=mask)
+    if cfg.smooth_sigma_mm is not None:
+        sigma_px = cfg.smooth_sigma_px if cfg.smooth_sigma_px is not None else 0.5 * scale
+        x = smooth_surfaces(x, cfg.smooth_sigma_mm, sigma_px)
+    return x
+
+
+def smooth_surfaces(depth_mm: npt.ArrayLike, sigma_mm: float, sigma_px: float) -> np.ndarray:
+    """Edge-preserving bilateral smoothing of a high-res depth frame, surface by surface.
+
+    Not in the paper: after the fusion (and deblurring) a slanted surface still shows the
+    r×r staircase of dense upsampling wherever the motion did not sample it at sub-pixel
+    offsets. A bilateral filter with a small range std ``sigma_mm`` turns the steps into the
+    ramp they sample, without mixing surfaces: samples across a depth edge of more than a few
+    ``sigma_mm`` get no weight (a 5·σ jump gets exp(−12.5) ≈ 4·10⁻⁶ of the weight), so no depth
+    between foreground and background is created. Invalid pixels (0) stay 0.
+
+    Parameters
+    ----------
+    depth_mm : array_like (H, W)
+        Depth in mm, 0 = unknown.
+    sigma_mm : float
+        Range std (mm).
+    sigma_px : float
+        Spatial std (px); the window diameter is 2·⌈2·sigma_px⌉ + 1.
+    """
+    return bilateral_prefilter(depth_mm, sigma_mm, sigma_px)

@@ -1,0 +1,222 @@
+"""Motion estimation on upsampled depth frames (paper §4, §5.2).
+
+The flow is computed between *consecutive upsampled* frames y_t↑ (eq. 16–17): upsampling first
+gives the pyramid more levels and sub-pixel accuracy on the high-res grid (eq. 9–12). The depth
+frames are bilateral-prefiltered (§5.2) and mapped to 8 bit with **one fixed mapping per video**
+(never per frame: a per-frame mapping would change the brightness of a static surface whenever
+something else enters the view and break the brightness constancy the flow relies on).
+
+Flow convention: ``flow[i, j] = (dx, dy)`` maps the pixel (x=j, y=i) of the first image to
+(x+dx, y+dy) in the second, i.e. ``first(p) ≈ second(p + flow(p))`` (OpenCV's convention).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import Protocol
+
+import cv2
+import numpy as np
+import numpy.typing as npt
+
+from .errors import InputError
+
+__all__ = [
+    "FlowBackend",
+    "available_flow_backends",
+    "bilateral_prefilter",
+    "depth_range",
+    "depth_to_u8",
+    "make_flow_backend",
+    "register_flow_backend",
+    "suppress_spurious_motion",
+]
+
+
+class FlowBackend(Protocol):
+    """A dense optical-flow estimator ``(first_u8, second_u8) -> flow (H, W, 2) float32``."""
+
+    def __call__(self, first: np.ndarray, second: np.ndarray) -> np.ndarray: ...
+
+
+def bilateral_prefilter(depth_mm: npt.ArrayLike, sigma_mm: float, sigma_px: float) -> np.ndarray:
+    """Edge-preserving bilateral filter of an (upsampled) depth frame, for motion only (§5.2).
+
+    Invalid pixels (0) keep the value 0 and, being far from any real depth in range, get a
+    negligible weight in their valid neighbours.
+
+    Parameters
+    ----------
+    depth_mm : array_like, (H, W)
+        Depth in mm, 0 = invalid.
+    sigma_mm : float
+        Range standard deviation (mm).
+    sigma_px : float
+        Spatial standard deviation (px); the window diameter is 2·⌈2·sigma_px⌉ + 1.
+
+    Returns
+    -------
+    ndarray float32 (H, W)
+    """
+    src = np.ascontiguousarray(depth_mm, dtype=np.float32)
+    diameter = 2 * int(np.ceil(2.0 * sigma_px)) + 1
+    out = cv2.bilateralFilter(src, diameter, float(sigma_mm), float(sigma_px))
+    out[src <= 0] = 0.0
+    return out
+
+
+def depth_range(
+    frames_mm: npt.ArrayLike, *, low_pct: float = 1.0, high_pct: float = 99.0, margin: float = 0.1
+) -> tuple[float, float]:
+    """A fixed (near, far) depth range (mm) for the 8-bit mapping of a whole video.
+
+    Percentiles of the valid depths of ``frames_mm`` widened by ``margin`` of the span on both
+    sides. With no valid depth, (0, 10000) mm.
+    """
+    arr = np.asarray(frames_mm, dtype=np.float32)
+    valid = arr[arr > 0]
+    if valid.size == 0:
+        return 0.0, 10000.0
+    near, far = np.percentile(valid, [low_pct, high_pct]).astype(float)
+    span = max(far - near, 1.0)
+    return max(0.0, near - margin * span), far + margin * span
+
+
+def depth_to_u8(depth_mm: npt.ArrayLike, near_mm: float, far_mm: float) -> np.ndarray:
+    """Map depth to an 8-bit image for optical flow: near → 255, far → 1, invalid → 0."""
+    d = np.asarray(depth_mm, dtype=np.float32)
+    scale = 254.0 / max(far_mm - near_mm, 1e-6)
+    img = 255.0 - (np.clip(d, near_mm, far_mm) - near_mm) * scale
+    img[d <= 0] = 0.0
+    return np.rint(img).astype(np.uint8)
+
+
+def suppress_spurious_motion(
+    first_mm: np.ndarray,
+    second_mm: np.ndarray,
+    flow: np.ndarray,
+    *,
+    window_px: int = 7,
+    tolerance: float = 1.1,
+    noise_mm: float = 0.0,
+    edge_mm: float | None = None,
+) -> np.ndarray:
+    """Set the flow to zero where "no motion" explains the depth as well as the flow does.
+
+    Depth surfaces carry little texture, and a patch-based flow readily matches the noise of a
+    static surface. For each pixel, the mean squared residual over a ``window_px`` window of
+    the motion-compensated second frame, ``first − second∘flow``, is compared with that of the
+    unwarped one, ``first − second``; where the latter is not larger than ``tolerance`` times
+    the former plus ``noise_mm``², the motion is not supported by the data and is set to 0:
+    either nothing moves there, or the motion changes the depth by less than the noise, so that
+    it does not matter for the fusion. Pixels invalid in either frame are ignored.
+
+    Parameters
+    ----------
+    first_mm, second_mm : ndarray (H, W)
+        The (prefiltered, upsampled) depth frames the flow was estimated on, in mm.
+    flow : ndarray (H, W, 2)
+        Flow from ``first`` to ``second``.
+    window_px : int
+        Side of the averaging window (px).
+    tolerance : float
+        Relative margin granted to the zero motion (≥ 1).
+    noise_mm : float
+        Absolute margin (mm, root mean square per pixel) granted to the zero motion.
+    edge_mm : float or None
+        If given, the flow is kept wherever the window holds a depth edge (a depth span larger
+        than ``edge_mm``, invalid pixels included): at edges the motion is what places them.
+
+    Returns
+    -------
+    ndarray (H, W, 2) float32, a copy of ``flow`` with the unsupported motion zeroed.
+    """
+    h, w = first_mm.shape
+    ys, xs = np.mgrid[0:h, 0:w].astype(np.float32)
+    warped = cv2.remap(
+        second_mm,
+        xs + flow[..., 0],
+        ys + flow[..., 1],
+        cv2.INTER_NEAREST,
+        borderMode=cv2.BORDER_REPLICATE,
+    )
+    valid = ((first_mm > 0) & (second_mm > 0) & (warped > 0)).astype(np.float32)
+    k = (window_px, window_px)
+    res_flow = cv2.boxFilter((first_mm - warped) ** 2 * valid, -1, k)
+    res_zero = cv2.boxFilter((first_mm - second_mm) ** 2 * valid, -1, k)
+    out = flow.copy()
+    unsupported = res_zero <= tolerance * res_flow + noise_mm**2
+    if edge_mm is not None:
+        kernel = np.ones(k, np.uint8)
+        span = cv2.dilate(first_mm, kernel) - cv2.erode(first_mm, kernel)
+        unsupported &= span <= edge_mm
+    out[unsupported] = 0.0
+    return out
+
+
+_MIN_FLOW_SIZE = 16
+
+_DIS_PRESETS = {
+    "ultrafast": cv2.DISOPTICAL_FLOW_PRESET_ULTRAFAST,
+    "fast": cv2.DISOPTICAL_FLOW_PRESET_FAST,
+    "medium": cv2.DISOPTICAL_FLOW_PRESET_MEDIUM,
+}
+
+
+def _dis_factory(preset: str = "medium") -> FlowBackend:
+    """OpenCV's DIS optical flow (Kroeger et al. 2016): pyramidal, patch-based, fast."""
+    dis = cv2.DISOpticalFlow_create(_DIS_PRESETS[preset])
+
+    def flow(first: np.ndarray, second: np.ndarray) -> np.ndarray:
+        h, w = first.shape[:2]
+        if min(h, w) >= _MIN_FLOW_SIZE:
+            return dis.calc(first, second, None)
+        # DIS needs images of at least 12 px: pad tiny frames by edge replication, then crop
+        ph, pw = max(_MIN_FLOW_SIZE - h, 0), max(_MIN_FLOW_SIZE - w, 0)
+        a, b = (
+            cv2.copyMakeBorder(im, 0, ph, 0, pw, cv2.BORDER_REPLICATE) for im in (first, second)
+        )
+        return np.ascontiguousarray(dis.calc(a, b, None)[:h, :w])
+
+    return flow
+
+
+def _farneback_factory(preset: str = "medium") -> FlowBackend:
+    """OpenCV's Farnebäck polynomial-expansion flow (pyramidal)."""
+    levels = {"ultrafast": 3, "fast": 4, "medium": 5}[preset]
+
+    def flow(first: np.ndarray, second: np.ndarray) -> np.ndarray:
+        return cv2.calcOpticalFlowFarneback(first, second, None, 0.5, levels, 15, 3, 5, 1.2, 0)
+
+    return flow
+
+
+_BACKENDS: dict[str, Callable[..., FlowBackend]] = {
+    "dis": _dis_factory,
+    "farneback": _farneback_factory,
+}
+
+
+def register_flow_backend(name: str, factory: Callable[..., FlowBackend]) -> None:
+    """Make a flow backend available by name.
+
+    ``factory(preset=...)`` must return a :class:`FlowBackend`; it is called once per video
+    (backends may keep state between calls).
+    """
+    _BACKENDS[name] = factory
+
+
+def available_flow_backends() -> list[str]:
+    """Names accepted by :func:`make_flow_backend` (and ``UPSRConfig.flow``)."""
+    return sorted(_BACKENDS)
+
+
+def make_flow_backend(name: str = "dis", preset: str = "medium") -> FlowBackend:
+    """Instantiate the flow backend ``name`` (see :func:`available_flow_backends`)."""
+    try:
+        factory = _BACKENDS[name]
+    except KeyError:
+        raise InputError(
+            f"unknown flow backend {name!r} (available: {', '.join(available_flow_backends())})"
+        ) from None
+    return factory(preset=preset)

@@ -1,0 +1,213 @@
+"""Cumulative registration of a window of frames to its reference (paper §5.2, eq. 16–21).
+
+Only consecutive motions are estimated; the motion from the reference t0 to a frame t is the
+*composition* of the consecutive ones (eq. 20–21, ``SPEC.md`` §2.4): a pixel p of the reference
+moves to q = p + C_{t+1}(p) in frame t+1, and from there to q + F_{t+1→t}(q) in frame t, so
+C_t(p) = C_{t+1}(p) + F_{t+1→t}(p + C_{t+1}(p)) — the next flow is sampled at the already
+displaced position, it is not simply added.
+
+Eq. 19 (re-estimation against the already registered neighbour) is applied as a residual flow
+on the reference grid between the registered neighbour and the newly registered frame, composed
+into the cumulative motion: drift along the chain is measured and removed at every step.
+
+Flows are (H, W, 2) float32 arrays, ``flow[i, j] = (dx, dy)``; a flow "from a to b" is defined on
+a's grid and maps a's pixel p to p + flow(p) in b.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+
+import cv2
+import numpy as np
+import numpy.typing as npt
+
+__all__ = [
+    "add_flows",
+    "compose_flows",
+    "cumulative_flows",
+    "flows_to_reference",
+    "identity_grid",
+    "occlusion_mask",
+    "sample_offsets",
+    "warp_guide",
+    "warp_nearest",
+]
+
+
+def identity_grid(height: int, width: int) -> tuple[np.ndarray, np.ndarray]:
+    """Pixel coordinates (x, y) of an (height, width) grid as float32 arrays."""
+    ys, xs = np.mgrid[0:height, 0:width].astype(np.float32)
+    return xs, ys
+
+
+def compose_flows(first: np.ndarray, second: np.ndarray) -> np.ndarray:
+    """Chain two dense motions (eq. 20): first a→b (on a's grid), then b→c (on b's grid).
+
+    Returns the a→c flow ``first(p) + second(p + first(p))``, ``second`` sampled bilinearly at the
+    displaced positions (clamped at the border).
+    """
+    h, w = first.shape[:2]
+    xs, ys = identity_grid(h, w)
+    map_x = xs + first[..., 0]
+    map_y = ys + first[..., 1]
+    sampled = cv2.remap(second, map_x, map_y, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
+    return first + sampled
+
+
+def add_flows(first: np.ndarray, second: np.ndarray) -> np.ndarray:
+    """The naive chaining ``first + second`` (both read at the same pixel) — wrong for
+    non-rigid motion; kept as the baseline that :func:`compose_flows` is tested against."""
+    return first + second
+
+
+def warp_nearest(image: npt.ArrayLike, flow: np.ndarray, fill: float = np.nan) -> np.ndarray:
+    """Register ``image`` (frame t) to the reference grid: ``out(p) = image(round(p + flow(p)))``.
+
+    Nearest-neighbour sampling (never interpolates depth). Samples that fall outside the frame
+    get ``fill`` (NaN by default: "outside", which abstains in the fusion, unlike 0 = "no
+    return").
+    """
+    img = np.asarray(image)
+    h, w = img.shape[:2]
+    xs, ys = identity_grid(h, w)
+    xi = np.floor(xs + flow[..., 0] + 0.5).astype(np.intp)
+    yi = np.floor(ys + flow[..., 1] + 0.5).astype(np.intp)
+    inside = (xi >= 0) & (xi < w) & (yi >= 0) & (yi < h)
+    out = np.full(
+        img.shape,
+        fill,
+        dtype=np.result_type(img.dtype, np.float32) if np.isnan(fill) else img.dtype,
+    )
+    out[inside] = img[yi[inside], xi[inside]]
+    return out
+
+
+def flows_to_reference(
+    ref: int,
+    backward: Sequence[np.ndarray | None],
+    forward: Sequence[np.ndarray | None],
+    shape: tuple[int, int],
+) -> list[np.ndarray]:
+    """Motion from every frame of a window back to its reference, by composition.
+
+    The mirror of :func:`cumulative_flows`: for t < t0, C_{t→t0} = F_{t→t+1} then C_{t+1→t0}
+    (and symmetrically after t0). Used for the forward–backward consistency check of
+    :func:`occlusion_mask`.
+    """
+    n = len(forward)
+    maps: list[np.ndarray | None] = [None] * n
+    maps[ref] = np.zeros((*shape, 2), np.float32)
+    for direction, consecutive in ((-1, forward), (1, backward)):
+        j = ref + direction
+        while 0 <= j < n:
+            step = consecutive[j]
+            assert step is not None
+            maps[j] = compose_flows(step, maps[j - direction])  # type: ignore[arg-type]
+            j += direction
+    return maps  # type: ignore[return-value]
+
+
+def occlusion_mask(
+    to_frame: np.ndarray, to_reference: np.ndarray, threshold_px: float
+) -> np.ndarray:
+    """Reference pixels whose motion to frame t is not confirmed by the motion back.
+
+    A reference pixel p goes to q = p + C_{t0→t}(p); if frame t's pixel q does not come back
+    near p (|C_{t0→t}(p) + C_{t→t0}(q)| > ``threshold_px``), p is occluded in frame t (or its
+    motion is wrong) and frame t's sample there must not vote: it shows another surface.
+    """
+    round_trip = compose_flows(to_frame, to_reference)
+    return np.hypot(round_trip[..., 0], round_trip[..., 1]) > threshold_px
+
+
+def sample_offsets(flow: np.ndarray, scale: int) -> np.ndarray:
+    """Distance (high-res px) between where each reference pixel lands in frame t and the centre
+    of the low-res pixel that :func:`warp_nearest` samples there.
+
+    A low-res pixel is a point sample of the scene at its centre ((i+0.5)·r − 0.5, ``SPEC.md``
+    §1); its value describes the reference pixel the better, the closer that centre is to the
+    registered position. Used to weight the votes of the fusion at depth edges.
+    """
+    h, w = flow.shape[:2]
+    xs, ys = identity_grid(h, w)
+    qx = xs + flow[..., 0]
+    qy = ys + flow[..., 1]
+    cx = (np.floor(np.floor(qx + 0.5) / scale) + 0.5) * scale - 0.5
+    cy = (np.floor(np.floor(qy + 0.5) / scale) + 0.5) * scale - 0.5
+    return np.hypot(qx - cx, qy - cy).astype(np.float32)
+
+
+def warp_guide(image: np.ndarray, flow: np.ndarray) -> np.ndarray:
+    """Register an 8-bit motion guide image with bilinear sampling (0 outside the frame).
+
+    Only for the images the flow is estimated on (eq. 19): sub-pixel accuracy matters there,
+    and they are never fused. Depth itself is only ever warped by :func:`warp_nearest`.
+    """
+    h, w = image.shape[:2]
+    xs, ys = identity_grid(h, w)
+    return cv2.remap(
+        image,
+        xs + flow[..., 0],
+        ys + flow[..., 1],
+        cv2.INTER_LINEAR,
+        borderMode=cv2.BORDER_CONSTANT,
+        borderValue=0,
+    )
+
+
+def cumulative_flows(
+    ref: int,
+    backward: Sequence[np.ndarray | None],
+    forward: Sequence[np.ndarray | None],
+    shape: tuple[int, int],
+    *,
+    refine: Callable[[np.ndarray, np.ndarray], np.ndarray] | None = None,
+    guides: Sequence[np.ndarray] | None = None,
+) -> list[np.ndarray]:
+    """Motion from the reference to every frame of a window, by composition (eq. 20–21).
+
+    Parameters
+    ----------
+    ref : int
+        Index of the reference frame in the window (0 … N−1).
+    backward : sequence of N flows
+        ``backward[j]`` is the consecutive flow from frame j to frame j−1 (``backward[0]`` unused).
+    forward : sequence of N flows
+        ``forward[j]`` is the consecutive flow from frame j to frame j+1 (``forward[N-1]`` unused).
+    shape : (H, W)
+        Size of the (upsampled) frames in px.
+    refine : callable, optional
+        Flow backend used for the eq. 19 re-estimation: for each frame, in order of distance from
+        the reference, the residual flow between its registered neighbour and its own registered
+        image (``guides`` warped with the current cumulative flow) is composed into the motion.
+    guides : sequence of N uint8 images, optional
+        The images the flow is computed on (required with ``refine``).
+
+    Returns
+    -------
+    list of N flows from the reference grid to each frame (zero for the reference itself).
+    """
+    n = len(forward)
+    h, w = shape
+    maps: list[np.ndarray | None] = [None] * n
+    maps[ref] = np.zeros((h, w, 2), np.float32)
+    registered: list[np.ndarray | None] = [None] * n
+    if refine is not None:
+        if guides is None:
+            raise ValueError("refine needs the guide images")
+        registered[ref] = guides[ref]
+    for direction, consecutive in ((-1, backward), (1, forward)):
+        j = ref + direction
+        while 0 <= j < n:
+            nb = j - direction
+            step = consecutive[nb]
+            assert step is not None and maps[nb] is not None
+            cum = compose_flows(maps[nb], step)
+            if refine is not None:
+                residual = refine(registered[nb], warp_guide(guides[j], cum))  # type: ignore
+                cum = compose_flows(residual, cum)
+                registered[j] = warp_guide(guides[j], cum)  # type: ignore[index]
+            maps[j] = cum
+            j += direction
+    return maps  # type: ignore[return-value]

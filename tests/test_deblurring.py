@@ -1,0 +1,84 @@
+import numpy as np
+import pytest
+
+from upsr.config import DeblurConfig
+from upsr.deblurring import (
+    btv_energy,
+    btv_subgradient,
+    deblur,
+    deblur_energy,
+    estimate_noise_mm,
+)
+
+
+@pytest.mark.parametrize("edge_mm", [None, 100.0])
+def test_btv_subgradient_matches_numerical_gradient(edge_mm):
+    rng = np.random.default_rng(1)
+    x = rng.uniform(1000, 1050, (9, 11))
+    guide = x.copy()
+    guide[4, 5] = 0  # an invalid pixel takes no part
+    guide[:, 8:] += 500  # a depth edge (pairs across it are cut when edge_mm is set)
+    eps = 1e-3
+    grad = btv_subgradient(x, guide, radius_px=2, alpha=0.7, edge_mm=edge_mm)
+    for i, j in [(0, 0), (4, 4), (4, 7), (8, 10), (2, 8), (5, 5)]:
+        xp, xm = x.copy(), x.copy()
+        xp[i, j] += eps
+        xm[i, j] -= eps
+        kw = {"radius_px": 2, "alpha": 0.7, "edge_mm": edge_mm}
+        num = (btv_energy(xp, guide, **kw) - btv_energy(xm, guide, **kw)) / (2 * eps)
+        expected = num if guide[i, j] > 0 else 0.0
+        assert grad[i, j] == pytest.approx(expected, rel=1e-4, abs=1e-4)
+
+
+def test_edge_rule_cuts_pairs_across_discontinuities():
+    x = np.full((6, 6), 1000.0)
+    x[:, 3:] = 2000.0
+    g_plain = btv_subgradient(x, x, edge_mm=None)
+    g_edge = btv_subgradient(x, x, edge_mm=100.0)
+    assert np.abs(g_plain[:, 2]).max() > 0
+    assert np.abs(g_edge).max() == 0
+
+
+def _noisy_step(seed=0, sigma=20.0):
+    rng = np.random.default_rng(seed)
+    truth = np.full((40, 40), 1500.0, np.float32)
+    truth[:, 20:] = 2500.0
+    truth[:3, :3] = 0.0
+    z = truth + rng.laplace(0, sigma / np.sqrt(2), truth.shape).astype(np.float32)
+    z[truth == 0] = 0
+    return truth, z
+
+
+def test_deblur_denoises_keeps_edges_and_invalid():
+    truth, z = _noisy_step()
+    cfg = DeblurConfig()
+    x = deblur(z, cfg, scale=2)
+    valid = truth > 0
+    err_in = np.sqrt(np.mean((z - truth)[valid] ** 2))
+    err_out = np.sqrt(np.mean((x - truth)[valid] ** 2))
+    assert err_out < 0.6 * err_in
+    assert (x[~valid] == 0).all() and (x[valid] > 0).all()
+    # no depth between the two surfaces appears
+    assert not ((x > 1700) & (x < 2300)).any()
+    assert deblur_energy(x, z, cfg) < deblur_energy(z, z, cfg)
+
+
+@pytest.mark.parametrize("blur", ["box", "gaussian"])
+def test_blur_models_decrease_energy(blur):
+    _, z = _noisy_step(1)
+    cfg = DeblurConfig(blur=blur, iterations=20)
+    x = deblur(z, cfg, scale=2)
+    assert deblur_energy(x, z, cfg, scale=2) < deblur_energy(z, z, cfg, scale=2)
+    assert (x[z == 0] == 0).all()
+
+
+def test_disabled_or_empty_is_identity():
+    _, z = _noisy_step()
+    np.testing.assert_array_equal(deblur(z, DeblurConfig(enabled=False)), z)
+    np.testing.assert_array_equal(deblur(np.zeros((5, 5), np.float32)), 0)
+
+
+def test_noise_estimate():
+    rng = np.random.default_rng(3)
+    z = 2000 + rng.normal(0, 10, (200, 200)).astype(np.float32)
+    assert estimate_noise_mm(z) == pytest.approx(10, rel=0.1)

@@ -1,0 +1,69 @@
+import numpy as np
+import pytest
+
+from upsr import InputError
+from upsr.motion import (
+    available_flow_backends,
+    bilateral_prefilter,
+    depth_range,
+    depth_to_u8,
+    make_flow_backend,
+    register_flow_backend,
+)
+from upsr.upsampling import upsample_nearest
+
+
+def _blob(shift_x=0.0, shift_y=0.0, shape=(96, 128)):
+    ys, xs = np.mgrid[0 : shape[0], 0 : shape[1]].astype(np.float32)
+    d = 2500.0 + 3.0 * xs
+    inside = ((xs - 60 - shift_x) / 20) ** 2 + ((ys - 45 - shift_y) / 15) ** 2 < 1
+    d[inside] = 1200.0
+    return d.astype(np.float32)
+
+
+def test_prefilter_smooths_noise_keeps_edges_and_invalid():
+    rng = np.random.default_rng(0)
+    clean = _blob()
+    noisy = clean + rng.laplace(0, 20, clean.shape).astype(np.float32)
+    noisy[:5, :5] = 0
+    out = bilateral_prefilter(noisy, 40.0, 2.0)
+    assert (out[:5, :5] == 0).all()
+    flat = (slice(10, 20), slice(100, 120))
+    assert np.std(out[flat] - clean[flat]) < 0.6 * np.std(noisy[flat] - clean[flat])
+    # the blob edge stays sharp: no value between the two surfaces far from either
+    assert not ((out > 1500) & (out < 2200)).any()
+
+
+def test_fixed_mapping():
+    near, far = depth_range(np.array([[0, 1000, 2000, 3000]], np.float32))
+    assert 0 <= near < 1000 and far > 3000
+    img = depth_to_u8(np.array([[0, near, far]], np.float32), near, far)
+    assert img.tolist() == [[0, 255, 1]]
+    assert depth_range(np.zeros((2, 2))) == (0.0, 10000.0)
+
+
+@pytest.mark.parametrize("name", ["dis", "farneback"])
+def test_flow_static_is_zero_and_shift_is_found(name):
+    flow = make_flow_backend(name, "medium")
+    r = 4
+    a = upsample_nearest(_blob(), 1)
+    rng_ = depth_range(a)
+    g0 = depth_to_u8(bilateral_prefilter(a, 40, 3.5), *rng_)
+    assert np.abs(flow(g0, g0)).max() < 0.1
+    b = _blob(shift_x=r * 0.75, shift_y=-r * 0.5)
+    g1 = depth_to_u8(bilateral_prefilter(b, 40, 3.5), *rng_)
+    f = flow(g0, g1)
+    inside = _blob() < 1500
+    core = inside & (np.abs(np.gradient(_blob())[1]) < 1)
+    med = np.median(f[core], axis=0)
+    np.testing.assert_allclose(med, [3.0, -2.0], atol=0.5)
+
+
+def test_backend_registry():
+    assert {"dis", "farneback"} <= set(available_flow_backends())
+    with pytest.raises(InputError, match="unknown flow backend"):
+        make_flow_backend("nope")
+    register_flow_backend(
+        "zero", lambda preset="medium": lambda a, b: np.zeros((*a.shape, 2), np.float32)
+    )
+    assert make_flow_backend("zero")(np.zeros((3, 4), np.uint8), None).shape == (3, 4, 2)

@@ -1,0 +1,134 @@
+import numpy as np
+import pytest
+from scipy import ndimage as ndi
+
+import upsr
+from upsr import InputError
+from upsr.baselines import nearest
+from upsr.metrics import evaluate
+from upsr.synth import dynamic_scene
+from upsr.upsampling import upsample_nearest
+
+
+def _static_video(t=7, seed=0, sigma=20.0):
+    rng = np.random.default_rng(seed)
+    _ys, xs = np.mgrid[0:24, 0:32].astype(np.float32)
+    clean = 2000 + 4 * xs
+    clean[8:16, 10:20] = 1200
+    noise = rng.laplace(0, sigma / np.sqrt(2), (t, 24, 32)).astype(np.float32)
+    return (clean + noise).astype(np.float32)
+
+
+def test_static_scene_motion_is_zero_and_output_is_median_of_frames():
+    video = _static_video()
+    engine = upsr.UPSR(scale=2, n_frames=7, deblur=False, edge_weight_px=None)
+    outs = [engine.push(f) for f in video]
+    flows = np.stack([*engine._fwd.values(), *engine._bwd.values()])
+    magnitude = np.hypot(flows[..., 0], flows[..., 1])
+    assert np.median(magnitude) == 0.0
+    assert np.percentile(magnitude, 99) < 1.0
+    out = outs[-1]  # frame 0, window = all 7 frames
+    expected = np.median(upsample_nearest(video, 2), axis=0)
+    same = np.isclose(out, expected, atol=1e-3)
+    box = np.zeros(same.shape, bool)
+    box[16:32, 20:40] = True
+    edges = ndi.binary_dilation(box, iterations=3) & ~ndi.binary_erosion(box, iterations=3)
+    assert same[~edges].mean() > 0.93
+    assert same.mean() > 0.9
+
+
+def test_streaming_equals_batch_and_latency():
+    scene = dynamic_scene(n_frames=8, lowres_shape=(16, 20), scale=2, noise_sigma_mm=20, seed=1)
+    batch = upsr.super_resolve(scene.lowres, 2, 5)
+    engine = upsr.UPSR(scale=2, n_frames=5)
+    got = []
+    for k, frame in enumerate(scene.lowres):
+        out = engine.push(frame)
+        assert (out is None) == (k < 4)
+        if out is not None:
+            got.append(out)
+    got += engine.flush()
+    assert len(got) == 8
+    np.testing.assert_array_equal(np.stack(got), batch)
+    # flush resets: the same engine processes a second video identically
+    np.testing.assert_array_equal(np.stack(list(engine.process(scene.lowres))), batch)
+    engine.push(scene.lowres[0])
+    engine.reset()
+    assert engine.frames_seen == 0
+
+
+def test_output_contract():
+    scene = dynamic_scene(n_frames=5, lowres_shape=(12, 14), scale=3, noise_sigma_mm=10, seed=2)
+    frames_u16 = np.round(scene.lowres).astype(np.uint16)
+    out = upsr.super_resolve(frames_u16, 3, 3)
+    assert out.shape == (5, 36, 42) and out.dtype == np.float32
+    assert np.isfinite(out).all() and (out >= 0).all()
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("background", ["wall", "none"])
+def test_end_to_end_dynamic_scene(background):
+    sigma = 30.0
+    scene = dynamic_scene(
+        n_frames=11,
+        lowres_shape=(32, 40),
+        scale=4,
+        noise_sigma_mm=sigma,
+        background=background,
+        seed=3,
+    )
+    out = upsr.super_resolve(scene.lowres, 4, 9)
+    sl = slice(3, 8)
+    m = evaluate(out[sl], scene.truth[sl], 4)
+    m_near = evaluate(nearest(scene.lowres, 4)[sl], scene.truth[sl], 4)
+    assert m["surface_rmse"] < 0.4 * sigma  # far below the noise
+    assert m["flying_pixels"] < 0.005
+    assert m["edge_accuracy"] >= m_near["edge_accuracy"]
+    assert m["invented"] <= m_near["invented"] + 1e-9
+    assert m["rmse"] < m_near["rmse"]
+    if background == "none":
+        # where the truth is 0 and every frame of the window says "no return", output 0
+        up = upsample_nearest(scene.lowres, 4)
+        for t in range(3, 8):
+            s = min(max(t - 4, 0), 11 - 9)
+            all_invalid = (up[s : s + 9] == 0).all(axis=0) & (scene.truth[t] == 0)
+            assert all_invalid.any()
+            assert (out[t][all_invalid] == 0).all()
+
+
+def test_empty_frame_inside_video_is_filled():
+    video = _static_video(t=5)
+    video[2] = 0
+    out = upsr.super_resolve(video, 2, 5)
+    assert (out[2] > 0).mean() > 0.95
+
+
+@pytest.mark.parametrize(
+    ("frames", "kwargs", "match"),
+    [
+        (np.ones((3, 4, 4)), {"n_frames": 5}, "only 3 frame"),
+        (np.ones((3, 4, 4)), {"n_frames": 0}, "n_frames"),
+        (np.ones((3, 4, 4)), {"scale": 0}, "scale"),
+        (np.zeros((3, 4, 4)), {}, "no valid depth"),
+        (np.full((3, 4, 4), -1.0), {}, "negative"),
+        (np.ones((4, 4)), {}, "shape"),
+    ],
+)
+def test_bad_input(frames, kwargs, match):
+    args = {"scale": 2, "n_frames": 3, **kwargs}
+    with pytest.raises(InputError, match=match):
+        upsr.super_resolve(frames, **args)
+
+
+def test_streaming_bad_input():
+    engine = upsr.UPSR(scale=2, n_frames=3)
+    engine.push(np.ones((4, 4)))
+    with pytest.raises(InputError, match="differs"):
+        engine.push(np.ones((5, 4)))
+    with pytest.raises(InputError, match="only 1 frame"):
+        engine.flush()
+    engine = upsr.UPSR(scale=2, n_frames=2)
+    for _ in range(3):
+        engine.push(np.zeros((4, 4)))
+    with pytest.raises(InputError, match="no valid depth"):
+        engine.flush()
