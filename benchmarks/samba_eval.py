@@ -35,14 +35,16 @@ import shutil
 import subprocess
 import sys
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from upsr import baselines
 from upsr.errors import InputError
 from upsr.metrics import evaluate
+from upsr.synth.degradation import add_laplacian_noise
 from upsr.synth.mesh import load_obj
 from upsr.synth.render import (
     SAMBA_BOUNDS_M,
@@ -64,44 +66,8 @@ RENDER_VERSION = 1
 
 
 # --------------------------------------------------------------------------------------------
-# Building blocks (with fallbacks while sibling modules are missing)
+# Building blocks
 # --------------------------------------------------------------------------------------------
-
-
-def _laplacian_noise(depth: np.ndarray, sigma_mm: float, rng: np.random.Generator) -> np.ndarray:
-    try:
-        from upsr.synth.degradation import add_laplacian_noise
-    except ImportError:  # pragma: no cover - fallback while the module is being written
-        out = depth.astype(np.float32, copy=True)
-        valid = out > 0
-        noise = rng.laplace(0.0, sigma_mm / math.sqrt(2.0), size=int(valid.sum()))
-        out[valid] = np.maximum(out[valid] + noise, 1.0)
-        return out
-    return add_laplacian_noise(depth, sigma_mm, rng)
-
-
-def _baseline(name: str) -> Callable[[np.ndarray, int], np.ndarray]:
-    try:
-        from upsr import baselines
-
-        return getattr(baselines, name)
-    except (ImportError, AttributeError):  # pragma: no cover - fallback
-        import cv2
-
-        def nearest(lowres: np.ndarray, r: int) -> np.ndarray:
-            return np.repeat(np.repeat(lowres, r, axis=-2), r, axis=-1).astype(np.float32)
-
-        def bicubic(lowres: np.ndarray, r: int) -> np.ndarray:
-            h, w = lowres.shape[-2:]
-            out = np.stack(
-                [
-                    cv2.resize(f, (w * r, h * r), interpolation=cv2.INTER_CUBIC)
-                    for f in lowres.astype(np.float32)
-                ]
-            )
-            return np.maximum(out, 0.0)
-
-        return {"nearest": nearest, "bicubic": bicubic}[name]
 
 
 def upsr_command() -> list[str]:
@@ -246,7 +212,7 @@ def noisy_lowres(clean: np.ndarray, sigma: float, seed: int, out: Path) -> Path:
         return path
     # One stream per (seed, σ): the noise for a σ does not depend on the other σ asked for.
     rng = np.random.default_rng([seed, round(sigma * 1000)])
-    np.save(path, _laplacian_noise(clean, sigma, rng).astype(np.float32))
+    np.save(path, add_laplacian_noise(clean, sigma, rng).astype(np.float32))
     seed_path.write_text(str(seed))
     return path
 
@@ -420,7 +386,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             t0 = time.perf_counter()
             summary = ""
             if method in ("nearest", "bicubic"):
-                estimate = _baseline(method)(lowres, r)
+                estimate = getattr(baselines, method)(lowres, r)
                 seconds = time.perf_counter() - t0
             else:
                 flags = ["--no-deblur"] if method == "upsr_fused" else []

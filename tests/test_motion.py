@@ -67,3 +67,22 @@ def test_backend_registry():
         "zero", lambda preset="medium": lambda a, b: np.zeros((*a.shape, 2), np.float32)
     )
     assert make_flow_backend("zero")(np.zeros((3, 4), np.uint8), None).shape == (3, 4, 2)
+
+
+def test_spurious_motion_is_suppressed_but_real_motion_and_invalid_pixels_are_kept():
+    from upsr.motion import suppress_spurious_motion
+
+    rng = np.random.default_rng(0)
+    a = _blob() + rng.normal(0, 3, (96, 128)).astype(np.float32)
+    a[:, :8] = 0  # no depth there
+    flow = rng.normal(0, 1.5, (96, 128, 2)).astype(np.float32)  # noise-like "motion"
+    out = suppress_spurious_motion(a, a.copy(), flow, window_px=9, noise_mm=3.0, edge_mm=100.0)
+    flat = (slice(5, 90), slice(100, 120))
+    assert np.abs(out[flat]).max() == 0  # static surface: no motion
+    np.testing.assert_array_equal(out[:, :8], flow[:, :8])  # no evidence: untouched
+    # a real shift of the blob is kept on the blob
+    b = _blob(shift_x=4.0) + rng.normal(0, 3, (96, 128)).astype(np.float32)
+    real = np.zeros_like(flow)
+    real[..., 0] = 4.0
+    kept = suppress_spurious_motion(a, b, real, window_px=9, noise_mm=3.0, edge_mm=100.0)
+    assert (kept[40:50, 78:82, 0] == 4.0).all()  # at the blob's moving edge

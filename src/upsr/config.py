@@ -156,6 +156,12 @@ class UPSRConfig:
         ``floor + (1 − floor)·exp(−d²/(2·(edge_weight_px·r)²))``. ``None``: equal votes.
     edge_weight_floor : float
         Smallest vote weight (see ``edge_weight_px``).
+    splat_radius_px : float or None
+        Fusion at depth edges (beyond the paper): every low-res sample of the window is
+        forward-registered to the reference at its sub-pixel position, and where the
+        backward-registered samples of a pixel come from several surfaces, the surface of the
+        nearest forward-registered sample within this radius (high-res px) wins
+        (:func:`upsr.fusion.splat_nearest`). ``None``: vote only.
     occlusion_px : float or None
         Forward–backward check: a sample whose motion does not come back within this many px
         *and* whose depth is off the reference's surface is treated as occluded (abstains).
@@ -174,6 +180,7 @@ class UPSRConfig:
     zero_motion_tolerance: float | None = 1.1
     refine: bool = True
     occlusion_px: float | None = None
+    splat_radius_px: float | None = 1.0
     min_valid_fraction: float = 0.5
     edge_mm: float = 100.0
     edge_weight_px: float | None = 0.35

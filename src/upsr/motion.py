@@ -145,7 +145,9 @@ def suppress_spurious_motion(
     res_flow = cv2.boxFilter((first_mm - warped) ** 2 * valid, -1, k)
     res_zero = cv2.boxFilter((first_mm - second_mm) ** 2 * valid, -1, k)
     out = flow.copy()
-    unsupported = res_zero <= tolerance * res_flow + noise_mm**2
+    # pixels without depth carry no evidence either way: their flow (which chaining reads
+    # when a moving surface's pixel lands just outside it) is left alone
+    unsupported = (res_zero <= tolerance * res_flow + noise_mm**2) & (first_mm > 0)
     if edge_mm is not None:
         kernel = np.ones(k, np.uint8)
         span = cv2.dilate(first_mm, kernel) - cv2.erode(first_mm, kernel)

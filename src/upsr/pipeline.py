@@ -28,7 +28,7 @@ import numpy.typing as npt
 from .config import UPSRConfig
 from .deblurring import deblur, estimate_noise_mm
 from .errors import InputError
-from .fusion import temporal_median
+from .fusion import splat_nearest, temporal_median
 from .motion import (
     FlowBackend,
     bilateral_prefilter,
@@ -214,10 +214,12 @@ class UPSR:
             guides=[self._guide[k] for k in idx],
         )
         stack = np.stack([warp_nearest(self._up[k], m) for k, m in zip(idx, maps, strict=False)])
-        if cfg.occlusion_px is not None and cfg.n_frames > 1:
+        back = None
+        if (cfg.occlusion_px is not None or cfg.splat_radius_px) and cfg.n_frames > 1:
             back = flows_to_reference(
                 ref, [self._bwd.get(k) for k in idx], [self._fwd.get(k) for k in idx], (h, w)
             )
+        if cfg.occlusion_px is not None and back is not None:
             ref_depth = stack[ref]
             for j in range(cfg.n_frames):
                 if j != ref:
@@ -229,10 +231,15 @@ class UPSR:
             d = np.stack([sample_offsets(m, cfg.scale) for m in maps])
             s2 = 2.0 * (cfg.edge_weight_px * cfg.scale) ** 2
             weights = cfg.edge_weight_floor + (1.0 - cfg.edge_weight_floor) * np.exp(-d * d / s2)
+        guide = None
+        if cfg.splat_radius_px and back is not None:
+            lowres = np.stack([self._lowres[k] for k in idx])
+            guide = splat_nearest(lowres, np.stack(back), cfg.scale, cfg.splat_radius_px)
         fused = temporal_median(
             stack,
             ref,
             weights=weights,
+            guide=guide,
             min_valid_fraction=cfg.min_valid_fraction,
             edge_mm=self._edge_mm,
         )

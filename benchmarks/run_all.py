@@ -1,0 +1,37 @@
+"""Run every benchmark (``make bench``): the synthetic scenes always, Samba when its meshes are
+at ``--data`` (default ``../shared/data``). Each benchmark prints its table and writes
+``results.json`` / ``results.csv`` under ``--out``."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+import samba_eval
+import synthetic_eval
+
+
+def main() -> int:
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("--out", default="results/bench")
+    p.add_argument("--data", default=str(samba_eval.DEFAULT_DATA))
+    args = p.parse_args()
+    out = Path(args.out)
+    print("== synthetic scenes ==", flush=True)
+    synthetic_eval.main(["--out", str(out / "synthetic")])
+    if (Path(args.data) / "samba" / "mesh_0000.obj").is_file():
+        for r in (2, 4):
+            print(f"\n== Samba, r = {r} ==", flush=True)
+            samba_eval.main(
+                ["--data", args.data, "--scale", str(r), "--out", str(out / f"samba_r{r}")]
+            )
+    else:
+        print(f"\nSamba meshes not found under {args.data}: Samba benchmark skipped")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
