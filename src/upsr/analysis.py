@@ -80,7 +80,6 @@ import functools
 import io
 import math
 import os
-import tempfile
 from collections.abc import Sequence
 from fractions import Fraction
 from pathlib import Path
@@ -91,6 +90,7 @@ import numpy.typing as npt
 from scipy import special
 
 from .errors import InputError
+from .io import write_text_atomic
 
 __all__ = [
     "bias_sq",
@@ -518,21 +518,6 @@ def _order_statistic_fraction(n_frames: int) -> Fraction:
 # -------------------------------------------------------------------------------------------------
 # the `upsr analyze` experiment
 # -------------------------------------------------------------------------------------------------
-def _write_text_atomic(path: Path, text: str) -> None:
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    try:
-        with os.fdopen(fd, "w", encoding="utf-8", newline="") as f:
-            f.write(text)
-        umask = os.umask(0)
-        os.umask(umask)
-        os.chmod(tmp, 0o666 & ~umask)  # mkstemp makes 0600; a results file is for everyone
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
-
-
 def _csv(header: Sequence[str], rows: Sequence[Sequence[float]]) -> str:
     buf = io.StringIO()
     w = csv.writer(buf, lineterminator="\n")
@@ -674,8 +659,8 @@ def run_analysis(
         "vs_n_png": out_dir / "analysis_vs_n.png",
         "vs_sigma_png": out_dir / "analysis_vs_sigma.png",
     }
-    _write_text_atomic(files["vs_n_csv"], _csv(list(vs_n[0]), [list(row.values()) for row in vs_n]))
-    _write_text_atomic(
+    write_text_atomic(files["vs_n_csv"], _csv(list(vs_n[0]), [list(row.values()) for row in vs_n]))
+    write_text_atomic(
         files["vs_sigma_csv"], _csv(list(vs_sigma[0]), [list(row.values()) for row in vs_sigma])
     )
     write_png(files["vs_n_png"], img_n)

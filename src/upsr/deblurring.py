@@ -40,34 +40,31 @@ __all__ = [
 @nb.njit(cache=True, nogil=True, parallel=True)
 def _btv_kernel(x, guide, radius, alpha, edge_mm, out):  # pragma: no cover - numba
     h, w = x.shape
+    side = 2 * radius + 1
+    weights = np.empty((side, side), np.float32)
+    for dl in range(-radius, radius + 1):
+        for dm in range(-radius, radius + 1):
+            weights[dl + radius, dm + radius] = 2.0 * alpha ** (abs(dl) + abs(dm))
     for i in nb.prange(h):
         for j in range(w):
-            xv = x[i, j]
             gv = guide[i, j]
             if gv <= 0:
                 out[i, j] = 0.0
                 continue
-            acc = 0.0
-            for dl in range(-radius, radius + 1):
-                ii = i + dl
-                if ii < 0 or ii >= h:
-                    continue
-                wl = alpha ** abs(dl)
-                for dm in range(-radius, radius + 1):
-                    if dl == 0 and dm == 0:
-                        continue
-                    jj = j + dm
-                    if jj < 0 or jj >= w:
-                        continue
+            xv = x[i, j]
+            acc = np.float32(0.0)
+            for ii in range(max(i - radius, 0), min(i + radius + 1, h)):
+                wrow = ii - i + radius
+                for jj in range(max(j - radius, 0), min(j + radius + 1, w)):
                     gn = guide[ii, jj]
                     if gn <= 0 or abs(gn - gv) > edge_mm:
-                        continue
+                        continue  # invalid neighbour, or another surface: no pair
                     d = xv - x[ii, jj]
                     if d > 0:
-                        acc += wl * alpha ** abs(dm)
+                        acc += weights[wrow, jj - j + radius]
                     elif d < 0:
-                        acc -= wl * alpha ** abs(dm)
-            out[i, j] = 2.0 * acc
+                        acc -= weights[wrow, jj - j + radius]
+            out[i, j] = acc
 
 
 @nb.njit(cache=True, nogil=True)

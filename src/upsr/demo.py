@@ -14,7 +14,6 @@ import io
 import json
 import math
 import os
-import tempfile
 import time
 from pathlib import Path
 from typing import Any
@@ -24,6 +23,7 @@ import numpy as np
 
 from . import baselines
 from .errors import InputError
+from .io import write_text_atomic
 from .metrics import evaluate
 from .pipeline import super_resolve
 from .synth import dynamic_scene
@@ -43,18 +43,6 @@ METRIC_COLUMNS = (
 )
 _UNITS = {"rmse": "mm", "mse": "mm^2", "surface_rmse": "mm"}
 METHODS = ("nearest", "bicubic", "upsr")
-
-
-def _atomic_write_text(path: Path, text: str) -> None:
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    try:
-        with os.fdopen(fd, "w", encoding="utf-8", newline="") as f:
-            f.write(text)
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
 
 
 def _json_safe(obj: Any) -> Any:
@@ -219,7 +207,7 @@ def run_demo(
     for label, table in (("middle", middle), ("all", pooled)):
         for method, res in table.items():
             writer.writerow([method, label, *(f"{res[c]:.6g}" for c in METRIC_COLUMNS)])
-    _atomic_write_text(out / "metrics.csv", buf.getvalue())
+    write_text_atomic(out / "metrics.csv", buf.getvalue())
 
     result: dict[str, Any] = {
         "config": {
@@ -247,7 +235,7 @@ def run_demo(
             "json": str(out / "metrics.json"),
         },
     }
-    _atomic_write_text(
+    write_text_atomic(
         out / "metrics.json", json.dumps(_json_safe(result), indent=2, allow_nan=False) + "\n"
     )
     return result

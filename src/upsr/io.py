@@ -40,6 +40,7 @@ import re
 import secrets
 import shutil
 import struct
+import tempfile
 import warnings
 import weakref
 import zipfile
@@ -63,6 +64,8 @@ __all__ = [
     "iter_frames",
     "probe",
     "read_video",
+    "write_bytes_atomic",
+    "write_text_atomic",
     "write_video",
 ]
 
@@ -947,6 +950,39 @@ class VideoWriter:
     def closed(self) -> bool:
         """True once :meth:`close` or :meth:`abort` ran."""
         return self._closed
+
+
+def write_bytes_atomic(path: PathLike, data: bytes) -> Path:
+    """Write ``data`` to ``path`` atomically: a temporary file in the same folder, renamed over
+    ``path`` only once it is complete (readers never see a half-written file). The parent
+    folder is created if needed; the file gets the usual permissions (umask), not ``mkstemp``'s
+    0600.
+
+    Returns
+    -------
+    pathlib.Path
+        The path written.
+    """
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    try:
+        with os.fdopen(fd, "wb") as f:
+            f.write(data)
+        umask = os.umask(0)
+        os.umask(umask)
+        os.chmod(tmp, 0o666 & ~umask)
+        os.replace(tmp, path)
+    except BaseException:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+        raise
+    return path
+
+
+def write_text_atomic(path: PathLike, text: str) -> Path:
+    """:func:`write_bytes_atomic` for UTF-8 text."""
+    return write_bytes_atomic(path, text.encode("utf-8"))
 
 
 def write_video(

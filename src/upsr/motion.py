@@ -100,6 +100,7 @@ def suppress_spurious_motion(
     tolerance: float = 1.1,
     noise_mm: float = 0.0,
     edge_mm: float | None = None,
+    edge_window_px: int | None = None,
 ) -> np.ndarray:
     """Set the flow to zero where "no motion" explains the depth as well as the flow does.
 
@@ -125,7 +126,10 @@ def suppress_spurious_motion(
         Absolute margin (mm, root mean square per pixel) granted to the zero motion.
     edge_mm : float or None
         If given, the flow is kept wherever the window holds a depth edge (a depth span larger
-        than ``edge_mm``, invalid pixels included): at edges the motion is what places them.
+        than ``edge_mm``, invalid pixels included): at edges the motion is what places them,
+        and the flow that chains pixels near an edge from frame to frame must stay intact.
+    edge_window_px : int or None
+        Side of the window of that edge test (px); default ``window_px``.
 
     Returns
     -------
@@ -149,7 +153,8 @@ def suppress_spurious_motion(
     # when a moving surface's pixel lands just outside it) is left alone
     unsupported = (res_zero <= tolerance * res_flow + noise_mm**2) & (first_mm > 0)
     if edge_mm is not None:
-        kernel = np.ones(k, np.uint8)
+        side = max(edge_window_px or window_px, 1)
+        kernel = np.ones((side, side), np.uint8)
         span = cv2.dilate(first_mm, kernel) - cv2.erode(first_mm, kernel)
         unsupported &= span <= edge_mm
     out[unsupported] = 0.0

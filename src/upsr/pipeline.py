@@ -197,6 +197,7 @@ class UPSR:
             tolerance=self.config.zero_motion_tolerance,
             noise_mm=self._noise_mm * units_per_mm,
             edge_mm=self._edge_mm * units_per_mm,
+            edge_window_px=4 * self.config.scale + 1,
         )
 
     def _finish(self, t: int, n_total: int) -> np.ndarray:

@@ -10,7 +10,6 @@ from __future__ import annotations
 
 import math
 import os
-import tempfile
 from collections.abc import Sequence
 from pathlib import Path
 
@@ -19,6 +18,7 @@ import numpy as np
 import numpy.typing as npt
 
 from .errors import InputError
+from .io import write_bytes_atomic
 
 __all__ = [
     "INVALID_BGR",
@@ -374,15 +374,4 @@ def write_png(path: str | os.PathLike[str], image: npt.ArrayLike) -> Path:
     ok, buf = cv2.imencode(".png", np.ascontiguousarray(img))
     if not ok:  # pragma: no cover - OpenCV refuses only unsupported layouts, checked above
         raise InputError(f"OpenCV could not encode an image of shape {img.shape} as PNG")
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    try:
-        with os.fdopen(fd, "wb") as f:
-            f.write(buf.tobytes())
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
-    return path
+    return write_bytes_atomic(path, buf.tobytes())
