@@ -20,6 +20,7 @@ import numpy as np
 import numpy.typing as npt
 
 from .errors import InputError
+from .registration import identity_grid
 
 __all__ = [
     "FlowBackend",
@@ -136,7 +137,7 @@ def suppress_spurious_motion(
     ndarray (H, W, 2) float32, a copy of ``flow`` with the unsupported motion zeroed.
     """
     h, w = first_mm.shape
-    ys, xs = np.mgrid[0:h, 0:w].astype(np.float32)
+    xs, ys = identity_grid(h, w)
     warped = cv2.remap(
         second_mm,
         xs + flow[..., 0],

@@ -16,6 +16,7 @@ a's grid and maps a's pixel p to p + flow(p) in b.
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Callable, Sequence
 
 import cv2
@@ -35,9 +36,12 @@ __all__ = [
 ]
 
 
+@functools.lru_cache(maxsize=8)
 def identity_grid(height: int, width: int) -> tuple[np.ndarray, np.ndarray]:
-    """Pixel coordinates (x, y) of an (height, width) grid as float32 arrays."""
+    """Pixel coordinates (x, y) of an (height, width) grid as float32 arrays (cached, read-only)."""
     ys, xs = np.mgrid[0:height, 0:width].astype(np.float32)
+    xs.flags.writeable = False
+    ys.flags.writeable = False
     return xs, ys
 
 
