@@ -162,10 +162,6 @@ class UPSRConfig:
         backward-registered samples of a pixel come from several surfaces, the surface of the
         nearest forward-registered sample within this radius (high-res px) wins
         (:func:`upsr.fusion.splat_nearest`). ``None``: vote only.
-    occlusion_px : float or None
-        Forward–backward check: a sample whose motion does not come back within this many px
-        *and* whose depth is off the reference's surface is treated as occluded (abstains).
-        ``None`` disables the check.
     deblur : DeblurConfig
         Deblurring parameters (eq. 29–30).
     """
@@ -179,7 +175,6 @@ class UPSRConfig:
     depth_range_mm: tuple[float, float] | None = None
     zero_motion_tolerance: float | None = 1.1
     refine: bool = True
-    occlusion_px: float | None = None
     splat_radius_px: float | None = 1.0
     min_valid_fraction: float = 0.5
     edge_mm: float = 100.0

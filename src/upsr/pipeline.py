@@ -40,7 +40,6 @@ from .motion import (
 from .registration import (
     cumulative_flows,
     flows_to_reference,
-    occlusion_mask,
     sample_offsets,
     warp_nearest,
 )
@@ -216,25 +215,18 @@ class UPSR:
         )
         stack = np.stack([warp_nearest(self._up[k], m) for k, m in zip(idx, maps, strict=False)])
         back = None
-        if (cfg.occlusion_px is not None or cfg.splat_radius_px) and cfg.n_frames > 1:
+        if cfg.splat_radius_px and cfg.n_frames > 1:
             back = flows_to_reference(
                 ref, [self._bwd.get(k) for k in idx], [self._fwd.get(k) for k in idx], (h, w)
             )
-        if cfg.occlusion_px is not None and back is not None:
-            ref_depth = stack[ref]
-            for j in range(cfg.n_frames):
-                if j != ref:
-                    other_surface = ~(np.abs(stack[j] - ref_depth) <= self._edge_mm)
-                    occluded = occlusion_mask(maps[j], back[j], cfg.occlusion_px) & other_surface
-                    stack[j][occluded] = np.nan
         weights = None
         if cfg.edge_weight_px:
             d = np.stack([sample_offsets(m, cfg.scale) for m in maps])
             s2 = 2.0 * (cfg.edge_weight_px * cfg.scale) ** 2
             weights = cfg.edge_weight_floor + (1.0 - cfg.edge_weight_floor) * np.exp(-d * d / s2)
+        lowres = np.stack([self._lowres[k] for k in idx])
         guide = None
-        if cfg.splat_radius_px and back is not None:
-            lowres = np.stack([self._lowres[k] for k in idx])
+        if back is not None:
             guide = splat_nearest(lowres, np.stack(back), cfg.scale, cfg.splat_radius_px)
         fused = temporal_median(
             stack,
@@ -245,7 +237,7 @@ class UPSR:
             edge_mm=self._edge_mm,
         )
         # never invent depth where no frame of the window measured anything
-        fused[~np.any([self._up[k] > 0 for k in idx], axis=0)] = 0.0
+        fused[~upsample_nearest((lowres > 0).any(axis=0), cfg.scale)] = 0.0
         out = deblur(fused, cfg.deblur, scale=cfg.scale)
         # forget what no later window needs: the next window starts at window_start(t + 1, T)
         # for a video of T >= frames_seen frames, which is at least this

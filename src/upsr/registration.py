@@ -29,7 +29,6 @@ __all__ = [
     "cumulative_flows",
     "flows_to_reference",
     "identity_grid",
-    "occlusion_mask",
     "sample_offsets",
     "warp_guide",
     "warp_nearest",
@@ -96,8 +95,8 @@ def flows_to_reference(
     """Motion from every frame of a window back to its reference, by composition.
 
     The mirror of :func:`cumulative_flows`: for t < t0, C_{t→t0} = F_{t→t+1} then C_{t+1→t0}
-    (and symmetrically after t0). Used for the forward–backward consistency check of
-    :func:`occlusion_mask`.
+    (and symmetrically after t0). Used to forward-register the low-res samples of a window
+    (:func:`upsr.fusion.splat_nearest`).
     """
     n = len(forward)
     maps: list[np.ndarray | None] = [None] * n
@@ -110,19 +109,6 @@ def flows_to_reference(
             maps[j] = compose_flows(step, maps[j - direction])  # type: ignore[arg-type]
             j += direction
     return maps  # type: ignore[return-value]
-
-
-def occlusion_mask(
-    to_frame: np.ndarray, to_reference: np.ndarray, threshold_px: float
-) -> np.ndarray:
-    """Reference pixels whose motion to frame t is not confirmed by the motion back.
-
-    A reference pixel p goes to q = p + C_{t0→t}(p); if frame t's pixel q does not come back
-    near p (|C_{t0→t}(p) + C_{t→t0}(q)| > ``threshold_px``), p is occluded in frame t (or its
-    motion is wrong) and frame t's sample there must not vote: it shows another surface.
-    """
-    round_trip = compose_flows(to_frame, to_reference)
-    return np.hypot(round_trip[..., 0], round_trip[..., 1]) > threshold_px
 
 
 def sample_offsets(flow: np.ndarray, scale: int) -> np.ndarray:
