@@ -517,7 +517,7 @@ def test_help_texts() -> None:
     for needle in (
         "--scale",
         "--frames",
-        "[default: 9]",
+        "[default: 9, or all the frames of a shorter video]",
         "mm",
         "--depth-scale",
         "TUM",
@@ -654,3 +654,18 @@ def test_signal_leaves_no_output(tmp_path: Path, sig: int) -> None:
     assert ("interrupted" if sig == signal.SIGINT else "terminated") in err
     assert "Traceback" not in err
     assert listing(tmp_path) == ["in.npy"]
+
+
+def test_default_window_shrinks_to_a_short_video_but_explicit_n_does_not(
+    capsys: pytest.CaptureFixture[str], tmp_path: Path
+) -> None:
+    src = tmp_path / "short.npy"
+    np.save(src, video(t=4))
+    out = tmp_path / "out.npy"
+    rc, stdout, err = run_cli(capsys, "run", src, "-o", out, "-r", 2, "-q")
+    assert rc == 0, err
+    assert "N=4" in stdout and "N = 4" in err
+    assert np.load(out).shape == (4, 2 * H, 2 * W)
+    rc, stdout, err = run_cli(capsys, "run", src, "-o", tmp_path / "o2.npy", "-r", 2, "-n", 9)
+    assert_user_error(rc, stdout, err, "N=9 > 4 frames")
+    assert not (tmp_path / "o2.npy").exists()

@@ -10,6 +10,7 @@ left behind.
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 import logging
 import signal
 import sys
@@ -134,6 +135,9 @@ Examples:
 """
 
 
+DEFAULT_FRAMES = 9  # window length N when --frames is not given
+
+
 @app.command(epilog=_RUN_EPILOG, no_args_is_help=True)
 def run(
     input_path: Annotated[
@@ -166,13 +170,15 @@ def run(
         ),
     ],
     frames: Annotated[
-        int,
+        int | None,
         typer.Option(
             "--frames",
             "-n",
-            help="Window length N: frames fused per output frame (1 <= N <= number of frames).",
+            help="Window length N: frames fused per output frame (1 <= N <= number of frames) "
+            "[default: 9, or all the frames of a shorter video].",
+            show_default=False,
         ),
-    ] = 9,
+    ] = None,
     key: Annotated[
         str | None,
         typer.Option("--key", help="Array to read from a .npz input [default: the first]."),
@@ -299,17 +305,23 @@ def run(
         options["deblur"] = False
     if no_refine:
         options["refine"] = False
-    cfg = UPSRConfig.from_options(scale, frames, **options)
-
+    cfg = UPSRConfig.from_options(scale, DEFAULT_FRAMES if frames is None else frames, **options)
     in_fmt = input_format.value if input_format is not None else None
     out_fmt = output_format.value if output_format is not None else None
     info = io.probe(input_path, key=key, fmt=in_fmt)
+    shortened = frames is None and info.n_frames < cfg.n_frames
+    if shortened:  # the default N, not the user's: a shorter video uses all its frames
+        cfg = dataclasses.replace(cfg, n_frames=info.n_frames)
     if cfg.n_frames > info.n_frames:
         raise InputError(
             f"N={cfg.n_frames} > {info.n_frames} frames in {input_path}: use "
             f"--frames {info.n_frames} or less"
         )
     io.check_output_path([input_path], output, overwrite, fmt=out_fmt)
+    if shortened:
+        typer.echo(
+            f"upsr: note: the video has {info.n_frames} frame(s): N = {cfg.n_frames}", err=True
+        )
     source = io.iter_frames(input_path, key=key, depth_scale=depth_scale, fmt=in_fmt)
     engine = UPSR(cfg.scale, cfg.n_frames, config=cfg)
 
