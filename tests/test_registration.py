@@ -82,7 +82,9 @@ def test_refinement_removes_drift():
     for j in (0, 4):
         truth = j - 2
         assert abs(np.median(plain[j][inner]) - truth) == pytest.approx(0.6, abs=0.01)
-        assert abs(np.median(refined[j][inner]) - truth) < 0.25
+        # the drift does not accumulate: what is left is the bias of the one step taken from
+        # the reference (its direct neighbours are not re-estimated), not twice that
+        assert abs(np.median(refined[j][inner]) - truth) < 0.3 + 0.05
 
 
 def test_sample_offsets_geometry():
