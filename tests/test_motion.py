@@ -86,3 +86,15 @@ def test_spurious_motion_is_suppressed_but_real_motion_and_invalid_pixels_are_ke
     real[..., 0] = 4.0
     kept = suppress_spurious_motion(a, b, real, window_px=9, noise_mm=3.0, edge_mm=100.0)
     assert (kept[40:50, 78:82, 0] == 4.0).all()  # at the blob's moving edge
+
+
+@pytest.mark.parametrize("name", ["dis", "farneback"])
+def test_flow_does_not_depend_on_earlier_calls(name):
+    # a chunk of a video must give what the whole run gives: no state between calls
+    rng = np.random.default_rng(1)
+    a = (rng.uniform(0, 255, (40, 48))).astype(np.uint8)
+    b = np.roll(a, 2, axis=1)
+    fresh = make_flow_backend(name)(a, b)
+    used = make_flow_backend(name)
+    used(b, a)
+    np.testing.assert_array_equal(used(a, b), fresh)

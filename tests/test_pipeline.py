@@ -135,3 +135,24 @@ def test_streaming_bad_input():
         engine.push(np.zeros((4, 4)))
     with pytest.raises(InputError, match="no valid depth"):
         engine.flush()
+
+
+def test_chunk_with_the_videos_statistics_equals_the_whole_run():
+    from upsr.deblurring import estimate_noise_mm
+    from upsr.motion import depth_range
+    from upsr.pipeline import window_start
+
+    scene = dynamic_scene(n_frames=14, lowres_shape=(16, 20), scale=2, noise_sigma_mm=20, seed=4)
+    n = 5
+    whole = upsr.super_resolve(scene.lowres, 2, n)
+    first = scene.lowres[:n]
+    cfg = upsr.UPSRConfig(
+        scale=2,
+        n_frames=n,
+        depth_range_mm=tuple(float(v) for v in depth_range(first)),
+        noise_mm=float(np.median([estimate_noise_mm(f) for f in first])),
+    )
+    a, b = 7, 14  # output frames of the chunk; its windows need input frames [lo, b)
+    lo = window_start(a, 14, cfg)
+    part = upsr.super_resolve(scene.lowres[lo:b], 2, config=cfg)
+    np.testing.assert_array_equal(part[a - lo :], whole[a:b])

@@ -26,8 +26,11 @@ from typing import Annotated, Any
 import typer
 
 from . import __version__
+from .cli_tools import InFormat
+from .cli_tools import register as _register_io_commands
 from .config import DeblurConfig, UPSRConfig
 from .errors import InputError
+from .experiments.cli import app as experiment_app
 
 try:  # typer >= 0.24 vendors click
     from typer._click.exceptions import ClickException, UsageError
@@ -59,6 +62,8 @@ class OutFormat(str, Enum):
     npy = "npy"
     npz = "npz"
     png = "png"
+    tiff = "tiff"
+    exr = "exr"
 
 
 class Blur(str, Enum):
@@ -122,16 +127,23 @@ def _root(
 
 
 _RUN_EPILOG = """\b
-Input formats:
+Input formats (by name; --input-format to force):
   .npy / .npz   one (T, h, w) array of depth in mm (any integer or float dtype)
   FOLDER        16-bit single-channel PNG frames, natural name order
                 (raw value / depth-scale = metres)
+  .tif/.tiff    TIFF, one frame per page, or a folder of TIFFs (raw / depth-scale = m)
+  .exr          OpenEXR (channel Z/depth/...), or a folder of EXRs
+  .bag          ROS 1 / RealSense bag; a ROS 2 bag folder (metadata.yaml): --topic
+  .pgm          NYU raw Kinect disparity (--input-format pgm: plain 16-bit depth)
+  tum, sun      --input-format for TUM (raw/5000 m) and SUN RGB-D PNGs
+The intrinsics (--intrinsics, or from the bag) scaled by r go to OUTPUT.intrinsics.json.
 
 \b
 Examples:
   upsr run video.npy -o video_x4.npy -r 4
   upsr run frames/ -o frames_x2/ -r 2 -n 5 --depth-scale 5000    # TUM PNGs
   upsr run capture.npz --key depth -o out.npz -r 2 --no-deblur --flow-preset fast
+  upsr run capture.bag --topic /camera/depth/image_rect_raw -o out.npy -r 2
 """
 
 
@@ -201,11 +213,24 @@ def run(
         ),
     ] = None,
     input_format: Annotated[
-        OutFormat | None,
+        InFormat | None,
         typer.Option(
             "--input-format",
             case_sensitive=False,
             help="Input format [default: from the input name].",
+        ),
+    ] = None,
+    topic: Annotated[
+        str | None,
+        typer.Option("--topic", help="ROS bag: the depth image topic [default: the only one]."),
+    ] = None,
+    intrinsics: Annotated[
+        str | None,
+        typer.Option(
+            "--intrinsics",
+            metavar="FX,FY,CX,CY",
+            help="Input camera intrinsics (px) [default: from the file, if it has them]; "
+            "scaled by r and written to OUTPUT.intrinsics.json.",
         ),
     ] = None,
     no_deblur: Annotated[
@@ -308,7 +333,8 @@ def run(
     cfg = UPSRConfig.from_options(scale, DEFAULT_FRAMES if frames is None else frames, **options)
     in_fmt = input_format.value if input_format is not None else None
     out_fmt = output_format.value if output_format is not None else None
-    info = io.probe(input_path, key=key, fmt=in_fmt)
+    info = io.probe(input_path, key=key, fmt=in_fmt, topic=topic)
+    camera = _input_camera(input_path, info, intrinsics, in_fmt, topic)
     shortened = frames is None and info.n_frames < cfg.n_frames
     if shortened:  # the default N, not the user's: a shorter video uses all its frames
         cfg = dataclasses.replace(cfg, n_frames=info.n_frames)
@@ -322,7 +348,7 @@ def run(
         typer.echo(
             f"upsr: note: the video has {info.n_frames} frame(s): N = {cfg.n_frames}", err=True
         )
-    source = io.iter_frames(input_path, key=key, depth_scale=depth_scale, fmt=in_fmt)
+    source = io.iter_frames(input_path, key=key, depth_scale=depth_scale, fmt=in_fmt, topic=topic)
     engine = UPSR(cfg.scale, cfg.n_frames, config=cfg)
 
     start = time.perf_counter()
@@ -348,6 +374,12 @@ def run(
             writer.write(frame)
             bar.update(1)
     elapsed = time.perf_counter() - start
+    if camera is not None:
+        from .intrinsics import write_intrinsics
+
+        write_intrinsics(
+            io.intrinsics_path(output), camera.scaled(cfg.scale), source=camera, scale=cfg.scale
+        )
 
     r = cfg.scale
     t_n, h, w = info.shape
@@ -416,6 +448,23 @@ def analyze(
     )
     typer.echo(analysis.format_analysis_table(result))
     typer.echo(f"upsr: analysis written to {', '.join(result['files'].values())}")
+
+
+app.add_typer(experiment_app, name="experiment")
+_register_io_commands(app)
+
+
+def _input_camera(
+    path: Path, info: Any, intrinsics: str | None, fmt: str | None, topic: str | None
+) -> Any:
+    """--intrinsics, else the intrinsics the input carries (None if unknown)."""
+    from . import io
+    from .intrinsics import parse_intrinsics
+
+    if intrinsics is not None:
+        return parse_intrinsics(intrinsics, info.width, info.height)
+    cam = io.read_intrinsics(path, fmt=fmt, topic=topic)
+    return cam if cam is not None and cam.shape == (info.height, info.width) else None
 
 
 # -------------------------------------------------------------------------------------------------

@@ -139,6 +139,11 @@ class UPSRConfig:
         up to this factor on the local squared residual, the flow is set to 0
         (:func:`upsr.motion.suppress_spurious_motion`): the flow must not match the noise of
         static surfaces. ``None`` keeps the raw flow.
+    noise_mm : float or None
+        Noise std of the input (mm), which sets the edge threshold (≥ 4·noise) and the margin of
+        the spurious-motion test. ``None``: estimated once per video from its first N frames
+        (:func:`upsr.deblurring.estimate_noise_mm`). Give it (with ``depth_range_mm``) to
+        process a chunk of a longer video exactly as the whole video would be.
     refine : bool
         Paper eq. 19: re-estimate each frame's motion against its already registered neighbour
         (a residual flow on the reference grid, composed into the cumulative motion).
@@ -173,6 +178,7 @@ class UPSRConfig:
     flow: str = "dis"
     flow_preset: str = "medium"
     depth_range_mm: tuple[float, float] | None = None
+    noise_mm: float | None = None
     zero_motion_tolerance: float | None = 1.1
     refine: bool = True
     splat_radius_px: float | None = 1.0
@@ -206,6 +212,10 @@ class UPSRConfig:
                 math.isfinite(near) and math.isfinite(far) and 0 <= near < far,
                 "depth_range_mm must be (near, far) with 0 <= near < far",
             )
+        _check(
+            self.noise_mm is None or (math.isfinite(self.noise_mm) and self.noise_mm >= 0),
+            "noise_mm must be a finite number >= 0 (or None to estimate it)",
+        )
         _check(0 <= self.min_valid_fraction < 1, "min_valid_fraction must be in [0, 1)")
         _check(self.edge_mm > 0, "edge_mm must be > 0")
         object.__setattr__(self, "scale", int(self.scale))

@@ -18,6 +18,13 @@ a folder of PNG files (``fmt="png"``)
 ``depth_scale`` applies to PNG frames only: ``.npy``/``.npz`` arrays always hold mm.
 Depth 0 or NaN means "no measurement" (``SPEC.md`` §1).
 
+More formats are registered in :mod:`upsr.formats` and read through the same functions:
+``tiff`` (``.tif``/``.tiff``, multi-page or a folder), ``exr`` (``.exr`` or a folder),
+``rosbag`` (ROS 1 / RealSense ``.bag``, ROS 2 bag folders with ``metadata.yaml``; ``topic=``),
+``nyu`` (``.pgm`` raw Kinect), ``pgm``, ``tum`` and ``sun`` (dataset PNG conventions); ``tiff``
+and ``exr`` can also be written. :func:`read_intrinsics` returns the camera intrinsics a format
+carries (ROS CameraInfo) or that a ``<path>.intrinsics.json`` file next to it holds.
+
 Safety
 ------
 Nothing is ever unpickled (object arrays are refused). Every problem with an input file —
@@ -58,11 +65,14 @@ from .validation import as_depth_frame
 
 __all__ = [
     "FORMATS",
+    "WRITE_FORMATS",
     "VideoInfo",
     "VideoWriter",
     "check_output_path",
+    "intrinsics_path",
     "iter_frames",
     "probe",
+    "read_intrinsics",
     "read_video",
     "write_bytes_atomic",
     "write_text_atomic",
@@ -71,8 +81,11 @@ __all__ = [
 
 PathLike = str | os.PathLike
 
-#: Container formats understood by the readers and the writer.
-FORMATS = ("npy", "npz", "png")
+#: Container formats understood by the readers (see :mod:`upsr.formats` for all but the first 3).
+FORMATS = ("npy", "npz", "png", "tiff", "exr", "rosbag", "nyu", "pgm", "tum", "sun")
+#: Formats the writer can produce.
+WRITE_FORMATS = ("npy", "npz", "png", "tiff", "exr")
+_CORE_FORMATS = ("npy", "npz", "png")
 
 #: Largest frame accepted (pixels): guards against decompression bombs and absurd headers.
 MAX_FRAME_PIXELS = 1 << 28
@@ -109,10 +122,12 @@ class VideoInfo:
         T, h, w.
     dtype : numpy.dtype
         Stored element type (``uint16`` for PNG frames).
-    format : {"npy", "npz", "png"}
-        Container format.
+    format : str
+        Container format (one of :data:`FORMATS`).
     key : str or None
-        The ``.npz`` member read (None for other formats).
+        The ``.npz`` member (or EXR channel) read (None for other formats).
+    topic : str or None
+        The ROS bag topic read (None for other formats).
     """
 
     n_frames: int
@@ -121,6 +136,7 @@ class VideoInfo:
     dtype: np.dtype
     format: str
     key: str | None = None
+    topic: str | None = None
 
     @property
     def shape(self) -> tuple[int, int, int]:
@@ -164,35 +180,50 @@ def _input_format(path: Path, fmt: str | None) -> str:
         raise InputError(f"{path}: cannot access ({e.strerror or e})") from None
     if not exists:
         raise InputError(f"{path}: no such file or folder")
+    from . import formats
+
     if fmt is not None:
         f = _check_fmt(fmt)
     elif is_dir:
-        f = "png"
+        f = formats.detect_folder(path) or "png"
     else:
         suffix = path.suffix.lower()
-        if suffix not in (".npy", ".npz", ".png"):
+        f = suffix[1:] if suffix in (".npy", ".npz", ".png") else formats.detect_file(path)
+        if f is None:
             raise InputError(
                 f"{path}: unknown input format {path.suffix or '(no suffix)'!r}: "
-                f"expected a .npy or .npz file or a folder of 16-bit PNG frames"
+                f"expected a .npy or .npz file, a folder of 16-bit PNG frames, or another "
+                f"format (--input-format / fmt=: {', '.join(FORMATS[3:])})"
             )
-        f = suffix[1:]
-    if f != "png" and is_dir:
+    if f in ("npy", "npz") and is_dir:
         raise InputError(f"{path}: is a folder, not a .{f} file")
     return f
 
 
 def _output_format(path: Path, fmt: str | None) -> str:
     if fmt is not None:
-        return _check_fmt(fmt)
+        f = _check_fmt(fmt)
+        if f not in WRITE_FORMATS:
+            raise InputError(f"cannot write {f} (output formats: {', '.join(WRITE_FORMATS)})")
+        return f
     suffix = path.suffix.lower()
     if suffix in (".npy", ".npz"):
         return suffix[1:]
+    if suffix in (".tif", ".tiff"):
+        return "tiff"
+    if suffix == ".exr":
+        return "exr"
     if suffix == "" or path.is_dir():
         return "png"
     raise InputError(
-        f"{path}: unknown output format {path.suffix!r}: use a .npy or .npz file "
-        f"or a folder name (no suffix) for 16-bit PNG frames"
+        f"{path}: unknown output format {path.suffix!r}: use a .npy, .npz, .tif or .exr file "
+        f"or a folder name (no suffix) for 16-bit PNG frames (--format exr: EXR frames)"
     )
+
+
+def _folder_output(fmt: str, path: Path) -> bool:
+    """Whether the output of format ``fmt`` at ``path`` is a folder of frame files."""
+    return fmt == "png" or (fmt == "exr" and path.suffix.lower() != ".exr")
 
 
 @contextlib.contextmanager
@@ -514,17 +545,26 @@ def _frames_png(
 # ---------------------------------------------------------------------------------------------
 # public readers
 # ---------------------------------------------------------------------------------------------
-def probe(path: PathLike, *, key: str | None = None, fmt: str | None = None) -> VideoInfo:
+def probe(
+    path: PathLike,
+    *,
+    key: str | None = None,
+    fmt: str | None = None,
+    topic: str | None = None,
+) -> VideoInfo:
     """Describe a depth video cheaply (headers only) and validate its container.
 
     Parameters
     ----------
     path : str or path-like
-        ``.npy`` / ``.npz`` file, folder of 16-bit PNG frames, or a single ``.png``.
+        ``.npy`` / ``.npz`` file, folder of 16-bit PNG frames, a single ``.png``, or a file or
+        folder of another format of :data:`FORMATS` (see :mod:`upsr.formats`).
     key : str, optional
-        Array to read from a ``.npz`` (default: the first one).
-    fmt : {"npy", "npz", "png"}, optional
-        Force the format instead of guessing it from the path.
+        Array to read from a ``.npz`` (default: the first one); EXR: the channel.
+    fmt : str, optional
+        Force the format (one of :data:`FORMATS`) instead of guessing it from the path.
+    topic : str, optional
+        ROS bags: the depth image topic (default: the only one).
 
     Returns
     -------
@@ -538,8 +578,12 @@ def probe(path: PathLike, *, key: str | None = None, fmt: str | None = None) -> 
     """
     p = Path(path)
     f = _input_format(p, fmt)
-    if key is not None and f != "npz":
-        raise InputError(f"key={key!r} only applies to .npz input, not {f}")
+    _check_key_topic(f, key, topic)
+    if f not in _CORE_FORMATS:
+        from . import formats
+
+        opts = formats.ReadOptions(key=key, topic=topic)
+        return formats.module(f).probe(p, opts, f)  # type: ignore[no-any-return]
     if f == "npy":
         return _probe_npy(p)[0]
     if f == "npz":
@@ -547,8 +591,20 @@ def probe(path: PathLike, *, key: str | None = None, fmt: str | None = None) -> 
     return _probe_png(p)[0]
 
 
+def _check_key_topic(f: str, key: str | None, topic: str | None) -> None:
+    if key is not None and f not in ("npz", "exr"):
+        raise InputError(f"key={key!r} only applies to .npz input (or an EXR channel), not {f}")
+    if topic is not None and f != "rosbag":
+        raise InputError(f"topic={topic!r} only applies to ROS bags, not {f}")
+
+
 def iter_frames(
-    path: PathLike, *, key: str | None = None, depth_scale: float = 1000.0, fmt: str | None = None
+    path: PathLike,
+    *,
+    key: str | None = None,
+    depth_scale: float = 1000.0,
+    fmt: str | None = None,
+    topic: str | None = None,
 ) -> Iterator[np.ndarray]:
     """Read a depth video one frame at a time.
 
@@ -557,10 +613,11 @@ def iter_frames(
 
     Parameters
     ----------
-    path, key, fmt
+    path, key, fmt, topic
         As for :func:`probe`.
     depth_scale : float
-        PNG frames only: raw units per metre (1000: mm, TUM: 5000); mm = raw · 1000 / depth_scale.
+        PNG, TIFF, EXR and plain PGM frames: raw units per metre (1000: mm, TUM: 5000,
+        metres: 1); mm = raw · 1000 / depth_scale. Formats with fixed units ignore it.
 
     Yields
     ------
@@ -576,8 +633,14 @@ def iter_frames(
     p = Path(path)
     scale = _check_depth_scale(depth_scale)
     f = _input_format(p, fmt)
-    if key is not None and f != "npz":
-        raise InputError(f"key={key!r} only applies to .npz input, not {f}")
+    _check_key_topic(f, key, topic)
+    if f not in _CORE_FORMATS:
+        from . import formats
+
+        opts = formats.ReadOptions(key=key, depth_scale=scale, topic=topic)
+        impl = formats.module(f)
+        impl.probe(p, opts, f)  # validate the container before the first frame is asked for
+        return _require_valid(impl.frames(p, opts, f), str(p))
     if f == "npy":
         _probe_npy(p)
         frames = _frames_npy(p)
@@ -601,14 +664,61 @@ def _require_valid(frames: Iterator[np.ndarray], name: str) -> Iterator[np.ndarr
 
 
 def read_video(
-    path: PathLike, *, key: str | None = None, depth_scale: float = 1000.0, fmt: str | None = None
+    path: PathLike,
+    *,
+    key: str | None = None,
+    depth_scale: float = 1000.0,
+    fmt: str | None = None,
+    topic: str | None = None,
 ) -> np.ndarray:
     """Read a whole depth video: float32 (T, h, w) in mm (see :func:`iter_frames`)."""
-    info = probe(path, key=key, fmt=fmt)
+    info = probe(path, key=key, fmt=fmt, topic=topic)
     out = np.empty(info.shape, np.float32)
-    for t, frame in enumerate(iter_frames(path, key=key, depth_scale=depth_scale, fmt=fmt)):
+    frames = iter_frames(path, key=key, depth_scale=depth_scale, fmt=fmt, topic=topic)
+    t = -1
+    for t, frame in enumerate(frames):
+        if t >= info.n_frames:
+            raise InputError(f"{path}: more frames than the {info.n_frames} announced")
         out[t] = frame
+    if t + 1 != info.n_frames:
+        raise InputError(f"{path}: {t + 1} frames read, {info.n_frames} announced")
     return out
+
+
+def intrinsics_path(path: PathLike) -> Path:
+    """Where the intrinsics of a video at ``path`` are written: ``<path>.intrinsics.json``."""
+    p = Path(path)
+    return p.with_name(p.name.rstrip("/") + ".intrinsics.json")
+
+
+def read_intrinsics(path: PathLike, *, fmt: str | None = None, topic: str | None = None) -> Any:
+    """The camera intrinsics of a depth video, when known.
+
+    Looked up in this order: what the format carries (ROS ``CameraInfo``, RealSense bags), then
+    a ``<path>.intrinsics.json`` next to the video (as written by ``upsr run``).
+
+    Returns
+    -------
+    upsr.synth.render.PinholeCamera or None
+        fx, fy, cx, cy (px; pixel (i, j) centred at (u, v) = (j, i), SPEC §1), width, height.
+    """
+    p = Path(path)
+    f = _input_format(p, fmt)
+    _check_key_topic(f, None, topic)
+    if f not in _CORE_FORMATS:
+        from . import formats
+
+        impl = formats.module(f)
+        if hasattr(impl, "intrinsics"):
+            cam = impl.intrinsics(p, formats.ReadOptions(topic=topic), f)
+            if cam is not None:
+                return cam
+    side = intrinsics_path(p)
+    if side.is_file():
+        from .intrinsics import load_intrinsics
+
+        return load_intrinsics(side)
+    return None
 
 
 # ---------------------------------------------------------------------------------------------
@@ -658,11 +768,12 @@ def check_output_path(
                 f"output {out} already exists (use --overwrite / overwrite=True to replace it)"
             )
         is_dir = out.is_dir() and not out.is_symlink()
-        if f == "png":
+        if _folder_output(f, out):
+            frame_suffix = f".{f}"
             if not is_dir:
                 raise InputError(
                     f"output {out} exists and is not a folder: refusing to replace "
-                    f"it by a folder of PNG frames"
+                    f"it by a folder of {f.upper()} frames"
                 )
             try:
                 entries = list(os.scandir(out))
@@ -671,12 +782,12 @@ def check_output_path(
             other = [
                 e.name
                 for e in entries
-                if not (e.is_file(follow_symlinks=False) and e.name.lower().endswith(".png"))
+                if not (e.is_file(follow_symlinks=False) and e.name.lower().endswith(frame_suffix))
             ]
             if other:
                 raise InputError(
                     f"refusing to replace folder {out}: it holds other things "
-                    f"than PNG frames (e.g. {other[0]!r})"
+                    f"than {f.upper()} frames (e.g. {other[0]!r})"
                 )
         elif is_dir:
             raise InputError(f"output {out} is a folder: refusing to replace it by a .{f} file")
@@ -753,15 +864,17 @@ class VideoWriter:
     Parameters
     ----------
     path : str or path-like
-        ``.npy`` (float32 mm), ``.npz`` (float32 mm, key ``"depth"``) or a folder name without
-        suffix (16-bit PNG frames ``000000.png``, …).
+        ``.npy`` (float32 mm), ``.npz`` (float32 mm, key ``"depth"``), ``.tif``/``.tiff``
+        (float32, one page per frame), ``.exr`` (one float32 ``Z`` frame), or a folder name
+        without suffix (16-bit PNG frames ``000000.png``, …; EXR frames with ``fmt="exr"``).
     n_frames : int, optional
         Expected number of frames: writing more, or closing after fewer, raises InputError.
-    fmt : {"npy", "npz", "png"}, optional
+    fmt : {"npy", "npz", "png", "tiff", "exr"}, optional
         Force the format instead of guessing it from the path.
     depth_scale : float
-        PNG only: raw units per metre (1000: mm, TUM: 5000); raw = round(mm · depth_scale / 1000).
+        PNG: raw units per metre (1000: mm, TUM: 5000); raw = round(mm · depth_scale / 1000).
         Values above 65535 are clipped (with one warning); valid depths never round to 0.
+        TIFF and EXR: the float value written is mm · depth_scale / 1000 (1000: mm, 1: m).
     overwrite : bool
         Replace an existing output (see :func:`check_output_path`).
 
@@ -796,6 +909,7 @@ class VideoWriter:
         self.frames_written = 0
         self._shape: tuple[int, int] | None = None
         self._fh: BinaryIO | None = None
+        self._sink: Any = None
         self._temp: Path | None = None
         self._temps: list[Path] = []
         self._created: list[Path] = []
@@ -824,7 +938,26 @@ class VideoWriter:
         for d in reversed(missing):
             os.mkdir(d)
             self._created.append(d)
-        if self.format == "png":
+        if self.format in ("tiff", "exr"):
+            from .formats import exr, tiff
+
+            fh: Any = None
+            if _folder_output(self.format, self.path):
+                self._temp = _new_temp_dir(self.path)
+                self._temps.append(self._temp)
+            else:
+                self._temp, fh = _new_temp_file(self.path)
+                self._temps.append(self._temp)
+                if self.format == "exr":
+                    fh.close()  # OpenEXR writes by name
+            if self.format == "tiff":
+                self._sink = tiff.FrameSink(
+                    self._temp, fh, self.depth_scale, self.n_frames, self._shape
+                )
+            else:
+                single = not _folder_output("exr", self.path)
+                self._sink = exr.FrameSink(self._temp, self.depth_scale, single)
+        elif self.format == "png":
             self._temp = _new_temp_dir(self.path)
             self._temps.append(self._temp)
         else:
@@ -847,7 +980,9 @@ class VideoWriter:
             raise InputError(
                 f"output frame {t}: shape {f.shape} differs from the first frame's {self._shape}"
             )
-        if self.format == "png":
+        if self._sink is not None:
+            self._sink.write(f, t)
+        elif self.format == "png":
             self._write_png(f, t)
         else:
             assert self._fh is not None
@@ -890,6 +1025,9 @@ class VideoWriter:
                     f"{self.path}: {self.frames_written} frames written, {self.n_frames} expected"
                 )
             assert self._temp is not None
+            if self._sink is not None:
+                self._sink.close()
+                self._sink = None
             if self.format in ("npy", "npz"):
                 assert self._fh is not None and self._shape is not None
                 self._fh.seek(0)
@@ -925,7 +1063,7 @@ class VideoWriter:
                     f"output {dest} already exists (use --overwrite / overwrite=True to replace it)"
                 )
             check_output_path((), dest, True, fmt=self.format)
-            if self.format == "png" and not dest.is_symlink():
+            if _folder_output(self.format, dest) and not dest.is_symlink():
                 trash = _temp_name(dest, "old")
                 os.replace(dest, trash)
                 self._temps.append(trash)
@@ -938,6 +1076,10 @@ class VideoWriter:
 
     def abort(self) -> None:
         """Discard everything written; nothing appears at the output path. Idempotent."""
+        if self._sink is not None:
+            with contextlib.suppress(Exception):
+                self._sink.abort()
+            self._sink = None
         if self._fh is not None:
             with contextlib.suppress(OSError):
                 self._fh.close()

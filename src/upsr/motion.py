@@ -86,6 +86,9 @@ def depth_range(
 def depth_to_u8(depth_mm: npt.ArrayLike, near_mm: float, far_mm: float) -> np.ndarray:
     """Map depth to an 8-bit image for optical flow: near → 255, far → 1, invalid → 0."""
     d = np.asarray(depth_mm, dtype=np.float32)
+    # float64 whatever the type of near/far (NumPy 2 would compute in float32 for Python
+    # floats and in float64 for NumPy scalars, rounding some pixels differently)
+    near_mm, far_mm = np.float64(near_mm), np.float64(far_mm)
     scale = 254.0 / max(far_mm - near_mm, 1e-6)
     img = 255.0 - (np.clip(d, near_mm, far_mm) - near_mm) * scale
     img[d <= 0] = 0.0
@@ -173,9 +176,14 @@ _DIS_PRESETS = {
 
 def _dis_factory(preset: str = "medium") -> FlowBackend:
     """OpenCV's DIS optical flow (Kroeger et al. 2016): pyramidal, patch-based, fast."""
-    dis = cv2.DISOpticalFlow_create(_DIS_PRESETS[preset])
+    code = _DIS_PRESETS[preset]
 
     def flow(first: np.ndarray, second: np.ndarray) -> np.ndarray:
+        # a fresh DIS object for every pair: OpenCV's keeps state from one call to the next
+        # (the same pair gives another flow on a second call), which would make a result
+        # depend on what the engine computed before (a chunk of a video would differ from
+        # the whole run). Creating it costs ~20 % of a call.
+        dis = cv2.DISOpticalFlow_create(code)
         h, w = first.shape[:2]
         if min(h, w) >= _MIN_FLOW_SIZE:
             return dis.calc(first, second, None)

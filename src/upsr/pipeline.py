@@ -113,8 +113,8 @@ class UPSR:
         self._next_out = 0
         self._any_valid = False
         self._range: tuple[float, float] | None = self.config.depth_range_mm
-        self._edge_mm = self.config.edge_mm
-        self._noise_mm = 0.0
+        self._noise_mm = self.config.noise_mm
+        self._edge_mm = self._edge_for(self._noise_mm or 0.0)
         self._lowres: dict[int, np.ndarray] = {}
         self._up: dict[int, np.ndarray] = {}
         self._pre: dict[int, np.ndarray] = {}
@@ -153,18 +153,24 @@ class UPSR:
         self._pre[t] = bilateral_prefilter(up, cfg.prefilter_sigma_mm, cfg.spatial_sigma_px)
         self._count = t + 1
         if self._count == cfg.n_frames:
+            # per-video statistics, fixed once from the first window (never per frame)
             first = [self._lowres[k] for k in sorted(self._lowres)]
             if self._range is None:
                 self._range = depth_range(np.stack(first))
-            self._noise_mm = float(np.median([estimate_noise_mm(f) for f in first]))
-            self._edge_mm = max(cfg.edge_mm, 4.0 * self._noise_mm)
-        if self._range is not None:
+            if self._noise_mm is None:
+                self._noise_mm = float(np.median([estimate_noise_mm(f) for f in first]))
+                self._edge_mm = self._edge_for(self._noise_mm)
+        if self._range is not None and self._noise_mm is not None:
             for k in sorted(self._pre):
                 if k not in self._guide:
                     self._guide[k] = depth_to_u8(self._pre[k], *self._range)
                     if k - 1 in self._guide:
                         self._fwd[k - 1] = self._consecutive_flow(k - 1, k)
                         self._bwd[k] = self._consecutive_flow(k, k - 1)
+
+    def _edge_for(self, noise_mm: float) -> float:
+        """Depth step (mm) that separates surfaces: ``edge_mm``, at least 4× the noise."""
+        return max(self.config.edge_mm, 4.0 * noise_mm)
 
     def _consecutive_flow(self, a: int, b: int) -> np.ndarray:
         """Flow from frame a to frame b (eq. 17), without motion the depth does not support."""
