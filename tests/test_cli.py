@@ -179,10 +179,12 @@ def test_run_options_reach_the_config(
         "-n",
         1,
         "--no-deblur",
+        "--keep-all-motion",
         "-q",
     )
     assert rc == 0, err
     assert seen["cfg"].deblur.enabled is False
+    assert seen["cfg"].zero_motion_tolerance is None
 
 
 def test_run_png_depth_scale_and_overwrite(

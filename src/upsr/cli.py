@@ -298,6 +298,15 @@ def run(
             "registered neighbour (paper eq. 19): faster, less accurate.",
         ),
     ] = False,
+    keep_all_motion: Annotated[
+        bool,
+        typer.Option(
+            "--keep-all-motion",
+            help="Keep the flow where zero motion explains the depth as well (no "
+            "spurious-motion suppression): better for smooth bodies drifting sideways, worse "
+            "on static backgrounds.",
+        ),
+    ] = False,
     overwrite: Annotated[
         bool, typer.Option("--overwrite", help="Replace OUTPUT if it exists.")
     ] = False,
@@ -330,6 +339,8 @@ def run(
         options["deblur"] = False
     if no_refine:
         options["refine"] = False
+    if keep_all_motion:
+        options["zero_motion_tolerance"] = None
     cfg = UPSRConfig.from_options(scale, DEFAULT_FRAMES if frames is None else frames, **options)
     in_fmt = input_format.value if input_format is not None else None
     out_fmt = output_format.value if output_format is not None else None
