@@ -26,7 +26,7 @@ from typing import Annotated, Any
 import typer
 
 from . import __version__
-from .cli_tools import InFormat
+from .cli_tools import Blur, Flow, FlowPreset, InFormat
 from .cli_tools import register as _register_io_commands
 from .config import DeblurConfig, UPSRConfig
 from .errors import InputError
@@ -64,23 +64,6 @@ class OutFormat(str, Enum):
     png = "png"
     tiff = "tiff"
     exr = "exr"
-
-
-class Blur(str, Enum):
-    none = "none"
-    box = "box"
-    gaussian = "gaussian"
-
-
-class Flow(str, Enum):
-    dis = "dis"
-    farneback = "farneback"
-
-
-class FlowPreset(str, Enum):
-    ultrafast = "ultrafast"
-    fast = "fast"
-    medium = "medium"
 
 
 app = typer.Typer(
