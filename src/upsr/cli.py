@@ -26,7 +26,7 @@ from typing import Annotated, Any
 import typer
 
 from . import __version__
-from .cli_tools import Blur, Flow, FlowPreset, InFormat
+from .cli_tools import Blur, Flow, FlowPreset, InFormat, config_from_options
 from .cli_tools import register as _register_io_commands
 from .config import DeblurConfig, UPSRConfig
 from .errors import InputError
@@ -128,9 +128,6 @@ Examples:
   upsr run capture.npz --key depth -o out.npz -r 2 --no-deblur --flow-preset fast
   upsr run capture.bag --topic /camera/depth/image_rect_raw -o out.npy -r 2
 """
-
-
-DEFAULT_FRAMES = 9  # window length N when --frames is not given
 
 
 @app.command(epilog=_RUN_EPILOG, no_args_is_help=True)
@@ -306,25 +303,20 @@ def run(
     from . import io
     from .pipeline import UPSR
 
-    options: dict[str, Any] = {}
-    for name, value in (
-        ("deblur_lam", lam),
-        ("deblur_alpha", alpha),
-        ("deblur_radius_px", btv_radius),
-        ("deblur_iterations", iterations),
-    ):
-        if value is not None:
-            options[name] = value
-    for name, choice in (("deblur_blur", blur), ("flow", flow), ("flow_preset", flow_preset)):
-        if choice is not None:
-            options[name] = choice.value
-    if no_deblur:
-        options["deblur"] = False
-    if no_refine:
-        options["refine"] = False
-    if keep_all_motion:
-        options["zero_motion_tolerance"] = None
-    cfg = UPSRConfig.from_options(scale, DEFAULT_FRAMES if frames is None else frames, **options)
+    cfg = config_from_options(
+        scale,
+        frames,
+        lam=lam,
+        alpha=alpha,
+        btv_radius=btv_radius,
+        iterations=iterations,
+        blur=blur,
+        flow=flow,
+        flow_preset=flow_preset,
+        no_deblur=no_deblur,
+        no_refine=no_refine,
+        keep_all_motion=keep_all_motion,
+    )
     in_fmt = input_format.value if input_format is not None else None
     out_fmt = output_format.value if output_format is not None else None
     info = io.probe(input_path, key=key, fmt=in_fmt, topic=topic)

@@ -33,6 +33,44 @@ _DEFAULT_DEBLUR = DeblurConfig()
 DEFAULT_FRAMES = 9
 
 
+def config_from_options(
+    scale: int,
+    frames: int | None,
+    *,
+    lam: float | None = None,
+    alpha: float | None = None,
+    btv_radius: int | None = None,
+    iterations: int | None = None,
+    blur: Enum | None = None,
+    flow: Enum | None = None,
+    flow_preset: Enum | None = None,
+    no_deblur: bool = False,
+    no_refine: bool = False,
+    keep_all_motion: bool = False,
+) -> UPSRConfig:
+    """The :class:`UPSRConfig` of the method options shared by ``upsr run`` and ``upsr batch``
+    (``None``: the default; ``frames=None``: N = 9)."""
+    options: dict[str, Any] = {}
+    for name, value in (
+        ("deblur_lam", lam),
+        ("deblur_alpha", alpha),
+        ("deblur_radius_px", btv_radius),
+        ("deblur_iterations", iterations),
+    ):
+        if value is not None:
+            options[name] = value
+    for name, choice in (("deblur_blur", blur), ("flow", flow), ("flow_preset", flow_preset)):
+        if choice is not None:
+            options[name] = choice.value
+    if no_deblur:
+        options["deblur"] = False
+    if no_refine:
+        options["refine"] = False
+    if keep_all_motion:
+        options["zero_motion_tolerance"] = None
+    return UPSRConfig.from_options(scale, DEFAULT_FRAMES if frames is None else frames, **options)
+
+
 class InFormat(str, Enum):
     """Input formats of :mod:`upsr.io` (``--input-format``)."""
 
@@ -553,6 +591,10 @@ def batch(
     no_refine: Annotated[
         bool, typer.Option("--no-refine", help="Skip the eq. 19 re-estimation.")
     ] = False,
+    keep_all_motion: Annotated[
+        bool,
+        typer.Option("--keep-all-motion", help="No spurious-motion suppression (see 'upsr run')."),
+    ] = False,
     overwrite: Annotated[
         bool, typer.Option("--overwrite", help="Recompute outputs that exist [default: skip].")
     ] = False,
@@ -568,23 +610,20 @@ def batch(
     """
     from .batch import run_batch
 
-    options: dict[str, Any] = {}
-    for name, value in (
-        ("deblur_lam", lam),
-        ("deblur_alpha", alpha),
-        ("deblur_radius_px", btv_radius),
-        ("deblur_iterations", iterations),
-    ):
-        if value is not None:
-            options[name] = value
-    for name, choice in (("deblur_blur", blur), ("flow", flow), ("flow_preset", flow_preset)):
-        if choice is not None:
-            options[name] = choice.value
-    if no_deblur:
-        options["deblur"] = False
-    if no_refine:
-        options["refine"] = False
-    cfg = UPSRConfig.from_options(scale, DEFAULT_FRAMES if frames is None else frames, **options)
+    cfg = config_from_options(
+        scale,
+        frames,
+        lam=lam,
+        alpha=alpha,
+        btv_radius=btv_radius,
+        iterations=iterations,
+        blur=blur,
+        flow=flow,
+        flow_preset=flow_preset,
+        no_deblur=no_deblur,
+        no_refine=no_refine,
+        keep_all_motion=keep_all_motion,
+    )
     start = time.perf_counter()
     result = run_batch(
         inputs,
