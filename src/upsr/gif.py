@@ -20,6 +20,7 @@ import numpy.typing as npt
 from numba import njit
 
 from .errors import InputError
+from .io import AtomicWriter
 
 __all__ = ["GifWriter", "lzw_encode", "quantize"]
 
@@ -133,7 +134,7 @@ def quantize(image_bgr: npt.ArrayLike) -> tuple[np.ndarray, np.ndarray]:
     return palette, lut[q].reshape(img.shape[:2])
 
 
-class GifWriter:
+class GifWriter(AtomicWriter):
     """Write an animated GIF frame by frame; the file appears only when :meth:`close` succeeds.
 
     Parameters
@@ -156,15 +157,6 @@ class GifWriter:
         self._fh: Any = None
         self._temp: Path | None = None
         self.frames_written = 0
-
-    def __enter__(self) -> GifWriter:
-        return self
-
-    def __exit__(self, exc_type: Any, exc: Any, tb: Any) -> None:
-        if exc_type is None:
-            self.close()
-        else:
-            self.abort()
 
     def _start(self, h: int, w: int) -> None:
         if h > 65535 or w > 65535:

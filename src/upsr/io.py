@@ -55,7 +55,7 @@ import zlib
 from collections.abc import Iterable, Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import IO, Any, BinaryIO
+from typing import IO, Any, BinaryIO, TypeVar
 
 import numpy as np
 import numpy.typing as npt
@@ -858,7 +858,30 @@ def _npy_header(shape: tuple[int, int, int]) -> bytes:
     return b"\x93NUMPY\x01\x00" + struct.pack("<H", len(text)) + text
 
 
-class VideoWriter:
+_Writer = TypeVar("_Writer", bound="AtomicWriter")
+
+
+class AtomicWriter:
+    """Context-manager protocol of the writers that publish their output only when complete:
+    ``close()`` on success, ``abort()`` (nothing left at the output path) on any exception."""
+
+    def close(self) -> Any:  # pragma: no cover - overridden
+        raise NotImplementedError
+
+    def abort(self) -> None:  # pragma: no cover - overridden
+        raise NotImplementedError
+
+    def __enter__(self: _Writer) -> _Writer:
+        return self
+
+    def __exit__(self, exc_type: Any, exc: Any, tb: Any) -> None:
+        if exc_type is None:
+            self.close()
+        else:
+            self.abort()
+
+
+class VideoWriter(AtomicWriter):
     """Write a depth video frame by frame, atomically.
 
     Parameters
@@ -916,16 +939,6 @@ class VideoWriter:
         self._closed = False
         self._warned_clip = False
         self._finalizer = weakref.finalize(self, _cleanup, self._temps, self._created)
-
-    # -- context manager ---------------------------------------------------------------------
-    def __enter__(self) -> VideoWriter:
-        return self
-
-    def __exit__(self, exc_type: Any, exc: Any, tb: Any) -> None:
-        if exc_type is None:
-            self.close()
-        else:
-            self.abort()
 
     # -- writing -------------------------------------------------------------------------------
     def _open(self) -> None:

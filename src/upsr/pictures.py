@@ -27,6 +27,7 @@ import numpy as np
 import numpy.typing as npt
 
 from .errors import InputError
+from .io import AtomicWriter
 from .synth.render import PinholeCamera, look_at, render_depth
 from .validation import as_depth_frame
 from .visualize import colorbar, colorize_depth, colorize_error, panel_grid, write_png
@@ -146,7 +147,7 @@ def comparison_frame(
     return np.vstack([body, _caption(body.shape[1], text)])
 
 
-class ComparisonWriter:
+class ComparisonWriter(AtomicWriter):
     """Write comparison pictures to ``.png`` (one frame), ``.gif`` or ``.mp4``, atomically.
 
     Parameters
@@ -167,15 +168,6 @@ class ComparisonWriter:
         self._temp: Path | None = None
         self._size: tuple[int, int] | None = None
         self.frames_written = 0
-
-    def __enter__(self) -> ComparisonWriter:
-        return self
-
-    def __exit__(self, exc_type: Any, exc: Any, tb: Any) -> None:
-        if exc_type is None:
-            self.close()
-        else:
-            self.abort()
 
     def write(self, image_bgr: np.ndarray) -> None:
         """Add one picture (BGR uint8); a PNG takes exactly one."""
