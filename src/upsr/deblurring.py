@@ -37,34 +37,116 @@ __all__ = [
 ]
 
 
+def _shift_table(radius: int, alpha: float, lam: float = 1.0):
+    """The (2P+1)²−1 shifts (l, m) ≠ 0 of eq. 29 with their weights 2·λ·α^{|l|+|m|}."""
+    shifts = [(dl, dm) for dl in range(-radius, radius + 1) for dm in range(-radius, radius + 1)]
+    shifts.remove((0, 0))
+    weights = np.array([2.0 * lam * alpha ** (abs(a) + abs(b)) for a, b in shifts], np.float32)
+    dls = np.array([a for a, _ in shifts], np.int64)
+    dms = np.array([b for _, b in shifts], np.int64)
+    return weights, dls, dms
+
+
 @nb.njit(cache=True, nogil=True, parallel=True)
-def _btv_kernel(x, guide, radius, alpha, edge_mm, out):  # pragma: no cover - numba
-    h, w = x.shape
-    side = 2 * radius + 1
-    weights = np.empty((side, side), np.float32)
-    for dl in range(-radius, radius + 1):
-        for dm in range(-radius, radius + 1):
-            weights[dl + radius, dm + radius] = 2.0 * alpha ** (abs(dl) + abs(dm))
+def _pair_masks(guide, dls, dms, edge_mm, masks):  # pragma: no cover - numba
+    """Bit b % 31 of masks[b // 31, i, j] is set where the pair (p, p + shift b) is
+    regularised: both pixels valid in ``guide`` and on one surface (|Δguide| ≤ edge_mm).
+    Computed once per image."""
+    h, w = guide.shape
     for i in nb.prange(h):
         for j in range(w):
             gv = guide[i, j]
-            if gv <= 0:
-                out[i, j] = 0.0
-                continue
-            xv = x[i, j]
-            acc = np.float32(0.0)
-            for ii in range(max(i - radius, 0), min(i + radius + 1, h)):
-                wrow = ii - i + radius
-                for jj in range(max(j - radius, 0), min(j + radius + 1, w)):
-                    gn = guide[ii, jj]
-                    if gn <= 0 or abs(gn - gv) > edge_mm:
-                        continue  # invalid neighbour, or another surface: no pair
-                    d = xv - x[ii, jj]
-                    if d > 0:
-                        acc += weights[wrow, jj - j + radius]
-                    elif d < 0:
-                        acc -= weights[wrow, jj - j + radius]
-            out[i, j] = acc
+            for word in range(masks.shape[0]):
+                masks[word, i, j] = 0
+            if gv > 0:
+                for b in range(dls.size):
+                    ii = i + dls[b]
+                    jj = j + dms[b]
+                    if 0 <= ii < h and 0 <= jj < w:
+                        gn = guide[ii, jj]
+                        if gn > 0 and abs(gn - gv) <= edge_mm:
+                            masks[b // 31, i, j] |= np.int32(1) << np.int32(b % 31)
+
+
+@nb.njit(cache=True, nogil=True, inline="always", fastmath=True)
+def _btv_row(xp, masks, weights, dls, dms, pad, i, j0, j1, acc):  # pragma: no cover - numba
+    """acc[j] = Σ_b weights[b]·sign(x[i, j] − x[(i, j) + shift b]) over the pairs of masks[i],
+    for j0 ≤ j < j1 (acc[j − j0]).
+
+    ``xp`` is x zero-padded by ``pad`` ≥ P on every side, so that the loop over j reads
+    every shifted row without a bounds test and vectorises (SIMD)."""
+    w = j1 - j0
+    acc[:w] = 0.0
+    xr = xp[i + pad, pad + j0 : pad + j1]
+    for b in range(weights.size):
+        wb = weights[b]
+        c0 = pad + dms[b] + j0
+        xn = xp[i + pad + dls[b], c0 : c0 + w]
+        mrow = masks[b // 31, i, j0:j1]
+        bit = np.int32(b % 31)
+        for j in range(w):
+            d = xr[j] - xn[j]
+            s = np.float32(d > 0) - np.float32(d < 0)
+            acc[j] += s * (wb * np.float32((mrow[j] >> bit) & np.int32(1)))
+
+
+@nb.njit(cache=True, nogil=True, parallel=True)
+def _btv_gradient_kernel(xp, masks, weights, dls, dms, pad, out):  # pragma: no cover - numba
+    h, w = out.shape
+    for i in nb.prange(h):
+        acc = np.empty(w, np.float32)
+        _btv_row(xp, masks, weights, dls, dms, pad, i, 0, w, acc)
+        out[i] = acc
+
+
+@nb.njit(cache=True, nogil=True, parallel=True, fastmath=True)
+def _descent_step(
+    xp, z, spans, masks, weights, dls, dms, pad, step, out
+):  # pragma: no cover - numba
+    """One normalised subgradient step of eq. 30 with B = I, fused in one pass:
+    out = x − step·(sign(x − z) + λ·∂Γ_BTV/∂x) on the pixels valid in z (0 elsewhere, as
+    ``out`` already holds outside the span [spans[i, 0], spans[i, 1]) of valid pixels of each
+    row); ``xp`` and ``out`` are padded by ``pad``; the weights include λ."""
+    h = z.shape[0]
+    for i in nb.prange(h):
+        j0 = spans[i, 0]
+        j1 = spans[i, 1]
+        w = j1 - j0
+        if w <= 0:
+            continue
+        acc = np.empty(w, np.float32)
+        _btv_row(xp, masks, weights, dls, dms, pad, i, j0, j1, acc)
+        xr = xp[i + pad, pad + j0 : pad + j1]
+        orow = out[i + pad, pad + j0 : pad + j1]
+        zr = z[i, j0:j1]
+        for j in range(w):
+            zv = zr[j]
+            d = xr[j] - zv
+            s = np.float32(d > 0) - np.float32(d < 0)
+            orow[j] = (xr[j] - step * (s + acc[j])) if zv > 0 else np.float32(0.0)
+
+
+def _padded(x: np.ndarray, pad: int) -> np.ndarray:
+    out = np.zeros((x.shape[0] + 2 * pad, x.shape[1] + 2 * pad), np.float32)
+    out[pad : pad + x.shape[0], pad : pad + x.shape[1]] = x
+    return out
+
+
+def _valid_spans(mask: np.ndarray) -> np.ndarray:
+    """[first, last + 1) column of the valid pixels of each row ((0, 0) for an empty row)."""
+    w = mask.shape[1]
+    first = np.argmax(mask, axis=1)
+    stop = w - np.argmax(mask[:, ::-1], axis=1)
+    empty = ~mask.any(axis=1)
+    first[empty] = 0
+    stop[empty] = 0
+    return np.stack([first, stop], axis=1).astype(np.int64)
+
+
+def _masks(guide: np.ndarray, dls: np.ndarray, dms: np.ndarray, edge_mm: float) -> np.ndarray:
+    masks = np.empty((-(-dls.size // 31), *guide.shape), np.int32)
+    _pair_masks(np.ascontiguousarray(guide, np.float32), dls, dms, float(edge_mm), masks)
+    return masks
 
 
 @nb.njit(cache=True, nogil=True)
@@ -129,15 +211,10 @@ def btv_subgradient(
     2 Σ_{(l,m)≠0} α^{|l|+|m|} sign(x_p − x_{p+(l,m)}) over the admissible pairs.
     """
     xa = np.ascontiguousarray(x, np.float32)
+    weights, dls, dms = _shift_table(int(radius_px), float(alpha))
+    masks = _masks(np.asarray(guide, np.float32), dls, dms, _edge(edge_mm))
     out = np.empty_like(xa)
-    _btv_kernel(
-        xa,
-        np.ascontiguousarray(guide, np.float32),
-        int(radius_px),
-        float(alpha),
-        _edge(edge_mm),
-        out,
-    )
+    _btv_gradient_kernel(_padded(xa, int(radius_px)), masks, weights, dls, dms, int(radius_px), out)
     return out
 
 
@@ -227,19 +304,32 @@ def deblur(z: npt.ArrayLike, cfg: DeblurConfig | None = None, *, scale: int = 1)
     beta = cfg.step_mm if cfg.step_mm is not None else max(0.5, estimate_noise_mm(z, scale))
     s1 = sum(cfg.alpha ** abs(k) for k in range(-cfg.radius_px, cfg.radius_px + 1))
     norm = 1.0 + cfg.lam * 2.0 * (s1 * s1 - 1.0)
-    x = z.copy()
-    reg = np.empty_like(z)
     edge = _edge(cfg.edge_mm)
-    for _ in range(cfg.iterations):
-        if op is None:
-            grad = np.sign(x - z)
-        else:
+    pad = cfg.radius_px
+    if op is None:
+        # B = I (the default): one fused compiled pass per iteration, two padded buffers
+        weights, dls, dms = _shift_table(cfg.radius_px, cfg.alpha, cfg.lam)
+        masks = _masks(z, dls, dms, edge)
+        spans = _valid_spans(mask)
+        xp, nxt = _padded(z, pad), _padded(np.zeros_like(z), pad)
+        for _ in range(cfg.iterations):
+            step = np.float32(beta / norm)
+            _descent_step(xp, z, spans, masks, weights, dls, dms, pad, step, nxt)
+            xp, nxt = nxt, xp
+            beta *= cfg.step_decay
+        x = xp[pad : pad + z.shape[0], pad : pad + z.shape[1]].copy()
+    else:
+        weights, dls, dms = _shift_table(cfg.radius_px, cfg.alpha)
+        masks = _masks(z, dls, dms, edge)
+        x = z.copy()
+        reg = np.empty_like(z)
+        for _ in range(cfg.iterations):
             grad = op.adjoint(np.sign(op.forward(x) - z))
-        _btv_kernel(x, z, cfg.radius_px, cfg.alpha, edge, reg)
-        grad += cfg.lam * reg
-        x -= (beta / norm) * grad
-        x[~mask] = 0.0
-        beta *= cfg.step_decay
+            _btv_gradient_kernel(_padded(x, pad), masks, weights, dls, dms, pad, reg)
+            grad += cfg.lam * reg
+            x -= (beta / norm) * grad
+            x[~mask] = 0.0
+            beta *= cfg.step_decay
     np.maximum(x, np.float32(1e-3), out=x, where=mask)
     if cfg.smooth_sigma_mm is not None:
         sigma_px = cfg.smooth_sigma_px if cfg.smooth_sigma_px is not None else 0.5 * scale

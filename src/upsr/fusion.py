@@ -20,11 +20,13 @@ background, even for an even number of samples: no flying pixels.
 
 from __future__ import annotations
 
+import functools
+
 import numba as nb
 import numpy as np
 import numpy.typing as npt
 
-__all__ = ["OUTSIDE", "temporal_median"]
+__all__ = ["OUTSIDE", "sorting_network", "splat_nearest", "splat_points", "temporal_median"]
 
 #: Marker of a registered sample that fell outside its frame (abstains in the fusion).
 OUTSIDE = np.float32(np.nan)
@@ -39,9 +41,45 @@ def _median_sorted(vals, lo, hi):  # pragma: no cover - numba
     return 0.5 * (vals[m - 1] + vals[m])
 
 
+def sorting_network(n: int) -> np.ndarray:
+    """Comparators (i, j), i < j, of Batcher's odd–even merge sort for n keys, as an (m, 2) array.
+
+    Built for the next power of two and pruned of every comparator that touches a padding
+    position ≥ n (padding keys are +∞, already in place, so those never swap). For the usual
+    window lengths: 9 keys in 28 compare-exchanges, branch-free, instead of an insertion sort.
+    """
+    size = 1
+    while size < n:
+        size *= 2
+    pairs: list[tuple[int, int]] = []
+
+    def merge(lo: int, length: int, step: int) -> None:
+        double = step * 2
+        if double < length:
+            merge(lo, length, double)
+            merge(lo + step, length, double)
+            pairs.extend((i, i + step) for i in range(lo + step, lo + length - step, double))
+        else:
+            pairs.append((lo, lo + step))
+
+    def sort(lo: int, length: int) -> None:
+        if length > 1:
+            half = length // 2
+            sort(lo, half)
+            sort(lo + half, half)
+            merge(lo, length, 1)
+
+    sort(0, size)
+    kept = [(i, j) for i, j in pairs if j < n]
+    return np.array(kept, np.int64).reshape(-1, 2)
+
+
 @nb.njit(cache=True, nogil=True, parallel=True)
-def _median_kernel(stack, weights, guide, guide_bonus, ref, min_valid_fraction, edge_mm, out):
+def _median_kernel(
+    stack, weights, guide, guide_bonus, ref, min_valid_fraction, edge_mm, network, out
+):  # pragma: no cover - numba
     n, h, w = stack.shape
+    inf = np.float32(np.inf)
     for i in nb.prange(h):
         vals = np.empty(n, np.float32)
         wts = np.empty(n, np.float32)
@@ -51,21 +89,34 @@ def _median_kernel(stack, weights, guide, guide_bonus, ref, min_valid_fraction, 
             w_valid = 0.0
             for k in range(n):
                 v = stack[k, i, j]
-                if v != v:  # NaN: outside the frame, abstains
-                    continue
                 wk = weights[k, i, j]
+                if v != v:  # NaN: outside the frame, abstains
+                    vals[k] = inf
+                    wts[k] = 0.0
+                    continue
                 w_in += wk
                 if v > 0:
                     w_valid += wk
-                    # insertion sort into vals[0:nv], weights alongside
-                    p = nv
-                    while p > 0 and vals[p - 1] > v:
-                        vals[p] = vals[p - 1]
-                        wts[p] = wts[p - 1]
-                        p -= 1
-                    vals[p] = v
-                    wts[p] = wk
+                    vals[k] = v
+                    wts[k] = wk
                     nv += 1
+                else:
+                    vals[k] = inf
+                    wts[k] = 0.0
+            if nv == 0:
+                out[i, j] = 0.0
+                continue
+            # sort the keys (invalid ones are +inf and end up last), weights alongside
+            for c in range(network.shape[0]):
+                a = network[c, 0]
+                b = network[c, 1]
+                if vals[a] > vals[b]:
+                    tv = vals[a]
+                    vals[a] = vals[b]
+                    vals[b] = tv
+                    tw = wts[a]
+                    wts[a] = wts[b]
+                    wts[b] = tw
             if nv == 0:
                 out[i, j] = 0.0
                 continue
@@ -101,6 +152,11 @@ def _median_kernel(stack, weights, guide, guide_bonus, ref, min_valid_fraction, 
                 if p < nv:
                     acc += wts[p]
             out[i, j] = _median_sorted(vals, best_lo, best_hi)
+
+
+@functools.lru_cache(maxsize=16)
+def _network(n: int) -> np.ndarray:
+    return sorting_network(n)
 
 
 def temporal_median(
@@ -160,26 +216,29 @@ def temporal_median(
         gd = np.ascontiguousarray(guide, dtype=np.float32)
     out = np.empty(arr.shape[1:], np.float32)
     _median_kernel(
-        arr, wts, gd, float(guide_bonus), ref, float(min_valid_fraction), float(edge_mm), out
+        arr,
+        wts,
+        gd,
+        float(guide_bonus),
+        ref,
+        float(min_valid_fraction),
+        float(edge_mm),
+        _network(n),
+        out,
     )
     return out
 
 
 @nb.njit(cache=True, nogil=True)
-def _splat_kernel(lowres, maps, scale, radius, best_d, best_v):  # pragma: no cover - numba
-    n, h, w = lowres.shape
+def _splat_kernel(values, positions, radius, best_d, best_v):  # pragma: no cover - numba
+    n, h, w = values.shape
     hh, ww = best_d.shape
-    half = 0.5 * scale - 0.5
     for k in range(n):
         for i in range(h):
-            cy = i * scale + half
-            yi = min(int(cy + 0.5), hh - 1)
             for j in range(w):
-                cx = j * scale + half
-                xi = min(int(cx + 0.5), ww - 1)
-                qx = cx + maps[k, yi, xi, 0]
-                qy = cy + maps[k, yi, xi, 1]
-                v = lowres[k, i, j]
+                qx = positions[k, i, j, 0]
+                qy = positions[k, i, j, 1]
+                v = values[k, i, j]
                 y0 = max(int(np.ceil(qy - radius)), 0)
                 y1 = min(int(np.floor(qy + radius)), hh - 1)
                 x0 = max(int(np.ceil(qx - radius)), 0)
@@ -192,18 +251,49 @@ def _splat_kernel(lowres, maps, scale, radius, best_d, best_v):  # pragma: no co
                             best_v[u, vv] = v
 
 
-def splat_nearest(
-    lowres: npt.ArrayLike, to_reference: npt.ArrayLike, scale: int, radius_px: float = 1.0
+def splat_points(
+    values: npt.ArrayLike,
+    positions_px: npt.ArrayLike,
+    shape: tuple[int, int],
+    radius_px: float = 1.0,
 ) -> np.ndarray:
-    """Forward-register every low-res sample of a window and keep the nearest per pixel.
+    """Nearest forward-registered sample per high-res pixel (shift-and-add, Farsiu et al. 2004).
 
     Each low-res pixel of frame t is a point sample of the scene at its centre (high-res
     coordinate (i+0.5)·r − 0.5, ``SPEC.md`` §1). Moved to the reference with its own motion
-    C_{t→t0} (shift-and-add, Farsiu et al. 2004), the samples of a moving surface land at
-    sub-pixel positions that outline the surface at the reference time far more precisely
-    than the r×r blocks of dense upsampling. The depth of the nearest sample within
-    ``radius_px`` tells on which surface each high-res pixel lies (the guide of
-    :func:`temporal_median`).
+    C_{t→t0}, the samples of a moving surface land at sub-pixel positions that outline the
+    surface at the reference time far more precisely than the r×r blocks of dense upsampling.
+    The depth of the nearest sample within ``radius_px`` tells on which surface each high-res
+    pixel lies (the guide of :func:`temporal_median`).
+
+    Parameters
+    ----------
+    values : array_like (N, h, w)
+        The low-res frames of the window (mm, 0 = no return).
+    positions_px : array_like (N, h, w, 2)
+        Where each sample lands on the reference grid, (x, y) in high-res px
+        (:func:`upsr.registration.trace_to_reference`).
+    shape : (H, W)
+        Size of the high-res grid.
+    radius_px : float
+        Largest distance (high-res px) between a pixel and the sample it takes.
+
+    Returns
+    -------
+    ndarray float32 (H, W): the nearest sample's depth, NaN where none is in reach.
+    """
+    vals = np.ascontiguousarray(values, dtype=np.float32)
+    pos = np.ascontiguousarray(positions_px, dtype=np.float32)
+    best_d = np.full(shape, radius_px * radius_px, np.float64)
+    best_v = np.full(shape, np.nan, np.float32)
+    _splat_kernel(vals, pos, float(radius_px), best_d, best_v)
+    return best_v
+
+
+def splat_nearest(
+    lowres: npt.ArrayLike, to_reference: npt.ArrayLike, scale: int, radius_px: float = 1.0
+) -> np.ndarray:
+    """:func:`splat_points` with dense motion fields to the reference on the high-res grid.
 
     Parameters
     ----------
@@ -211,7 +301,8 @@ def splat_nearest(
         The low-res frames of the window (mm, 0 = no return).
     to_reference : array_like (N, r·h, r·w, 2)
         Motion of each frame to the reference on its own high-res grid
-        (:func:`upsr.registration.flows_to_reference`).
+        (:func:`upsr.registration.flows_to_reference`), read at the high-res pixel nearest to
+        each low-res pixel centre.
     scale : int
         SR factor r.
     radius_px : float
@@ -221,10 +312,15 @@ def splat_nearest(
     -------
     ndarray float32 (r·h, r·w): the nearest sample's depth, NaN where none is in reach.
     """
-    lr = np.ascontiguousarray(lowres, dtype=np.float32)
-    maps = np.ascontiguousarray(to_reference, dtype=np.float32)
+    lr = np.asarray(lowres, dtype=np.float32)
+    maps = np.asarray(to_reference, dtype=np.float32)
+    _, h, w = lr.shape
     hh, ww = maps.shape[1:3]
-    best_d = np.full((hh, ww), radius_px * radius_px, np.float64)
-    best_v = np.full((hh, ww), np.nan, np.float32)
-    _splat_kernel(lr, maps, int(scale), float(radius_px), best_d, best_v)
-    return best_v
+    centre_y = np.arange(h) * scale + 0.5 * scale - 0.5
+    centre_x = np.arange(w) * scale + 0.5 * scale - 0.5
+    yi = np.minimum((centre_y + 0.5).astype(np.intp), hh - 1)
+    xi = np.minimum((centre_x + 0.5).astype(np.intp), ww - 1)
+    pos = maps[:, yi[:, None], xi[None, :], :].copy()
+    pos[..., 0] += centre_x[None, None, :]
+    pos[..., 1] += centre_y[None, :, None]
+    return splat_points(lr, pos, (hh, ww), radius_px)

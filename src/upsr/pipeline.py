@@ -28,7 +28,7 @@ import numpy.typing as npt
 from .config import UPSRConfig
 from .deblurring import deblur, estimate_noise_mm
 from .errors import InputError
-from .fusion import splat_nearest, temporal_median
+from .fusion import splat_points, temporal_median
 from .motion import (
     FlowBackend,
     bilateral_prefilter,
@@ -37,12 +37,7 @@ from .motion import (
     make_flow_backend,
     suppress_spurious_motion,
 )
-from .registration import (
-    cumulative_flows,
-    flows_to_reference,
-    sample_offsets,
-    warp_nearest,
-)
+from .registration import cumulative_flows, register_lowres, trace_to_reference
 from .upsampling import upsample_nearest
 from .validation import as_depth_frame, as_depth_video
 
@@ -116,7 +111,7 @@ class UPSR:
         self._noise_mm = self.config.noise_mm
         self._edge_mm = self._edge_for(self._noise_mm or 0.0)
         self._lowres: dict[int, np.ndarray] = {}
-        self._up: dict[int, np.ndarray] = {}
+        self._buffers: tuple[np.ndarray, np.ndarray] | None = None
         self._pre: dict[int, np.ndarray] = {}
         self._guide: dict[int, np.ndarray] = {}
         self._fwd: dict[int, np.ndarray] = {}
@@ -147,10 +142,11 @@ class UPSR:
             )
         cfg = self.config
         self._any_valid = self._any_valid or bool((f > 0).any())
-        up = upsample_nearest(f, cfg.scale)
+        s = cfg.motion_scale
         self._lowres[t] = f
-        self._up[t] = up
-        self._pre[t] = bilateral_prefilter(up, cfg.prefilter_sigma_mm, cfg.spatial_sigma_px)
+        self._pre[t] = bilateral_prefilter(
+            upsample_nearest(f, s), cfg.prefilter_sigma_mm, cfg.spatial_sigma_px * s / cfg.scale
+        )
         self._count = t + 1
         if self._count == cfg.n_frames:
             # per-video statistics, fixed once from the first window (never per frame)
@@ -198,11 +194,11 @@ class UPSR:
             first,
             second,
             flow,
-            window_px=2 * self.config.scale + 1,
+            window_px=2 * self.config.motion_scale + 1,
             tolerance=self.config.zero_motion_tolerance,
             noise_mm=self._noise_mm * units_per_mm,
             edge_mm=self._edge_mm * units_per_mm,
-            edge_window_px=4 * self.config.scale + 1,
+            edge_window_px=4 * self.config.motion_scale + 1,
         )
 
     def _finish(self, t: int, n_total: int) -> np.ndarray:
@@ -210,45 +206,50 @@ class UPSR:
         s = window_start(t, n_total, cfg)
         idx = range(s, s + cfg.n_frames)
         ref = t - s
-        h, w = self.output_shape  # type: ignore[misc]
+        h, w = self._shape  # type: ignore[misc]
+        r = cfg.scale
+        backward = [self._bwd.get(k) for k in idx]
+        forward = [self._fwd.get(k) for k in idx]
+        # motion from the reference to every frame, on the flow grid (eq. 19–21)
         maps = cumulative_flows(
             ref,
-            [self._bwd.get(k) for k in idx],
-            [self._fwd.get(k) for k in idx],
-            (h, w),
+            backward,
+            forward,
+            self._guide[t].shape,
             refine=self._refine_flow if cfg.refine else None,
             guides=[self._guide[k] for k in idx],
         )
-        stack = np.stack([warp_nearest(self._up[k], m) for k, m in zip(idx, maps, strict=False)])
-        back = None
-        if cfg.splat_radius_px and cfg.n_frames > 1:
-            back = flows_to_reference(
-                ref, [self._bwd.get(k) for k in idx], [self._fwd.get(k) for k in idx], (h, w)
-            )
-        weights = None
-        if cfg.edge_weight_px:
-            d = np.stack([sample_offsets(m, cfg.scale) for m in maps])
-            s2 = 2.0 * (cfg.edge_weight_px * cfg.scale) ** 2
-            weights = cfg.edge_weight_floor + (1.0 - cfg.edge_weight_floor) * np.exp(-d * d / s2)
         lowres = np.stack([self._lowres[k] for k in idx])
+        if self._buffers is None or self._buffers[0].shape != (len(idx), h * r, w * r):
+            self._buffers = tuple(np.empty((len(idx), h * r, w * r), np.float32) for _ in "sw")
+        # registered samples (eq. 20) and their vote weights, one compiled pass
+        stack, weights = register_lowres(
+            lowres,
+            np.stack(maps),
+            r,
+            weight_sigma_px=cfg.edge_weight_px * r if cfg.edge_weight_px else None,
+            weight_floor=cfg.edge_weight_floor,
+            out=self._buffers,  # type: ignore[arg-type]
+        )
         guide = None
-        if back is not None:
-            guide = splat_nearest(lowres, np.stack(back), cfg.scale, cfg.splat_radius_px)
+        if cfg.splat_radius_px and cfg.n_frames > 1:
+            positions = trace_to_reference(ref, forward, backward, (h, w), r)
+            guide = splat_points(lowres, positions, (h * r, w * r), cfg.splat_radius_px)
         fused = temporal_median(
             stack,
             ref,
-            weights=weights,
+            weights=weights if cfg.edge_weight_px else None,
             guide=guide,
             min_valid_fraction=cfg.min_valid_fraction,
             edge_mm=self._edge_mm,
         )
         # never invent depth where no frame of the window measured anything
-        fused[~upsample_nearest((lowres > 0).any(axis=0), cfg.scale)] = 0.0
-        out = deblur(fused, cfg.deblur, scale=cfg.scale)
+        fused[~upsample_nearest((lowres > 0).any(axis=0), r)] = 0.0
+        out = deblur(fused, cfg.deblur, scale=r)
         # forget what no later window needs: the next window starts at window_start(t + 1, T)
         # for a video of T >= frames_seen frames, which is at least this
         keep_from = max(min(t + 1 - cfg.half_before, self._count - cfg.n_frames), 0)
-        for store in (self._lowres, self._up, self._pre, self._guide, self._fwd, self._bwd):
+        for store in (self._lowres, self._pre, self._guide, self._fwd, self._bwd):
             for k in [k for k in store if k < keep_from]:
                 del store[k]
         return out

@@ -20,6 +20,7 @@ import functools
 from collections.abc import Callable, Sequence
 
 import cv2
+import numba as nb
 import numpy as np
 import numpy.typing as npt
 
@@ -29,7 +30,9 @@ __all__ = [
     "cumulative_flows",
     "flows_to_reference",
     "identity_grid",
+    "register_lowres",
     "sample_offsets",
+    "trace_to_reference",
     "warp_guide",
     "warp_nearest",
 ]
@@ -208,3 +211,218 @@ def cumulative_flows(
             maps[j] = cum
             j += direction
     return maps  # type: ignore[return-value]
+
+
+# --------------------------------------------------------------------------------------------
+# Compiled registration of a window: motion estimated on a coarser grid than the output
+# --------------------------------------------------------------------------------------------
+#
+# The flow may be estimated on frames upsampled by a factor ``flow_scale`` = s ≤ r (the "flow
+# grid", s·h × s·w) rather than by r: a pixel centre x of the high-res grid sits at
+# (x + 0.5)·s/r − 0.5 on the flow grid, and a displacement of 1 flow px is r/s high-res px.
+# With s = r these kernels reproduce warp_nearest / sample_offsets exactly.
+
+
+@nb.njit(cache=True, nogil=True, inline="always")
+def _bilinear(field, u, v, c):  # pragma: no cover - numba
+    """Channel c of field (H, W, 2) at (u, v), bilinear, clamped to the border."""
+    hf, wf = field.shape[0], field.shape[1]
+    u = min(max(u, 0.0), wf - 1.0)
+    v = min(max(v, 0.0), hf - 1.0)
+    x0 = min(int(u), wf - 2) if wf > 1 else 0
+    y0 = min(int(v), hf - 2) if hf > 1 else 0
+    x1 = min(x0 + 1, wf - 1)
+    y1 = min(y0 + 1, hf - 1)
+    fx = u - x0
+    fy = v - y0
+    top = field[y0, x0, c] * (1.0 - fx) + field[y0, x1, c] * fx
+    bot = field[y1, x0, c] * (1.0 - fx) + field[y1, x1, c] * fx
+    return top * (1.0 - fy) + bot * fy
+
+
+@nb.njit(cache=True, nogil=True, parallel=True, fastmath=True)
+def _register_kernel(
+    lowres, maps, scale, ratio, cols, fx, rows, fy, table, step, floor, stack, weights
+):  # pragma: no cover - numba
+    n = lowres.shape[0]
+    hh, ww = stack.shape[1], stack.shape[2]
+    last = table.size - 1
+    for i in nb.prange(hh):
+        y0 = rows[i, 0]
+        y1 = rows[i, 1]
+        gy = fy[i]
+        for k in range(n):
+            m0 = maps[k, y0]
+            m1 = maps[k, y1]
+            srow = stack[k, i]
+            wrow = weights[k, i]
+            for j in range(ww):
+                a = cols[j, 0]
+                b = cols[j, 1]
+                gx = fx[j]
+                dx = (m0[a, 0] * (1 - gx) + m0[b, 0] * gx) * (1 - gy)
+                dx += (m1[a, 0] * (1 - gx) + m1[b, 0] * gx) * gy
+                dy = (m0[a, 1] * (1 - gx) + m0[b, 1] * gx) * (1 - gy)
+                dy += (m1[a, 1] * (1 - gx) + m1[b, 1] * gx) * gy
+                qx = j + dx * ratio
+                qy = i + dy * ratio
+                xi = int(np.floor(qx + 0.5))
+                yi = int(np.floor(qy + 0.5))
+                if xi < 0 or xi >= ww or yi < 0 or yi >= hh:
+                    srow[j] = np.nan
+                    wrow[j] = 1.0
+                    continue
+                li = yi // scale
+                lj = xi // scale
+                srow[j] = lowres[k, li, lj]
+                # weight: a tabulated Gaussian of the distance to the sampled pixel's centre
+                ex = min(int(abs(qx - ((lj + 0.5) * scale - 0.5)) * step + 0.5), last)
+                ey = min(int(abs(qy - ((li + 0.5) * scale - 0.5)) * step + 0.5), last)
+                wrow[j] = floor + (1.0 - floor) * table[ex] * table[ey]
+
+
+def _interpolation_table(n_out: int, n_in: int, ratio: float) -> tuple[np.ndarray, np.ndarray]:
+    """Neighbours (n_out, 2) and weights of the bilinear interpolation from n_in to n_out
+    samples with pixel centres aligned ((x + 0.5)/ratio − 0.5, clamped; like cv2.resize)."""
+    u = np.clip((np.arange(n_out) + 0.5) / ratio - 0.5, 0.0, n_in - 1.0)
+    lo = np.minimum(np.floor(u).astype(np.int64), max(n_in - 2, 0))
+    hi = np.minimum(lo + 1, n_in - 1)
+    return np.stack([lo, hi], axis=1), (u - lo).astype(np.float32)
+
+
+def register_lowres(
+    lowres: npt.ArrayLike,
+    maps: npt.ArrayLike,
+    scale: int,
+    *,
+    weight_sigma_px: float | None = None,
+    weight_floor: float = 0.25,
+    out: tuple[np.ndarray, np.ndarray] | None = None,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Register every frame of a window to the reference and weight each sample (eq. 20).
+
+    One compiled pass that equals, for a flow grid of the output size,
+    ``warp_nearest(upsample_nearest(lowres[k], r), maps[k])`` (nearest neighbour, never an
+    interpolated depth; NaN outside the frame) and the vote weights of the fusion from
+    :func:`sample_offsets`, ``floor + (1 − floor)·exp(−d²/(2σ²))``. The dense upsampled
+    frames are never built: the registered position is read in the low-res frame directly.
+
+    Parameters
+    ----------
+    lowres : array_like (N, h, w)
+        Low-res frames (mm).
+    maps : array_like (N, s·h, s·w, 2)
+        Motion from the reference to each frame on the flow grid (s divides r, s ≤ r), in flow
+        px; it is interpolated bilinearly to the high-res grid.
+    scale : int
+        SR factor r.
+    weight_sigma_px : float or None
+        σ of the vote weights (high-res px); ``None``: all weights 1.
+    weight_floor : float
+        Smallest weight.
+    out : (stack, weights), optional
+        Preallocated float32 (N, r·h, r·w) arrays to fill.
+
+    Returns
+    -------
+    stack, weights : ndarray float32 (N, r·h, r·w)
+    """
+    lr = np.ascontiguousarray(lowres, np.float32)
+    mp = np.ascontiguousarray(maps, np.float32)
+    n, h, w = lr.shape
+    ratio = float(scale) * w / mp.shape[2]
+    shape = (n, h * scale, w * scale)
+    if out is None:
+        out = (np.empty(shape, np.float32), np.empty(shape, np.float32))
+    stack, weights = out
+    cols, fx = _interpolation_table(shape[2], mp.shape[2], ratio)
+    rows, fy = _interpolation_table(shape[1], mp.shape[1], ratio)
+    # exp(−(dx² + dy²)/(2σ²)) = g(dx)·g(dy): g tabulated in steps of 1/64 px
+    steps = 64.0
+    d = np.arange(int(np.ceil(scale * steps)) + 2) / steps
+    if weight_sigma_px:
+        gauss = np.exp(-(d**2) / (2.0 * float(weight_sigma_px) ** 2))
+    else:
+        gauss = np.ones_like(d)
+    _register_kernel(
+        lr,
+        mp,
+        int(scale),
+        ratio,
+        cols,
+        fx,
+        rows,
+        fy,
+        gauss.astype(np.float32),
+        steps,
+        float(weight_floor),
+        stack,
+        weights,
+    )
+    return stack, weights
+
+
+@nb.njit(cache=True, nogil=True, parallel=True)
+def _trace_kernel(ref, forward, backward, s, ratio, out):  # pragma: no cover - numba
+    n, h, w = out.shape[0], out.shape[1], out.shape[2]
+    for i in nb.prange(h):
+        for k in range(n):
+            for j in range(w):
+                u = (j + 0.5) * s - 0.5
+                v = (i + 0.5) * s - 0.5
+                if k < ref:
+                    for m in range(k, ref):
+                        du = _bilinear(forward[m], u, v, 0)
+                        dv = _bilinear(forward[m], u, v, 1)
+                        u += du
+                        v += dv
+                else:
+                    for m in range(k, ref, -1):
+                        du = _bilinear(backward[m], u, v, 0)
+                        dv = _bilinear(backward[m], u, v, 1)
+                        u += du
+                        v += dv
+                out[k, i, j, 0] = (u + 0.5) * ratio - 0.5
+                out[k, i, j, 1] = (v + 0.5) * ratio - 0.5
+
+
+def trace_to_reference(
+    ref: int,
+    forward: Sequence[np.ndarray | None],
+    backward: Sequence[np.ndarray | None],
+    lowres_shape: tuple[int, int],
+    scale: int,
+) -> np.ndarray:
+    """Where each low-res sample of a window lands in the reference frame (high-res px).
+
+    The centre of low-res pixel (i, j) of frame t (``SPEC.md`` §1) is followed through the
+    consecutive flows towards the reference (``forward[t]``, ``forward[t+1]``, … before it,
+    ``backward[t]``, … after it), each read bilinearly at the current position: the exact
+    chain of :func:`flows_to_reference`, evaluated only at the N·h·w sample points. Used to
+    forward-register the samples (:func:`upsr.fusion.splat_points`).
+
+    Parameters
+    ----------
+    ref : int
+        Index of the reference in the window.
+    forward, backward : sequences of N flows on the flow grid (s·h, s·w, 2)
+        ``forward[j]``: frame j → j+1 (needed for j < ref); ``backward[j]``: j → j−1 (j > ref).
+    lowres_shape : (h, w)
+    scale : int
+        SR factor r.
+
+    Returns
+    -------
+    ndarray float32 (N, h, w, 2): (x, y) in high-res px of the reference grid.
+    """
+    h, w = lowres_shape
+    n = len(forward)
+    some = next(f for f in (*forward, *backward) if f is not None) if n > 1 else None
+    hf, wf = (some.shape[:2]) if some is not None else (h * scale, w * scale)
+    zero = np.zeros((hf, wf, 2), np.float32)
+    fwd = np.stack([f if f is not None and j < ref else zero for j, f in enumerate(forward)])
+    bwd = np.stack([b if b is not None and j > ref else zero for j, b in enumerate(backward)])
+    s = wf // w
+    out = np.empty((n, h, w, 2), np.float32)
+    _trace_kernel(int(ref), fwd, bwd, float(s), float(scale) / s, out)
+    return out
