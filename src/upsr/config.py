@@ -131,6 +131,11 @@ class UPSRConfig:
         be registered with :func:`upsr.motion.register_flow_backend`.
     flow_preset : {"ultrafast", "fast", "medium"}
         DIS preset (ignored by other backends).
+    refine_preset : {"ultrafast", "fast", "medium"} or None
+        DIS preset of the eq. 19 residual flows between registered frames, which are small
+        (the consecutive flows already moved the frame most of the way); the default
+        ``"ultrafast"`` is 7× cheaper than ``"medium"`` and measured as accurate on Samba
+        (``benchmarks/speed_eval.py``). ``None``: as ``flow_preset``.
     flow_scale : int or None
         Upsampling factor s of the frames the motion is estimated on (1 ≤ s ≤ r): the flow
         grid is s·h × s·w and the motion is interpolated bilinearly to the r·h × r·w output
@@ -184,6 +189,7 @@ class UPSRConfig:
     flow: str = "dis"
     flow_preset: str = "medium"
     flow_scale: int | None = None
+    refine_preset: str | None = "ultrafast"
     depth_range_mm: tuple[float, float] | None = None
     noise_mm: float | None = None
     zero_motion_tolerance: float | None = 1.1
@@ -218,6 +224,10 @@ class UPSRConfig:
         _check(
             self.flow_preset in ("ultrafast", "fast", "medium"),
             f"flow_preset must be 'ultrafast', 'fast' or 'medium', not {self.flow_preset!r}",
+        )
+        _check(
+            self.refine_preset in (None, "ultrafast", "fast", "medium"),
+            f"refine_preset must be 'ultrafast', 'fast' or 'medium', not {self.refine_preset!r}",
         )
         if self.depth_range_mm is not None:
             near, far = self.depth_range_mm

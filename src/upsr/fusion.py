@@ -26,7 +26,19 @@ import numba as nb
 import numpy as np
 import numpy.typing as npt
 
-__all__ = ["OUTSIDE", "sorting_network", "splat_nearest", "splat_points", "temporal_median"]
+from .registration import interpolation_tables, weight_table
+
+__all__ = [
+    "OUTSIDE",
+    "register_and_fuse",
+    "sorting_network",
+    "splat_nearest",
+    "splat_points",
+    "temporal_median",
+]
+
+#: LLVM fast-math flags that keep NaN and ∞ semantics (NaN marks "outside", +∞ "invalid")
+_SAFE_FASTMATH = {"nsz", "arcp", "contract", "afn", "reassoc"}
 
 #: Marker of a registered sample that fell outside its frame (abstains in the fusion).
 OUTSIDE = np.float32(np.nan)
@@ -74,6 +86,54 @@ def sorting_network(n: int) -> np.ndarray:
     return np.array(kept, np.int64).reshape(-1, 2)
 
 
+@nb.njit(cache=True, nogil=True, inline="always")
+def _fuse_pixel(
+    vals, wts, nv, w_in, w_valid, ref_value, g, guide_bonus, min_valid_fraction, edge_mm, network
+):  # pragma: no cover - numba
+    """The fused depth of one pixel from its samples: vals[k] > 0 valid (else +inf) with vote
+    weights wts[k] (0 for invalid ones); nv valid samples; w_in, w_valid the weight of the
+    in-frame and of the valid samples; ref_value the reference's sample (0 if none); g the
+    guide (≤ 0 or NaN: none). Sorts vals/wts in place."""
+    frac = w_valid / w_in
+    if frac < min_valid_fraction or (frac == min_valid_fraction and ref_value == 0.0):
+        return np.float32(0.0)
+    # sort the keys (invalid ones are +inf and end up last), weights alongside
+    for c in range(network.shape[0]):
+        a = network[c, 0]
+        b = network[c, 1]
+        if vals[a] > vals[b]:
+            tv = vals[a]
+            vals[a] = vals[b]
+            vals[b] = tv
+            tw = wts[a]
+            wts[a] = wts[b]
+            wts[b] = tw
+    if vals[nv - 1] - vals[0] <= edge_mm:
+        return _median_sorted(vals, 0, nv)
+    # samples from several surfaces (a depth edge): the surface with the largest vote
+    # weight wins (a tie: the reference's surface); the surface of the guide (the nearest
+    # forward-registered sample) gets a bonus; its median is the output
+    best_lo = 0
+    best_hi = 0
+    best_w = -np.inf
+    lo = 0
+    acc = wts[0]
+    for p in range(1, nv + 1):
+        if p == nv or vals[p] - vals[p - 1] > edge_mm:
+            has_ref = vals[lo] <= ref_value <= vals[p - 1]
+            if g > 0 and vals[lo] - edge_mm <= g <= vals[p - 1] + edge_mm:
+                acc += guide_bonus * w_valid
+            if acc > best_w or (acc == best_w and has_ref):
+                best_w = acc
+                best_lo = lo
+                best_hi = p
+            lo = p
+            acc = 0.0
+        if p < nv:
+            acc += wts[p]
+    return _median_sorted(vals, best_lo, best_hi)
+
+
 @nb.njit(cache=True, nogil=True, parallel=True)
 def _median_kernel(
     stack, weights, guide, guide_bonus, ref, min_valid_fraction, edge_mm, network, out
@@ -90,9 +150,9 @@ def _median_kernel(
             for k in range(n):
                 v = stack[k, i, j]
                 wk = weights[k, i, j]
+                vals[k] = inf
+                wts[k] = 0.0
                 if v != v:  # NaN: outside the frame, abstains
-                    vals[k] = inf
-                    wts[k] = 0.0
                     continue
                 w_in += wk
                 if v > 0:
@@ -100,58 +160,139 @@ def _median_kernel(
                     vals[k] = v
                     wts[k] = wk
                     nv += 1
-                else:
-                    vals[k] = inf
-                    wts[k] = 0.0
-            if nv == 0:
-                out[i, j] = 0.0
-                continue
-            # sort the keys (invalid ones are +inf and end up last), weights alongside
-            for c in range(network.shape[0]):
-                a = network[c, 0]
-                b = network[c, 1]
-                if vals[a] > vals[b]:
-                    tv = vals[a]
-                    vals[a] = vals[b]
-                    vals[b] = tv
-                    tw = wts[a]
-                    wts[a] = wts[b]
-                    wts[b] = tw
             if nv == 0:
                 out[i, j] = 0.0
                 continue
             r = stack[ref, i, j]
             ref_value = r if (r == r and r > 0) else 0.0
-            frac = w_valid / w_in
-            if frac < min_valid_fraction or (frac == min_valid_fraction and ref_value == 0.0):
+            out[i, j] = _fuse_pixel(
+                vals,
+                wts,
+                nv,
+                w_in,
+                w_valid,
+                ref_value,
+                guide[i, j],
+                guide_bonus,
+                min_valid_fraction,
+                edge_mm,
+                network,
+            )
+
+
+@nb.njit(cache=True, nogil=True, parallel=True, fastmath=_SAFE_FASTMATH)
+def _register_fuse_kernel(
+    lowres,
+    maps,
+    scale,
+    ratio,
+    cols,
+    fx,
+    rows,
+    fy,
+    table,
+    step,
+    floor,
+    guide,
+    guide_bonus,
+    ref,
+    min_valid_fraction,
+    edge_mm,
+    measured_only,
+    network,
+    out,
+):  # pragma: no cover - numba
+    n = lowres.shape[0]
+    hh, ww = out.shape
+    inf = np.float32(np.inf)
+    last = table.size - 1
+    for i in nb.prange(hh):
+        y0 = rows[i, 0]
+        y1 = rows[i, 1]
+        gy = fy[i]
+        vals = np.empty(n, np.float32)
+        wts = np.empty(n, np.float32)
+        raw = np.empty(n, np.float32)
+        ex = np.empty(n, np.int64)
+        ey = np.empty(n, np.int64)
+        for j in range(ww):
+            a = cols[j, 0]
+            b = cols[j, 1]
+            gx = fx[j]
+            n_in = 0
+            nv = 0
+            spread_lo = inf
+            spread_hi = -inf
+            for k in range(n):
+                m0 = maps[k, y0]
+                m1 = maps[k, y1]
+                dx = (m0[a, 0] * (1 - gx) + m0[b, 0] * gx) * (1 - gy)
+                dx += (m1[a, 0] * (1 - gx) + m1[b, 0] * gx) * gy
+                dy = (m0[a, 1] * (1 - gx) + m0[b, 1] * gx) * (1 - gy)
+                dy += (m1[a, 1] * (1 - gx) + m1[b, 1] * gx) * gy
+                qx = j + dx * ratio
+                qy = i + dy * ratio
+                xi = int(np.floor(qx + 0.5))
+                yi = int(np.floor(qy + 0.5))
+                if xi < 0 or xi >= ww or yi < 0 or yi >= hh:
+                    raw[k] = np.nan  # outside the frame: abstains
+                    continue
+                li = yi // scale
+                lj = xi // scale
+                v = lowres[k, li, lj]
+                raw[k] = v
+                n_in += 1
+                ex[k] = min(int(abs(qx - ((lj + 0.5) * scale - 0.5)) * step + 0.5), last)
+                ey[k] = min(int(abs(qy - ((li + 0.5) * scale - 0.5)) * step + 0.5), last)
+                if v > 0:
+                    nv += 1
+                    spread_lo = min(spread_lo, v)
+                    spread_hi = max(spread_hi, v)
+            if nv == 0:
                 out[i, j] = 0.0
                 continue
-            if vals[nv - 1] - vals[0] <= edge_mm:
-                out[i, j] = _median_sorted(vals, 0, nv)
-                continue
-            # samples from several surfaces (a depth edge): the surface with the largest vote
-            # weight wins (a tie: the reference's surface); the surface of the guide (the
-            # nearest forward-registered sample) gets a bonus; its median is the output
-            g = guide[i, j]
-            best_lo = 0
-            best_hi = 0
-            best_w = -np.inf
-            lo = 0
-            acc = wts[0]
-            for p in range(1, nv + 1):
-                if p == nv or vals[p] - vals[p - 1] > edge_mm:
-                    has_ref = vals[lo] <= ref_value <= vals[p - 1]
-                    if g > 0 and vals[lo] - edge_mm <= g <= vals[p - 1] + edge_mm:
-                        acc += guide_bonus * w_valid
-                    if acc > best_w or (acc == best_w and has_ref):
-                        best_w = acc
-                        best_lo = lo
-                        best_hi = p
-                    lo = p
-                    acc = 0.0
-                if p < nv:
-                    acc += wts[p]
-            out[i, j] = _median_sorted(vals, best_lo, best_hi)
+            if measured_only:
+                # never invent depth where no frame of the window measured this low-res pixel
+                measured = False
+                for k in range(n):
+                    if lowres[k, i // scale, j // scale] > 0:
+                        measured = True
+                        break
+                if not measured:
+                    out[i, j] = 0.0
+                    continue
+            # the vote weights only matter where some samples are invalid or the samples
+            # come from several surfaces: computed there only
+            weighted = nv < n_in or spread_hi - spread_lo > edge_mm
+            w_in = 0.0
+            w_valid = 0.0
+            for k in range(n):
+                v = raw[k]
+                vals[k] = inf
+                wts[k] = 0.0
+                if v != v:
+                    continue
+                wk = floor + (1.0 - floor) * table[ex[k]] * table[ey[k]] if weighted else 1.0
+                w_in += wk
+                if v > 0:
+                    w_valid += wk
+                    vals[k] = v
+                    wts[k] = wk
+            r = raw[ref]
+            ref_value = r if (r == r and r > 0) else 0.0
+            out[i, j] = _fuse_pixel(
+                vals,
+                wts,
+                nv,
+                w_in,
+                w_valid,
+                ref_value,
+                guide[i, j],
+                guide_bonus,
+                min_valid_fraction,
+                edge_mm,
+                network,
+            )
 
 
 @functools.lru_cache(maxsize=16)
@@ -324,3 +465,88 @@ def splat_nearest(
     pos[..., 0] += centre_x[None, None, :]
     pos[..., 1] += centre_y[None, :, None]
     return splat_points(lr, pos, (hh, ww), radius_px)
+
+
+def register_and_fuse(
+    lowres: npt.ArrayLike,
+    maps: npt.ArrayLike,
+    scale: int,
+    ref: int | None = None,
+    *,
+    weight_sigma_px: float | None = None,
+    weight_floor: float = 0.25,
+    guide: npt.ArrayLike | None = None,
+    guide_bonus: float = 0.35,
+    min_valid_fraction: float = 0.5,
+    edge_mm: float = 100.0,
+    measured_only: bool = True,
+) -> np.ndarray:
+    """Registration (eq. 20) and invalid-aware median fusion (eq. 28) in one compiled pass.
+
+    Equals ``temporal_median(*register_lowres(lowres, maps, scale, ...), ref, ...)``
+    (:func:`upsr.registration.register_lowres`) without building the (N, r·h, r·w) stacks
+    of registered samples and weights: each output pixel reads its N samples straight from
+    the low-res frames, and computes the vote weights only where they can matter (some
+    samples invalid, or samples from several surfaces).
+
+    Parameters
+    ----------
+    lowres : array_like (N, h, w)
+        Low-res frames of the window (mm; 0 or NaN = no return).
+    maps : array_like (N, s·h, s·w, 2)
+        Motion from the reference to each frame on the flow grid (flow px).
+    scale : int
+        SR factor r.
+    ref : int, optional
+        Index of the reference frame (default the middle one).
+    weight_sigma_px, weight_floor
+        Vote weights, see :func:`upsr.registration.register_lowres`.
+    guide, guide_bonus, min_valid_fraction, edge_mm
+        As in :func:`temporal_median`.
+    measured_only : bool
+        Output 0 wherever no frame of the window measured the low-res pixel the output pixel
+        belongs to (never invent depth where the camera saw nothing, even when the motion
+        brings samples there).
+
+    Returns
+    -------
+    ndarray float32 (r·h, r·w): fused depth (mm), 0 where nothing is known.
+    """
+    lr = np.ascontiguousarray(lowres, np.float32)
+    lr = np.where(np.isnan(lr), np.float32(0.0), lr)
+    mp = np.ascontiguousarray(maps, np.float32)
+    n, h, w = lr.shape
+    ref = (n - 1) // 2 if ref is None else int(ref)
+    if not 0 <= ref < n:
+        raise ValueError(f"ref must be in [0, {n}), got {ref}")
+    hh, ww = h * scale, w * scale
+    (cols, fx), (rows, fy), ratio = interpolation_tables((hh, ww), mp.shape[1:3])
+    table, step = weight_table(scale, weight_sigma_px)
+    gd = (
+        np.zeros((hh, ww), np.float32)
+        if guide is None
+        else np.ascontiguousarray(guide, dtype=np.float32)
+    )
+    out = np.empty((hh, ww), np.float32)
+    _register_fuse_kernel(
+        lr,
+        mp,
+        int(scale),
+        ratio,
+        cols,
+        fx,
+        rows,
+        fy,
+        table,
+        step,
+        float(weight_floor),
+        gd,
+        float(guide_bonus),
+        ref,
+        float(min_valid_fraction),
+        float(edge_mm),
+        bool(measured_only),
+        _network(n),
+        out,
+    )
+    return out

@@ -19,6 +19,8 @@ by every window that needs it.
 
 from __future__ import annotations
 
+import contextlib
+import time
 from collections.abc import Iterable, Iterator
 from typing import Any
 
@@ -28,7 +30,7 @@ import numpy.typing as npt
 from .config import UPSRConfig
 from .deblurring import deblur, estimate_noise_mm
 from .errors import InputError
-from .fusion import splat_points, temporal_median
+from .fusion import register_and_fuse, splat_points
 from .motion import (
     FlowBackend,
     bilateral_prefilter,
@@ -37,11 +39,14 @@ from .motion import (
     make_flow_backend,
     suppress_spurious_motion,
 )
-from .registration import cumulative_flows, register_lowres, trace_to_reference
+from .registration import cumulative_flows, trace_to_reference
 from .upsampling import upsample_nearest
 from .validation import as_depth_frame, as_depth_video
 
-__all__ = ["UPSR", "super_resolve", "window_start"]
+__all__ = ["STAGES", "UPSR", "super_resolve", "window_start"]
+
+#: The stages of :attr:`UPSR.timings`.
+STAGES = ("prefilter", "flow", "registration", "fusion", "deblur")
 
 
 def window_start(t: int, n_total: int, cfg: UPSRConfig) -> int:
@@ -95,13 +100,19 @@ class UPSR:
             config if config is not None else UPSRConfig.from_options(scale, n_frames, **options)
         )
         self._custom_flow = flow_backend
+        #: Seconds spent in each stage since the engine was made (kept across videos):
+        #: "prefilter", "flow" (consecutive flows), "registration" (cumulative motion with
+        #: eq. 19), "fusion" (forward splat, registration of the samples and median), "deblur".
+        self.timings: dict[str, float] = dict.fromkeys(STAGES, 0.0)
         self.reset()
 
     # -- state -------------------------------------------------------------------------------
     def reset(self) -> None:
         """Forget all frames and flows (start a new video)."""
-        self._flow = self._custom_flow or make_flow_backend(
-            self.config.flow, self.config.flow_preset
+        cfg = self.config
+        self._flow = self._custom_flow or make_flow_backend(cfg.flow, cfg.flow_preset)
+        self._residual_flow = self._custom_flow or make_flow_backend(
+            cfg.flow, cfg.refine_preset or cfg.flow_preset
         )
         self._shape: tuple[int, int] | None = None
         self._count = 0
@@ -111,7 +122,6 @@ class UPSR:
         self._noise_mm = self.config.noise_mm
         self._edge_mm = self._edge_for(self._noise_mm or 0.0)
         self._lowres: dict[int, np.ndarray] = {}
-        self._buffers: tuple[np.ndarray, np.ndarray] | None = None
         self._pre: dict[int, np.ndarray] = {}
         self._guide: dict[int, np.ndarray] = {}
         self._fwd: dict[int, np.ndarray] = {}
@@ -130,6 +140,14 @@ class UPSR:
         r = self.config.scale
         return self._shape[0] * r, self._shape[1] * r
 
+    @contextlib.contextmanager
+    def _timed(self, stage: str) -> Iterator[None]:
+        start = time.perf_counter()
+        try:
+            yield
+        finally:
+            self.timings[stage] += time.perf_counter() - start
+
     # -- per-frame work (once per video) --------------------------------------------------------
     def _ingest(self, frame: npt.ArrayLike) -> None:
         t = self._count
@@ -144,9 +162,12 @@ class UPSR:
         self._any_valid = self._any_valid or bool((f > 0).any())
         s = cfg.motion_scale
         self._lowres[t] = f
-        self._pre[t] = bilateral_prefilter(
-            upsample_nearest(f, s), cfg.prefilter_sigma_mm, cfg.spatial_sigma_px * s / cfg.scale
-        )
+        with self._timed("prefilter"):
+            self._pre[t] = bilateral_prefilter(
+                upsample_nearest(f, s),
+                cfg.prefilter_sigma_mm,
+                cfg.spatial_sigma_px * s / cfg.scale,
+            )
         self._count = t + 1
         if self._count == cfg.n_frames:
             # per-video statistics, fixed once from the first window (never per frame)
@@ -161,8 +182,9 @@ class UPSR:
                 if k not in self._guide:
                     self._guide[k] = depth_to_u8(self._pre[k], *self._range)
                     if k - 1 in self._guide:
-                        self._fwd[k - 1] = self._consecutive_flow(k - 1, k)
-                        self._bwd[k] = self._consecutive_flow(k, k - 1)
+                        with self._timed("flow"):
+                            self._fwd[k - 1] = self._consecutive_flow(k - 1, k)
+                            self._bwd[k] = self._consecutive_flow(k, k - 1)
 
     def _edge_for(self, noise_mm: float) -> float:
         """Depth step (mm) that separates surfaces: ``edge_mm``, at least 4× the noise."""
@@ -176,7 +198,7 @@ class UPSR:
     def _refine_flow(self, first: np.ndarray, second: np.ndarray) -> np.ndarray:
         """Residual flow between registered guide images (eq. 19), spurious motion removed."""
         near, far = self._range  # type: ignore[misc]
-        flow = self._flow(first, second)
+        flow = self._residual_flow(first, second)
         return self._supported_flow(
             first.astype(np.float32),
             second.astype(np.float32),
@@ -210,42 +232,37 @@ class UPSR:
         r = cfg.scale
         backward = [self._bwd.get(k) for k in idx]
         forward = [self._fwd.get(k) for k in idx]
-        # motion from the reference to every frame, on the flow grid (eq. 19–21)
-        maps = cumulative_flows(
-            ref,
-            backward,
-            forward,
-            self._guide[t].shape,
-            refine=self._refine_flow if cfg.refine else None,
-            guides=[self._guide[k] for k in idx],
-        )
-        lowres = np.stack([self._lowres[k] for k in idx])
-        if self._buffers is None or self._buffers[0].shape != (len(idx), h * r, w * r):
-            self._buffers = tuple(np.empty((len(idx), h * r, w * r), np.float32) for _ in "sw")
-        # registered samples (eq. 20) and their vote weights, one compiled pass
-        stack, weights = register_lowres(
-            lowres,
-            np.stack(maps),
-            r,
-            weight_sigma_px=cfg.edge_weight_px * r if cfg.edge_weight_px else None,
-            weight_floor=cfg.edge_weight_floor,
-            out=self._buffers,  # type: ignore[arg-type]
-        )
-        guide = None
-        if cfg.splat_radius_px and cfg.n_frames > 1:
-            positions = trace_to_reference(ref, forward, backward, (h, w), r)
-            guide = splat_points(lowres, positions, (h * r, w * r), cfg.splat_radius_px)
-        fused = temporal_median(
-            stack,
-            ref,
-            weights=weights if cfg.edge_weight_px else None,
-            guide=guide,
-            min_valid_fraction=cfg.min_valid_fraction,
-            edge_mm=self._edge_mm,
-        )
-        # never invent depth where no frame of the window measured anything
-        fused[~upsample_nearest((lowres > 0).any(axis=0), r)] = 0.0
-        out = deblur(fused, cfg.deblur, scale=r)
+        with self._timed("registration"):
+            # motion from the reference to every frame, on the flow grid (eq. 19–21)
+            maps = cumulative_flows(
+                ref,
+                backward,
+                forward,
+                self._guide[t].shape,
+                refine=self._refine_flow if cfg.refine else None,
+                guides=[self._guide[k] for k in idx],
+            )
+        with self._timed("fusion"):
+            lowres = np.stack([self._lowres[k] for k in idx])
+            guide = None
+            if cfg.splat_radius_px and cfg.n_frames > 1:
+                positions = trace_to_reference(ref, forward, backward, (h, w), r)
+                guide = splat_points(lowres, positions, (h * r, w * r), cfg.splat_radius_px)
+            # registration (eq. 20) and the invalid-aware median (eq. 28), one compiled pass
+            fused = register_and_fuse(
+                lowres,
+                np.stack(maps),
+                r,
+                ref,
+                weight_sigma_px=cfg.edge_weight_px * r if cfg.edge_weight_px else None,
+                weight_floor=cfg.edge_weight_floor,
+                guide=guide,
+                min_valid_fraction=cfg.min_valid_fraction,
+                edge_mm=self._edge_mm,
+                measured_only=True,  # never invent depth where no frame measured anything
+            )
+        with self._timed("deblur"):
+            out = deblur(fused, cfg.deblur, scale=r)
         # forget what no later window needs: the next window starts at window_start(t + 1, T)
         # for a video of T >= frames_seen frames, which is at least this
         keep_from = max(min(t + 1 - cfg.half_before, self._count - cfg.n_frames), 0)

@@ -281,6 +281,27 @@ def _register_kernel(
                 wrow[j] = floor + (1.0 - floor) * table[ex] * table[ey]
 
 
+def interpolation_tables(
+    out_shape: tuple[int, int], flow_shape: tuple[int, int]
+) -> tuple[tuple[np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray], float]:
+    """Column and row tables of the bilinear interpolation from the flow grid to the output
+    grid, and the ratio r/s of their pixel sizes."""
+    ratio = out_shape[1] / flow_shape[1]
+    cols = _interpolation_table(out_shape[1], flow_shape[1], ratio)
+    rows = _interpolation_table(out_shape[0], flow_shape[0], ratio)
+    return cols, rows, float(ratio)
+
+
+def weight_table(scale: int, sigma_px: float | None) -> tuple[np.ndarray, float]:
+    """g(d) = exp(−d²/(2σ²)) tabulated every 1/64 px for 0 ≤ d ≤ r + 1/32 px (all ones
+    without σ), and the number of entries per px: exp(−(dx² + dy²)/(2σ²)) = g(dx)·g(dy)."""
+    steps = 64.0
+    d = np.arange(int(np.ceil(scale * steps)) + 2) / steps
+    if not sigma_px:
+        return np.ones(d.size, np.float32), steps
+    return np.exp(-(d**2) / (2.0 * float(sigma_px) ** 2)).astype(np.float32), steps
+
+
 def _interpolation_table(n_out: int, n_in: int, ratio: float) -> tuple[np.ndarray, np.ndarray]:
     """Neighbours (n_out, 2) and weights of the bilinear interpolation from n_in to n_out
     samples with pixel centres aligned ((x + 0.5)/ratio − 0.5, clamped; like cv2.resize)."""
@@ -330,20 +351,12 @@ def register_lowres(
     lr = np.ascontiguousarray(lowres, np.float32)
     mp = np.ascontiguousarray(maps, np.float32)
     n, h, w = lr.shape
-    ratio = float(scale) * w / mp.shape[2]
     shape = (n, h * scale, w * scale)
     if out is None:
         out = (np.empty(shape, np.float32), np.empty(shape, np.float32))
     stack, weights = out
-    cols, fx = _interpolation_table(shape[2], mp.shape[2], ratio)
-    rows, fy = _interpolation_table(shape[1], mp.shape[1], ratio)
-    # exp(−(dx² + dy²)/(2σ²)) = g(dx)·g(dy): g tabulated in steps of 1/64 px
-    steps = 64.0
-    d = np.arange(int(np.ceil(scale * steps)) + 2) / steps
-    if weight_sigma_px:
-        gauss = np.exp(-(d**2) / (2.0 * float(weight_sigma_px) ** 2))
-    else:
-        gauss = np.ones_like(d)
+    (cols, fx), (rows, fy), ratio = interpolation_tables(shape[1:], mp.shape[1:3])
+    gauss, steps = weight_table(scale, weight_sigma_px)
     _register_kernel(
         lr,
         mp,
@@ -353,7 +366,7 @@ def register_lowres(
         fx,
         rows,
         fy,
-        gauss.astype(np.float32),
+        gauss,
         steps,
         float(weight_floor),
         stack,
