@@ -16,7 +16,11 @@ import numpy as np
 
 from .errors import InputError
 
-__all__ = ["DeblurConfig", "UPSRConfig"]
+__all__ = ["FLOW_GRID_MIN_WIDTH_PX", "DeblurConfig", "UPSRConfig"]
+
+#: Width (px) from which a flow grid is fine enough for DIS's fixed-size patches
+#: (``UPSRConfig.flow_scale``, ``UPSRConfig.refine_preset``).
+FLOW_GRID_MIN_WIDTH_PX = 512
 
 BlurModel = Literal["none", "box", "gaussian"]
 FlowBackendName = Literal["dis", "farneback"]
@@ -133,15 +137,19 @@ class UPSRConfig:
         DIS preset (ignored by other backends).
     refine_preset : {"ultrafast", "fast", "medium"} or None
         DIS preset of the eq. 19 residual flows between registered frames, which are small
-        (the consecutive flows already moved the frame most of the way); the default
-        ``"ultrafast"`` is 7× cheaper than ``"medium"`` and measured as accurate on Samba
-        (``benchmarks/speed_eval.py``). ``None``: as ``flow_preset``.
+        (the consecutive flows already moved the frame most of the way). ``None``:
+        ``"ultrafast"`` (7× cheaper than ``"medium"``, as accurate on Samba) where the flow
+        grid is at least 512 px wide, else ``flow_preset`` (ultrafast works on a 4× coarser
+        grid, too coarse for small frames). See :meth:`residual_flow_preset`.
     flow_scale : int or None
         Upsampling factor s of the frames the motion is estimated on (1 ≤ s ≤ r): the flow
         grid is s·h × s·w and the motion is interpolated bilinearly to the r·h × r·w output
-        grid where the frames are registered. The paper upsamples by r (§4, eq. 9–12);
-        ``None``: min(r, 2), which gives DIS its sub-pixel accuracy on the low-res samples at
-        a quarter of the cost of r = 4 (measured in ``benchmarks/speed_eval.py``).
+        grid where the frames are registered. The paper upsamples by r (§4, eq. 9–12).
+        ``None``: the smallest s that makes the flow grid at least 512 px wide, at most r
+        (:meth:`flow_grid_scale`): DIS matches fixed-size patches, so small frames need the
+        full r (64×56 at r = 4: s = 4), while large ones lose nothing at a coarser grid and
+        gain a lot of speed (256×147 at r = 4: s = 2, 3.5× faster, as accurate; measured
+        by ``benchmarks/speed_eval.py``).
     depth_range_mm : tuple of float or None
         (near, far) depths mapped to the 8-bit images the flow sees. ``None``: fixed once per
         video from the 1st–99th percentiles of the valid depths of the first window.
@@ -189,7 +197,7 @@ class UPSRConfig:
     flow: str = "dis"
     flow_preset: str = "medium"
     flow_scale: int | None = None
-    refine_preset: str | None = "ultrafast"
+    refine_preset: str | None = None
     depth_range_mm: tuple[float, float] | None = None
     noise_mm: float | None = None
     zero_motion_tolerance: float | None = 1.1
@@ -249,10 +257,17 @@ class UPSRConfig:
         """Frames of the window before the reference: ``(N-1)//2``."""
         return (self.n_frames - 1) // 2
 
-    @property
-    def motion_scale(self) -> int:
-        """Upsampling factor s of the flow grid (``flow_scale``, default min(r, 2))."""
-        return int(self.flow_scale) if self.flow_scale is not None else min(self.scale, 2)
+    def flow_grid_scale(self, width_px: int) -> int:
+        """Upsampling factor s of the flow grid for frames ``width_px`` wide (``flow_scale``)."""
+        if self.flow_scale is not None:
+            return int(self.flow_scale)
+        return int(min(self.scale, max(1, math.ceil(FLOW_GRID_MIN_WIDTH_PX / max(width_px, 1)))))
+
+    def residual_flow_preset(self, grid_width_px: int) -> str:
+        """DIS preset of the eq. 19 residual flows on a flow grid ``grid_width_px`` wide."""
+        if self.refine_preset is not None:
+            return self.refine_preset
+        return "ultrafast" if grid_width_px >= FLOW_GRID_MIN_WIDTH_PX else self.flow_preset
 
     @property
     def spatial_sigma_px(self) -> float:

@@ -53,19 +53,21 @@ def _pair_masks(guide, dls, dms, edge_mm, masks):  # pragma: no cover - numba
     regularised: both pixels valid in ``guide`` and on one surface (|Δguide| ≤ edge_mm).
     Computed once per image."""
     h, w = guide.shape
+    words = masks.shape[0]
     for i in nb.prange(h):
         for j in range(w):
             gv = guide[i, j]
-            for word in range(masks.shape[0]):
-                masks[word, i, j] = 0
-            if gv > 0:
-                for b in range(dls.size):
-                    ii = i + dls[b]
-                    jj = j + dms[b]
-                    if 0 <= ii < h and 0 <= jj < w:
-                        gn = guide[ii, jj]
-                        if gn > 0 and abs(gn - gv) <= edge_mm:
-                            masks[b // 31, i, j] |= np.int32(1) << np.int32(b % 31)
+            for word in range(words):
+                m = np.int32(0)
+                if gv > 0:
+                    for b in range(word * 31, min(word * 31 + 31, dls.size)):
+                        ii = i + dls[b]
+                        jj = j + dms[b]
+                        if 0 <= ii < h and 0 <= jj < w:
+                            gn = guide[ii, jj]
+                            if gn > 0 and abs(gn - gv) <= edge_mm:
+                                m |= np.int32(1) << np.int32(b - word * 31)
+                masks[word, i, j] = m
 
 
 @nb.njit(cache=True, nogil=True, inline="always", fastmath=True)

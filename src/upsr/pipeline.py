@@ -111,9 +111,8 @@ class UPSR:
         """Forget all frames and flows (start a new video)."""
         cfg = self.config
         self._flow = self._custom_flow or make_flow_backend(cfg.flow, cfg.flow_preset)
-        self._residual_flow = self._custom_flow or make_flow_backend(
-            cfg.flow, cfg.refine_preset or cfg.flow_preset
-        )
+        self._residual_flow: FlowBackend | None = self._custom_flow  # set by the first frame
+        self._s = 1  # upsampling factor of the flow grid, set by the first frame
         self._shape: tuple[int, int] | None = None
         self._count = 0
         self._next_out = 0
@@ -151,16 +150,20 @@ class UPSR:
     # -- per-frame work (once per video) --------------------------------------------------------
     def _ingest(self, frame: npt.ArrayLike) -> None:
         t = self._count
+        cfg = self.config
         f = as_depth_frame(frame, name=f"frame {t}")
         if self._shape is None:
             self._shape = f.shape
+            self._s = cfg.flow_grid_scale(f.shape[1])
+            if self._residual_flow is None:
+                preset = cfg.residual_flow_preset(self._s * f.shape[1])
+                self._residual_flow = make_flow_backend(cfg.flow, preset)
         elif f.shape != self._shape:
             raise InputError(
                 f"frame {t}: shape {f.shape} differs from the first frame's {self._shape}"
             )
-        cfg = self.config
         self._any_valid = self._any_valid or bool((f > 0).any())
-        s = cfg.motion_scale
+        s = self._s
         self._lowres[t] = f
         with self._timed("prefilter"):
             self._pre[t] = bilateral_prefilter(
@@ -198,7 +201,7 @@ class UPSR:
     def _refine_flow(self, first: np.ndarray, second: np.ndarray) -> np.ndarray:
         """Residual flow between registered guide images (eq. 19), spurious motion removed."""
         near, far = self._range  # type: ignore[misc]
-        flow = self._residual_flow(first, second)
+        flow = self._residual_flow(first, second)  # type: ignore[misc]
         return self._supported_flow(
             first.astype(np.float32),
             second.astype(np.float32),
@@ -216,11 +219,11 @@ class UPSR:
             first,
             second,
             flow,
-            window_px=2 * self.config.motion_scale + 1,
+            window_px=2 * self._s + 1,
             tolerance=self.config.zero_motion_tolerance,
             noise_mm=self._noise_mm * units_per_mm,
             edge_mm=self._edge_mm * units_per_mm,
-            edge_window_px=4 * self.config.motion_scale + 1,
+            edge_window_px=4 * self._s + 1,
         )
 
     def _finish(self, t: int, n_total: int) -> np.ndarray:
