@@ -59,3 +59,27 @@ def test_unknown_option_rejected():
         UPSRConfig.from_options(2, 9, nonsense=1)
     with pytest.raises(InputError, match="unknown deblur option"):
         UPSRConfig.from_options(2, 9, deblur_nonsense=1)
+
+
+def test_flow_grid_scale_and_residual_preset_follow_the_frame_width():
+    from upsr.config import FLOW_GRID_MIN_WIDTH_PX
+
+    cfg = UPSRConfig(scale=4)
+    assert cfg.flow_grid_scale(64) == 3  # ToF 64 px wide: a 192 px grid
+    assert cfg.flow_grid_scale(40) == 4  # never more than r
+    assert cfg.flow_grid_scale(256) == 2  # at least 2 (sub-pixel motion, paper eq. 9–12)
+    assert UPSRConfig(scale=1).flow_grid_scale(64) == 1
+    assert UPSRConfig(scale=2).flow_grid_scale(64) == 2
+    assert UPSRConfig(scale=4, flow_scale=3).flow_grid_scale(640) == 3
+    assert cfg.residual_flow_preset(FLOW_GRID_MIN_WIDTH_PX) == "ultrafast"
+    assert cfg.residual_flow_preset(FLOW_GRID_MIN_WIDTH_PX - 1) == cfg.flow_preset
+    assert UPSRConfig(refine_preset="fast").residual_flow_preset(10) == "fast"
+
+
+@pytest.mark.parametrize(
+    "options",
+    [{"flow_scale": 0}, {"flow_scale": 5}, {"flow_scale": 1.5}, {"refine_preset": "slow"}],
+)
+def test_bad_flow_grid_options_are_rejected(options):
+    with pytest.raises(InputError):
+        UPSRConfig(scale=4, **options)

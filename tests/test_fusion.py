@@ -4,6 +4,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from upsr.fusion import temporal_median
+from upsr.upsampling import upsample_nearest
 
 NAN = np.nan
 
@@ -105,3 +106,64 @@ def test_guide_decides_between_surfaces():
     # the guide never overrides a clear majority
     stack = px(1000, 3000, 3001, 3002, 3003)
     assert temporal_median(stack, 0, guide=np.full((1, 1), 1000.0))[0, 0] == 3001.5
+
+
+# -- sorting networks and the fused registration + median kernel --------------------------------
+@pytest.mark.parametrize("n", [1, 2, 3, 5, 8, 9, 12, 16, 17])
+def test_sorting_network_sorts_every_zero_one_input(n):
+    from upsr.fusion import sorting_network
+
+    net = sorting_network(n)
+    assert np.all(net[:, 0] < net[:, 1]) and (net.size == 0 or net.max() < n)
+    # 0-1 principle: a comparator network sorts everything iff it sorts all 0-1 inputs
+    for code in range(2 ** min(n, 12)):
+        a = [(code >> b) & 1 for b in range(n)]
+        for i, j in net:
+            if a[i] > a[j]:
+                a[i], a[j] = a[j], a[i]
+        assert a == sorted(a)
+
+
+def test_unrolled_networks_equal_the_generated_ones():
+    from upsr.fusion import _sort8, _sort16
+
+    rng = np.random.default_rng(0)
+    for size, fn in ((8, _sort8), (16, _sort16)):
+        for _ in range(50):
+            v = rng.normal(size=size).astype(np.float32)
+            v[rng.random(size) < 0.3] = np.inf
+            expected = np.sort(v)
+            fn.py_func(v)
+            np.testing.assert_array_equal(v, expected)
+
+
+def _window(rng, n, h=10, w=12, s=2, r=4):
+    lowres = rng.uniform(1000, 1100, (n, h, w)).astype(np.float32)
+    lowres[:, 3:7, 4:9] -= 600  # a second surface
+    lowres[rng.random(lowres.shape) < 0.15] = 0.0
+    lowres[:, 0, :] = 0.0  # a row nobody measured
+    maps = rng.normal(0, 1.5, (n, h * s, w * s, 2)).astype(np.float32)
+    return lowres, maps
+
+
+@pytest.mark.parametrize("n", [1, 4, 9, 11, 17])
+def test_register_and_fuse_equals_registration_then_median(n):
+    from upsr.fusion import register_and_fuse
+    from upsr.registration import register_lowres
+
+    rng = np.random.default_rng(n)
+    lowres, maps = _window(rng, n)
+    ref = n // 2
+    guide = np.where(rng.random((40, 48)) < 0.5, np.float32(500), np.float32(np.nan))
+    opts = dict(guide=guide, min_valid_fraction=0.5, edge_mm=100.0)
+    fused = register_and_fuse(
+        lowres, maps, 4, ref, weight_sigma_px=1.4, measured_only=False, **opts
+    )
+    stack, weights = register_lowres(lowres, maps, 4, weight_sigma_px=1.4)
+    expected = temporal_median(stack, ref, weights=weights, **opts)
+    np.testing.assert_allclose(fused, expected, atol=1e-3)
+    # measured_only: 0 wherever no frame measured the low-res pixel
+    only = register_and_fuse(lowres, maps, 4, ref, weight_sigma_px=1.4, **opts)
+    measured = upsample_nearest((lowres > 0).any(axis=0), 4)
+    np.testing.assert_array_equal(only[~measured], 0.0)
+    np.testing.assert_array_equal(only[measured], fused[measured])

@@ -93,3 +93,78 @@ def test_sample_offsets_geometry():
     # high-res pixel 0 and 1 of a low-res pixel centred at 0.5: both 0.5 px away per axis
     np.testing.assert_allclose(d, np.hypot(0.5, 0.5))
     assert np.allclose(sample_offsets(zero, 1), 0)
+
+
+# -- compiled registration on a (coarser) flow grid ---------------------------------------------
+def _random_window(rng, n=5, h=12, w=16, r=4, s=4, motion_px=3.0):
+    lowres = rng.uniform(500, 3000, (n, h, w)).astype(np.float32)
+    lowres[rng.random(lowres.shape) < 0.1] = 0.0
+    maps = rng.normal(0, motion_px, (n, h * s, w * s, 2)).astype(np.float32)
+    return lowres, maps
+
+
+def test_register_lowres_equals_warp_of_upsampled_frames_on_the_output_grid():
+    from upsr.registration import register_lowres, sample_offsets, warp_nearest
+    from upsr.upsampling import upsample_nearest
+
+    rng = np.random.default_rng(3)
+    lowres, maps = _random_window(rng)
+    stack, weights = register_lowres(lowres, maps, 4, weight_sigma_px=1.4, weight_floor=0.25)
+    for k in range(len(lowres)):
+        expected = warp_nearest(upsample_nearest(lowres[k], 4), maps[k])
+        np.testing.assert_array_equal(np.isnan(stack[k]), np.isnan(expected))
+        inside = ~np.isnan(expected)
+        np.testing.assert_array_equal(stack[k][inside], expected[inside])
+        d = sample_offsets(maps[k], 4)
+        w = 0.25 + 0.75 * np.exp(-(d**2) / (2 * 1.4**2))
+        # the Gaussian is tabulated every 1/64 px
+        np.testing.assert_allclose(weights[k][inside], w[inside], atol=0.02)
+    _, ones = register_lowres(lowres, maps, 4)
+    assert np.all(ones == 1.0)
+
+
+def test_register_lowres_interpolates_a_coarse_flow_grid_bilinearly():
+    import cv2
+
+    from upsr.registration import register_lowres, warp_nearest
+    from upsr.upsampling import upsample_nearest
+
+    rng = np.random.default_rng(4)
+    lowres, coarse = _random_window(rng, s=2, motion_px=2.0)
+    stack, _ = register_lowres(lowres, coarse, 4)
+    for k in range(len(lowres)):
+        fine = cv2.resize(coarse[k], (64, 48), interpolation=cv2.INTER_LINEAR) * 2.0
+        expected = warp_nearest(upsample_nearest(lowres[k], 4), fine)
+        same = (stack[k] == expected) | (np.isnan(stack[k]) & np.isnan(expected))
+        # positions that round differently by float error of the interpolation are rare
+        assert same.mean() > 0.995
+
+
+def test_trace_to_reference_follows_the_chain_of_flows():
+    import cv2
+
+    from upsr.registration import flows_to_reference, trace_to_reference
+
+    h, w, r = 6, 8, 2
+    n, ref = 5, 2
+    rng = np.random.default_rng(5)
+    # smooth (affine) flows: tracing points and composing fields agree exactly up to float error
+    ys, xs = np.mgrid[0 : h * r, 0 : w * r].astype(np.float32)
+
+    def affine(a, b):
+        return np.stack([a * xs + 0.3, b * ys - 0.2], axis=-1).astype(np.float32)
+
+    fwd = [affine(*rng.uniform(-0.02, 0.02, 2)) for _ in range(n)]
+    bwd = [affine(*rng.uniform(-0.02, 0.02, 2)) for _ in range(n)]
+    pos = trace_to_reference(ref, fwd, bwd, (h, w), r)
+    maps = flows_to_reference(ref, bwd, fwd, (h * r, w * r))
+    cy = np.arange(h) * r + 0.5 * r - 0.5
+    cx = np.arange(w) * r + 0.5 * r - 0.5
+    assert pos.shape == (n, h, w, 2)
+    np.testing.assert_allclose(pos[ref, ..., 0], np.broadcast_to(cx, (h, w)), atol=1e-5)
+    gx, gy = (g.astype(np.float32) for g in np.meshgrid(cx, cy))
+    for k in range(n):
+        # centres sit between pixels for even r: compare with the composed field read there
+        mx, my = cv2.split(cv2.remap(maps[k], gx, gy, cv2.INTER_LINEAR))
+        np.testing.assert_allclose(pos[k, ..., 0], cx[None, :] + mx, atol=2e-3)
+        np.testing.assert_allclose(pos[k, ..., 1], cy[:, None] + my, atol=2e-3)

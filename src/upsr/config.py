@@ -18,9 +18,11 @@ from .errors import InputError
 
 __all__ = ["FLOW_GRID_MIN_WIDTH_PX", "DeblurConfig", "UPSRConfig"]
 
-#: Width (px) from which a flow grid is fine enough for DIS's fixed-size patches
-#: (``UPSRConfig.flow_scale``, ``UPSRConfig.refine_preset``).
-FLOW_GRID_MIN_WIDTH_PX = 512
+#: Width (px) from which a flow grid is fine enough for DIS's fixed-size (8 px) patches, also
+#: at the 4× coarser finest level of the "ultrafast" preset (``UPSRConfig.flow_scale``,
+#: ``UPSRConfig.refine_preset``). Measured: 64-px-wide ToF frames at r = 4 register better on
+#: a 192 px grid (s = 3) than on 128 px (s = 2) or 256 px (s = 4).
+FLOW_GRID_MIN_WIDTH_PX = 192
 
 BlurModel = Literal["none", "box", "gaussian"]
 FlowBackendName = Literal["dis", "farneback"]
@@ -138,18 +140,19 @@ class UPSRConfig:
     refine_preset : {"ultrafast", "fast", "medium"} or None
         DIS preset of the eq. 19 residual flows between registered frames, which are small
         (the consecutive flows already moved the frame most of the way). ``None``:
-        ``"ultrafast"`` (7× cheaper than ``"medium"``, as accurate on Samba) where the flow
-        grid is at least 512 px wide, else ``flow_preset`` (ultrafast works on a 4× coarser
-        grid, too coarse for small frames). See :meth:`residual_flow_preset`.
+        ``"ultrafast"`` (≈ 7× cheaper than ``"medium"``, as accurate, measured on Samba and
+        the synthetic scenes) where the flow grid is at least 192 px wide, else
+        ``flow_preset`` (ultrafast matches on a 4× coarser grid, too coarse for tiny frames).
+        See :meth:`residual_flow_preset`.
     flow_scale : int or None
         Upsampling factor s of the frames the motion is estimated on (1 ≤ s ≤ r): the flow
         grid is s·h × s·w and the motion is interpolated bilinearly to the r·h × r·w output
         grid where the frames are registered. The paper upsamples by r (§4, eq. 9–12).
-        ``None``: the smallest s that makes the flow grid at least 512 px wide, at most r
-        (:meth:`flow_grid_scale`): DIS matches fixed-size patches, so small frames need the
-        full r (64×56 at r = 4: s = 4), while large ones lose nothing at a coarser grid and
-        gain a lot of speed (256×147 at r = 4: s = 2, 3.5× faster, as accurate; measured
-        by ``benchmarks/speed_eval.py``).
+        ``None``: the smallest s ≥ 2 that makes the flow grid at least 192 px wide, at most r
+        (:meth:`flow_grid_scale`): DIS matches fixed-size patches, so small frames need a
+        finer grid (64×56 at r = 4: s = 3), while large ones lose nothing on a coarser grid
+        and gain a lot of speed (256×147 at r = 4: s = 2, 3.5× faster than s = 4). Measured
+        by ``benchmarks/speed_eval.py`` and in the README.
     depth_range_mm : tuple of float or None
         (near, far) depths mapped to the 8-bit images the flow sees. ``None``: fixed once per
         video from the 1st–99th percentiles of the valid depths of the first window.
@@ -261,7 +264,8 @@ class UPSRConfig:
         """Upsampling factor s of the flow grid for frames ``width_px`` wide (``flow_scale``)."""
         if self.flow_scale is not None:
             return int(self.flow_scale)
-        return int(min(self.scale, max(1, math.ceil(FLOW_GRID_MIN_WIDTH_PX / max(width_px, 1)))))
+        s = max(2, math.ceil(FLOW_GRID_MIN_WIDTH_PX / max(width_px, 1)))
+        return int(min(self.scale, s))
 
     def residual_flow_preset(self, grid_width_px: int) -> str:
         """DIS preset of the eq. 19 residual flows on a flow grid ``grid_width_px`` wide."""

@@ -5,6 +5,8 @@ These are "the straightforward path": vectorised NumPy versions of
 * :func:`upsr.fusion.temporal_median` (:func:`temporal_median_numpy`),
 * :func:`upsr.deblurring.btv_subgradient` (:func:`btv_subgradient_numpy`),
 * :func:`upsr.deblurring.deblur` with B = I (:func:`deblur_numpy`),
+* :func:`upsr.super_resolve` with nothing shared between windows, flows at the full r and
+  the kernels above (:func:`super_resolve_straightforward`),
 
 with the same semantics, down to the float32 / float64 arithmetic of the kernels. They exist
 for the tests (the compiled kernels must compute the same thing) and for the speed benchmark
@@ -17,12 +19,13 @@ from __future__ import annotations
 import numpy as np
 import numpy.typing as npt
 
-from .config import DeblurConfig
+from .config import DeblurConfig, UPSRConfig
 from .deblurring import estimate_noise_mm, smooth_surfaces
 
 __all__ = [
     "btv_subgradient_numpy",
     "deblur_numpy",
+    "super_resolve_straightforward",
     "temporal_median_numpy",
 ]
 
@@ -120,7 +123,8 @@ def temporal_median_numpy(
     last = np.maximum(nv - 1, 0)
     vmin = vals[0]
     vmax = _take(vals, last)
-    single = (vmax - vmin).astype(np.float64) <= edge
+    with np.errstate(invalid="ignore"):  # inf - inf where no sample is valid
+        single = (vmax - vmin).astype(np.float64) <= edge
 
     # surfaces: labels by the cumulative count of gaps > edge_mm in the sorted valid samples
     gaps = np.zeros(vals.shape, bool)
@@ -220,7 +224,9 @@ def btv_subgradient_numpy(
     return out
 
 
-def deblur_numpy(z: npt.ArrayLike, cfg: DeblurConfig | None = None, *, scale: int = 1) -> np.ndarray:
+def deblur_numpy(
+    z: npt.ArrayLike, cfg: DeblurConfig | None = None, *, scale: int = 1
+) -> np.ndarray:
     """BTV-L1 deblurring with B = I in plain NumPy: the reference of
     :func:`upsr.deblurring.deblur` (same step rule, same result up to sign ties).
 
@@ -277,3 +283,110 @@ def deblur_numpy(z: npt.ArrayLike, cfg: DeblurConfig | None = None, *, scale: in
         sigma_px = cfg.smooth_sigma_px if cfg.smooth_sigma_px is not None else 0.5 * scale
         x = smooth_surfaces(x, cfg.smooth_sigma_mm, sigma_px)
     return x
+
+
+def super_resolve_straightforward(frames: npt.ArrayLike, config: UPSRConfig) -> np.ndarray:
+    """UP-SR (paper Table 1) done the straightforward way, as the speed benchmark's baseline.
+
+    For every reference frame its window is processed from scratch: each frame is upsampled
+    by r, prefiltered and mapped to 8 bit, and the N−1 consecutive flows of the window are
+    estimated in both directions at the full r (the paper's setting; ``flow_scale`` and
+    ``refine_preset`` are ignored: DIS ``flow_preset`` everywhere); cumulative motion with
+    eq. 19, :func:`~upsr.registration.warp_nearest` per frame, vote weights from
+    :func:`~upsr.registration.sample_offsets`, the splat guide from dense motion fields
+    (:func:`~upsr.fusion.splat_nearest`), :func:`temporal_median_numpy` and
+    :func:`deblur_numpy`. Nothing is shared between windows. The per-video depth range and
+    noise are fixed from the first N frames, as in :class:`upsr.UPSR`.
+
+    Parameters
+    ----------
+    frames : array_like (T, h, w)
+        Depth in mm (0 = no measurement).
+    config : UPSRConfig
+        Parameters (deblurring with ``blur="none"`` only).
+
+    Returns
+    -------
+    ndarray float32 (T, r·h, r·w)
+    """
+    from .fusion import splat_nearest
+    from .motion import (
+        bilateral_prefilter,
+        depth_range,
+        depth_to_u8,
+        make_flow_backend,
+        suppress_spurious_motion,
+    )
+    from .pipeline import window_start
+    from .registration import cumulative_flows, flows_to_reference, sample_offsets, warp_nearest
+    from .upsampling import upsample_nearest
+    from .validation import as_depth_video
+
+    cfg = config
+    video = as_depth_video(frames)
+    t_total, h, w = video.shape
+    r, n = cfg.scale, cfg.n_frames
+    first = video[:n]
+    near, far = cfg.depth_range_mm or depth_range(first)
+    noise = cfg.noise_mm
+    if noise is None:
+        noise = float(np.median([estimate_noise_mm(f) for f in first]))
+    edge_mm = max(cfg.edge_mm, 4.0 * noise)
+    flow = make_flow_backend(cfg.flow, cfg.flow_preset)
+
+    def supported(a: np.ndarray, b: np.ndarray, f: np.ndarray, units: float) -> np.ndarray:
+        if cfg.zero_motion_tolerance is None:
+            return f
+        return suppress_spurious_motion(
+            a,
+            b,
+            f,
+            window_px=2 * r + 1,
+            tolerance=cfg.zero_motion_tolerance,
+            noise_mm=noise * units,
+            edge_mm=edge_mm * units,
+            edge_window_px=4 * r + 1,
+        )
+
+    units_u8 = 254.0 / max(far - near, 1e-6)
+
+    def refine(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+        return supported(a.astype(np.float32), b.astype(np.float32), flow(a, b), units_u8)
+
+    out = np.empty((t_total, h * r, w * r), np.float32)
+    for t in range(t_total):
+        s = window_start(t, t_total, cfg)
+        ref = t - s
+        up = [upsample_nearest(video[k], r) for k in range(s, s + n)]
+        pre = [bilateral_prefilter(u, cfg.prefilter_sigma_mm, cfg.spatial_sigma_px) for u in up]
+        guides = [depth_to_u8(p, near, far) for p in pre]
+        fwd: list[np.ndarray | None] = [None] * n
+        bwd: list[np.ndarray | None] = [None] * n
+        for j in range(n - 1):
+            fwd[j] = supported(pre[j], pre[j + 1], flow(guides[j], guides[j + 1]), 1.0)
+            bwd[j + 1] = supported(pre[j + 1], pre[j], flow(guides[j + 1], guides[j]), 1.0)
+        maps = cumulative_flows(
+            ref, bwd, fwd, (h * r, w * r), refine=refine if cfg.refine else None, guides=guides
+        )
+        stack = np.stack([warp_nearest(u, m) for u, m in zip(up, maps, strict=True)])
+        weights = None
+        if cfg.edge_weight_px:
+            d = np.stack([sample_offsets(m, r) for m in maps])
+            s2 = 2.0 * (cfg.edge_weight_px * r) ** 2
+            weights = cfg.edge_weight_floor + (1.0 - cfg.edge_weight_floor) * np.exp(-d * d / s2)
+        lowres = video[s : s + n]
+        guide = None
+        if cfg.splat_radius_px and n > 1:
+            back = flows_to_reference(ref, bwd, fwd, (h * r, w * r))
+            guide = splat_nearest(lowres, np.stack(back), r, cfg.splat_radius_px)
+        fused = temporal_median_numpy(
+            stack,
+            ref,
+            weights=weights,
+            guide=guide,
+            min_valid_fraction=cfg.min_valid_fraction,
+            edge_mm=edge_mm,
+        )
+        fused[~upsample_nearest((lowres > 0).any(axis=0), r)] = 0.0
+        out[t] = deblur_numpy(fused, cfg.deblur, scale=r)
+    return out

@@ -1,0 +1,348 @@
+"""Speed benchmark (issue #5): frames per second, per-stage times, peak memory, speed-up.
+
+Four measurements, one table each, all written to ``--out/results.json``:
+
+* **ToF**: a synthetic 64×56 depth video (a non-rigid object in front of a wall, Laplacian
+  noise σ = 20 mm), r = 4, N = 9, pushed frame by frame into the streaming engine
+  (:class:`upsr.UPSR`); output frames per second after warm-up (JIT compiled, first window
+  filled). With the defaults and with the fast options ``flow_scale=2,
+  refine_preset="ultrafast"``, each with its accuracy.
+* **Samba**: 256×147 renders of the Samba meshes (``--data``), σ = 30 mm, r = 4, N = 9,
+  streamed from a 16-bit PNG folder to a PNG folder in-process; seconds per output frame and
+  the per-stage breakdown (I/O, prefilter, flow, registration, fusion, deblurring).
+* **Straightforward path**: the same Samba frames through
+  :func:`upsr.reference.super_resolve_straightforward` (every window recomputes its upsampled
+  frames, prefilter and flows at the full r; NumPy median and NumPy BTV), measured in the same
+  run; speed-up, and SPEC §6 accuracy of both against the rendered truth.
+* **Memory**: ``upsr run`` on a 1000-frame 256×147 PNG folder (the Samba renders played back
+  and forth) in a child process; its peak resident memory (``wait4`` rusage).
+
+Examples
+--------
+::
+
+    .venv/bin/python benchmarks/speed_eval.py                      # all (≈ 6 min on 2 cores)
+    .venv/bin/python benchmarks/speed_eval.py --quick              # smaller, no memory run
+    .venv/bin/python benchmarks/speed_eval.py --memory-frames 300
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import platform
+import shutil
+import subprocess
+import sys
+import tempfile
+import time
+from collections.abc import Iterator, Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+import upsr
+from upsr import io
+from upsr.config import UPSRConfig
+from upsr.metrics import evaluate
+from upsr.pipeline import STAGES
+from upsr.synth import dynamic_scene
+from upsr.synth.degradation import add_laplacian_noise
+
+__all__ = ["main"]
+
+REPO = Path(__file__).resolve().parents[1]
+DEFAULT_DATA = REPO.parent / "shared" / "data"
+ACCURACY = ("surface_rmse", "edge_accuracy", "rmse", "flying_pixels")
+FAST_OPTIONS = {"flow_scale": 2, "refine_preset": "ultrafast"}
+
+
+def machine() -> dict[str, Any]:
+    """What the numbers were measured on."""
+    cpu = platform.processor() or platform.machine()
+    try:
+        for line in Path("/proc/cpuinfo").read_text().splitlines():
+            if line.startswith("model name"):
+                cpu = line.split(":", 1)[1].strip()
+                break
+    except OSError:
+        pass
+    return {
+        "cpu": cpu,
+        "cores": os.cpu_count(),
+        "python": platform.python_version(),
+        "numpy": np.__version__,
+        "upsr": upsr.__version__,
+    }
+
+
+def _accuracy(estimate: np.ndarray, truth: np.ndarray, r: int) -> dict[str, float]:
+    m = evaluate(estimate, truth, r)
+    return {k: float(m[k]) for k in ACCURACY}
+
+
+# --------------------------------------------------------------------------------------------
+# ToF: streaming frames per second
+# --------------------------------------------------------------------------------------------
+def tof_benchmark(n_frames: int, options: dict[str, Any]) -> dict[str, Any]:
+    """Stream a 64×56 video through the engine; frames/s after warm-up, and accuracy."""
+    scene = dynamic_scene(
+        n_frames=n_frames, lowres_shape=(56, 64), scale=4, noise_sigma_mm=20.0, seed=0
+    )
+    warm = upsr.UPSR(4, 9, **options)
+    list(warm.process(scene.lowres[:12]))  # compile every kernel for these shapes
+    engine = upsr.UPSR(4, 9, **options)
+    outs: list[np.ndarray] = []
+    start = None
+    for k, frame in enumerate(scene.lowres):
+        if k == 9:  # the first window is full: from here on, one output per input
+            start = time.perf_counter()
+            engine.timings = dict.fromkeys(STAGES, 0.0)
+        out = engine.push(frame)
+        if out is not None:
+            outs.append(out)
+    assert start is not None
+    elapsed = time.perf_counter() - start
+    timed = n_frames - 9
+    stage_ms = {k: 1000.0 * v / timed for k, v in engine.timings.items()}
+    outs.extend(engine.flush())
+    video = np.stack(outs)
+    return {
+        "options": options,
+        "frames_timed": timed,
+        "fps": timed / elapsed,
+        "ms_per_frame": 1000.0 * elapsed / timed,
+        "stage_ms": stage_ms,
+        "accuracy": _accuracy(video, scene.truth, 4),
+    }
+
+
+# --------------------------------------------------------------------------------------------
+# Samba: PNG folder in, PNG folder out, per-stage breakdown
+# --------------------------------------------------------------------------------------------
+def samba_frames(data: Path, count: int, sigma: float, cache: Path) -> tuple[np.ndarray, ...]:
+    """(truth 1024×588, noisy low-res 256×147) for the first ``count`` Samba meshes."""
+    from upsr.experiments.data import render_samba, samba_mesh_paths
+
+    rendered = render_samba(
+        samba_mesh_paths(data, 0, count), width=1024, height=588, scales=(1, 4), cache_dir=cache
+    )
+    rng = np.random.default_rng(0)
+    noisy = add_laplacian_noise(rendered.lowres[4], sigma, rng=rng)
+    return rendered.truth, noisy
+
+
+class _TimedIterator:
+    def __init__(self, frames: Iterator[np.ndarray]) -> None:
+        self.frames = frames
+        self.seconds = 0.0
+
+    def __iter__(self) -> Iterator[np.ndarray]:
+        while True:
+            start = time.perf_counter()
+            try:
+                frame = next(self.frames)
+            except StopIteration:
+                self.seconds += time.perf_counter() - start
+                return
+            self.seconds += time.perf_counter() - start
+            yield frame
+
+
+def samba_benchmark(truth: np.ndarray, lowres: np.ndarray, work: Path) -> dict[str, Any]:
+    """Stream the Samba low-res PNG folder through ``UPSR`` into a PNG folder."""
+    src, dst = work / "samba_in", work / "samba_out"
+    with io.VideoWriter(src, fmt="png", overwrite=True) as writer:
+        for frame in lowres:
+            writer.write(frame)
+    warm = upsr.UPSR(4, 9)
+    list(warm.process(lowres[:10]))  # compile every kernel for these shapes
+    engine = upsr.UPSR(4, 9)
+    reader = _TimedIterator(io.iter_frames(src))
+    outs = []
+    write_s = 0.0
+    start = time.perf_counter()
+    with io.VideoWriter(dst, fmt="png", overwrite=True) as writer:
+        for out in engine.process(reader):
+            t = time.perf_counter()
+            writer.write(out)
+            write_s += time.perf_counter() - t
+            outs.append(out)
+    elapsed = time.perf_counter() - start
+    n = len(outs)
+    stage_ms = {"io": 1000.0 * (reader.seconds + write_s) / n}
+    stage_ms.update({k: 1000.0 * v / n for k, v in engine.timings.items()})
+    shutil.rmtree(dst, ignore_errors=True)
+    return {
+        "frames": n,
+        "s_per_frame": elapsed / n,
+        "stage_ms": stage_ms,
+        "accuracy": _accuracy(np.stack(outs), truth, 4),
+    }
+
+
+def straightforward_benchmark(truth: np.ndarray, lowres: np.ndarray) -> dict[str, Any]:
+    """The same frames through the straightforward path (in memory, no I/O)."""
+    from upsr.reference import super_resolve_straightforward
+
+    cfg = UPSRConfig(scale=4, n_frames=9)
+    start = time.perf_counter()
+    out = super_resolve_straightforward(lowres, cfg)
+    elapsed = time.perf_counter() - start
+    return {
+        "frames": len(lowres),
+        "s_per_frame": elapsed / len(lowres),
+        "accuracy": _accuracy(out, truth, 4),
+    }
+
+
+# --------------------------------------------------------------------------------------------
+# Memory: a 1000-frame PNG folder through the command line
+# --------------------------------------------------------------------------------------------
+def memory_benchmark(lowres: np.ndarray, n_frames: int, work: Path) -> dict[str, Any]:
+    """Peak RSS of ``upsr run`` on an ``n_frames`` PNG folder (frames played back and forth)."""
+    src, dst = work / "long_in", work / "long_out"
+    order = np.concatenate([np.arange(len(lowres)), np.arange(len(lowres) - 2, 0, -1)])
+    with io.VideoWriter(src, fmt="png", overwrite=True) as writer:
+        for k in range(n_frames):
+            writer.write(lowres[order[k % len(order)]])
+    exe = Path(sys.executable).with_name("upsr")
+    cmd = [str(exe) if exe.is_file() else "upsr", "run", str(src), "-o", str(dst)]
+    cmd += ["--scale", "4", "--frames", "9", "--quiet", "--overwrite"]
+    start = time.perf_counter()
+    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    _, status, usage = os.wait4(proc.pid, 0)
+    elapsed = time.perf_counter() - start
+    stdout, stderr = proc.stdout.read().decode(), proc.stderr.read().decode()  # type: ignore[union-attr]
+    proc.returncode = os.waitstatus_to_exitcode(status)
+    if proc.returncode != 0:
+        raise RuntimeError(f"upsr run failed ({proc.returncode}): {stderr.strip()}")
+    written = len(list(dst.glob("*.png")))
+    shutil.rmtree(dst, ignore_errors=True)
+    shutil.rmtree(src, ignore_errors=True)
+    return {
+        "frames": n_frames,
+        "frames_written": written,
+        "peak_rss_mb": usage.ru_maxrss / 1024.0,  # Linux: KiB
+        "seconds": elapsed,
+        "command": " ".join(cmd[1:]).replace(str(work), "WORK"),
+        "summary": stdout.strip(),
+    }
+
+
+# --------------------------------------------------------------------------------------------
+def _print_results(res: dict[str, Any]) -> None:
+    print("\nToF 64×56 → 256×224, r = 4, N = 9, streaming (after warm-up)")
+    print(f"{'options':<44} {'fps':>7} {'ms/frame':>9} {'surface':>8} {'edge %':>7} {'flying':>7}")
+    for row in res["tof"]:
+        acc = row["accuracy"]
+        name = ", ".join(f"{k}={v}" for k, v in row["options"].items()) or "defaults"
+        print(
+            f"{name:<44} {row['fps']:7.1f} {row['ms_per_frame']:9.1f} "
+            f"{acc['surface_rmse']:8.2f} {100 * acc['edge_accuracy']:7.2f} "
+            f"{acc['flying_pixels']:7.4f}"
+        )
+    for row in res["tof"]:
+        parts = ", ".join(f"{k} {v:.1f}" for k, v in row["stage_ms"].items())
+        print(f"  stages (ms/frame) {row['options'] or 'defaults'}: {parts}")
+    if "samba" in res:
+        s = res["samba"]
+        print(f"\nSamba 256×147 → 1024×588, r = 4, N = 9, σ = 30 mm ({s['frames']} frames)")
+        print(f"seconds per output frame (PNG folder → PNG folder): {s['s_per_frame']:.3f}")
+        print("stage      ms/frame   share")
+        total = sum(s["stage_ms"].values())
+        for k, v in s["stage_ms"].items():
+            print(f"{k:<10} {v:8.1f}  {100 * v / total:5.1f} %")
+    if "straightforward" in res:
+        a, b = res["samba"], res["straightforward"]
+        print("\nspeed-up and accuracy against the straightforward path (same frames)")
+        print(f"{'path':<16} {'s/frame':>8} {'surface':>8} {'edge %':>7} {'RMSE':>7} {'flying':>7}")
+        for name, row in (("upsr", a), ("straightforward", b)):
+            acc = row["accuracy"]
+            print(
+                f"{name:<16} {row['s_per_frame']:8.3f} {acc['surface_rmse']:8.3f} "
+                f"{100 * acc['edge_accuracy']:7.2f} {acc['rmse']:7.2f} "
+                f"{acc['flying_pixels']:7.4f}"
+            )
+        c = res["comparison"]
+        print(
+            f"speed-up ×{c['speedup']:.1f}; surface RMSE {c['surface_rmse_change_pct']:+.1f} %, "
+            f"edge accuracy {c['edge_accuracy_change_pct']:+.2f} % (relative)"
+        )
+    if "memory" in res:
+        m = res["memory"]
+        print(
+            f"\nmemory: {m['frames']} frames 256×147 PNG → {m['frames_written']} PNG: "
+            f"peak RSS {m['peak_rss_mb']:.0f} MB in {m['seconds']:.0f} s ({m['command']})"
+        )
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("--out", default="results/bench/speed", help="output folder")
+    p.add_argument("--data", default=str(DEFAULT_DATA), help="folder holding samba/")
+    p.add_argument("--quick", action="store_true", help="small runs, no memory benchmark")
+    p.add_argument("--samba-frames", type=int, default=20, help="Samba meshes to render")
+    p.add_argument("--memory-frames", type=int, default=1000, help="frames of the memory run")
+    p.add_argument("--skip-memory", action="store_true")
+    p.add_argument("--skip-straightforward", action="store_true")
+    args = p.parse_args(argv)
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    tof_frames = 40 if args.quick else 150
+    res: dict[str, Any] = {"machine": machine(), "command": " ".join(sys.argv)}
+    print("ToF benchmark ...", flush=True)
+    res["tof"] = [tof_benchmark(tof_frames, {}), tof_benchmark(tof_frames, FAST_OPTIONS)]
+    samba_ok = (Path(args.data) / "samba" / "mesh_0000.obj").is_file()
+    if not samba_ok:
+        print(f"Samba meshes not found under {args.data}: Samba, speed-up and memory skipped")
+    with tempfile.TemporaryDirectory(prefix="upsr-speed-") as tmp:
+        work = Path(tmp)
+        if samba_ok:
+            count = 12 if args.quick else args.samba_frames
+            print("Samba benchmark ...", flush=True)
+            truth, lowres = samba_frames(Path(args.data), count, 30.0, out / "cache")
+            res["samba"] = samba_benchmark(truth, lowres, work)
+            if not args.skip_straightforward:
+                print("straightforward path ...", flush=True)
+                res["straightforward"] = straightforward_benchmark(truth, lowres)
+                a, b = res["samba"], res["straightforward"]
+                res["comparison"] = {
+                    "speedup": b["s_per_frame"] / a["s_per_frame"],
+                    "surface_rmse_change_pct": 100.0
+                    * (a["accuracy"]["surface_rmse"] / b["accuracy"]["surface_rmse"] - 1.0),
+                    "edge_accuracy_change_pct": 100.0
+                    * (a["accuracy"]["edge_accuracy"] / b["accuracy"]["edge_accuracy"] - 1.0),
+                }
+            if not (args.quick or args.skip_memory):
+                print(f"memory benchmark ({args.memory_frames} frames) ...", flush=True)
+                res["memory"] = memory_benchmark(lowres, args.memory_frames, work)
+    targets = {
+        "tof_fps": 60.0,
+        "samba_s_per_frame": 0.15,
+        "peak_rss_mb": 1024.0,
+        "accuracy_pct": 2.0,
+    }
+    met = {"tof_fps": res["tof"][0]["fps"] >= targets["tof_fps"]}
+    if "samba" in res:
+        met["samba_s_per_frame"] = res["samba"]["s_per_frame"] <= targets["samba_s_per_frame"]
+    if "memory" in res:
+        met["peak_rss_mb"] = res["memory"]["peak_rss_mb"] <= targets["peak_rss_mb"]
+    if "comparison" in res:
+        c = res["comparison"]
+        met["accuracy_pct"] = (
+            c["surface_rmse_change_pct"] <= targets["accuracy_pct"]
+            and c["edge_accuracy_change_pct"] >= -targets["accuracy_pct"]
+        )
+    res["targets"], res["targets_met"] = targets, met
+    _print_results(res)
+    print("\ntargets met:", ", ".join(f"{k}: {'yes' if v else 'NO'}" for k, v in met.items()))
+    (out / "results.json").write_text(json.dumps(res, indent=2))
+    print(f"wrote {out / 'results.json'}")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
