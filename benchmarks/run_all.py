@@ -1,6 +1,6 @@
-"""Run every benchmark (``make bench``): the synthetic scenes always, Samba when its meshes are
-at ``--data`` (default ``../shared/data``). Each benchmark prints its table and writes
-``results.json`` / ``results.csv`` under ``--out``."""
+"""Run every benchmark (``make bench``): speed (ToF always; Samba, speed-up and memory when the
+Samba meshes are at ``--data``, default ``../shared/data``), the synthetic scenes, and the Samba
+accuracy tables. Each benchmark prints its table and writes ``results.json`` under ``--out``."""
 
 from __future__ import annotations
 
@@ -11,6 +11,7 @@ from pathlib import Path
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 import samba_eval
+import speed_eval
 import synthetic_eval
 
 
@@ -20,7 +21,9 @@ def main() -> int:
     p.add_argument("--data", default=str(samba_eval.DEFAULT_DATA))
     args = p.parse_args()
     out = Path(args.out)
-    print("== synthetic scenes ==", flush=True)
+    print("== speed ==", flush=True)
+    speed_eval.main(["--data", args.data, "--out", str(out / "speed")])
+    print("\n== synthetic scenes ==", flush=True)
     synthetic_eval.main(["--out", str(out / "synthetic")])
     if (Path(args.data) / "samba" / "mesh_0000.obj").is_file():
         for r in (2, 4):

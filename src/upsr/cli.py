@@ -270,6 +270,24 @@ def run(
             help=f"DIS flow speed/accuracy preset [default: {_DEFAULT_CFG.flow_preset}].",
         ),
     ] = None,
+    flow_scale: Annotated[
+        int | None,
+        typer.Option(
+            "--flow-scale",
+            min=1,
+            help="Upsampling factor s <= r of the frames the flow is computed on [default: the "
+            "smallest s >= 2 giving a flow grid >= 192 px wide]. Smaller: faster.",
+        ),
+    ] = None,
+    refine_preset: Annotated[
+        FlowPreset | None,
+        typer.Option(
+            "--refine-preset",
+            case_sensitive=False,
+            help="DIS preset of the eq. 19 residual flows [default: ultrafast on flow grids "
+            ">= 192 px wide, else --flow-preset].",
+        ),
+    ] = None,
     no_refine: Annotated[
         bool,
         typer.Option(
@@ -313,6 +331,8 @@ def run(
         blur=blur,
         flow=flow,
         flow_preset=flow_preset,
+        flow_scale=flow_scale,
+        refine_preset=refine_preset,
         no_deblur=no_deblur,
         no_refine=no_refine,
         keep_all_motion=keep_all_motion,

@@ -44,6 +44,8 @@ def config_from_options(
     blur: Enum | None = None,
     flow: Enum | None = None,
     flow_preset: Enum | None = None,
+    flow_scale: int | None = None,
+    refine_preset: Enum | None = None,
     no_deblur: bool = False,
     no_refine: bool = False,
     keep_all_motion: bool = False,
@@ -56,10 +58,16 @@ def config_from_options(
         ("deblur_alpha", alpha),
         ("deblur_radius_px", btv_radius),
         ("deblur_iterations", iterations),
+        ("flow_scale", flow_scale),
     ):
         if value is not None:
             options[name] = value
-    for name, choice in (("deblur_blur", blur), ("flow", flow), ("flow_preset", flow_preset)):
+    for name, choice in (
+        ("deblur_blur", blur),
+        ("flow", flow),
+        ("flow_preset", flow_preset),
+        ("refine_preset", refine_preset),
+    ):
         if choice is not None:
             options[name] = choice.value
     if no_deblur:
@@ -588,6 +596,14 @@ def batch(
         FlowPreset | None,
         typer.Option("--flow-preset", case_sensitive=False, help="DIS preset."),
     ] = None,
+    flow_scale: Annotated[
+        int | None,
+        typer.Option("--flow-scale", min=1, help="Upsampling factor of the flow grid (≤ r)."),
+    ] = None,
+    refine_preset: Annotated[
+        FlowPreset | None,
+        typer.Option("--refine-preset", case_sensitive=False, help="DIS preset of eq. 19."),
+    ] = None,
     no_refine: Annotated[
         bool, typer.Option("--no-refine", help="Skip the eq. 19 re-estimation.")
     ] = False,
@@ -620,6 +636,8 @@ def batch(
         blur=blur,
         flow=flow,
         flow_preset=flow_preset,
+        flow_scale=flow_scale,
+        refine_preset=refine_preset,
         no_deblur=no_deblur,
         no_refine=no_refine,
         keep_all_motion=keep_all_motion,

@@ -146,6 +146,8 @@ def render_samba(
     scales: Sequence[int] = (1,),
     fov_x_deg: float = 60.0,
     lateral_mm_per_frame: float = 0.0,
+    background_mm: float | None = None,
+    bounds_m: tuple[Sequence[float], Sequence[float]] | None = None,
     cache_dir: str | os.PathLike[str] | None = None,
     log: Logger = null_logger,
 ) -> SambaRender:
@@ -169,6 +171,11 @@ def render_samba(
         Horizontal field of view (degrees).
     lateral_mm_per_frame : float
         Lateral drift per frame (mm).
+    background_mm : float or None
+        Depth (mm) of a wall behind the dancer filling the empty pixels; ``None``: 0 (no
+        return).
+    bounds_m : ((x, y, z), (x, y, z)) or None
+        World box (m) the camera is fitted to; ``None``: the bounds of the rendered meshes.
     cache_dir : path-like, optional
         Folder for a cache of the renders (``samba_<key>.npz``).
     log : callable
@@ -191,10 +198,14 @@ def render_samba(
         "fov": fov_x_deg,
         "drift": lateral_mm_per_frame,
     }
+    if background_mm is not None:
+        params["background_mm"] = float(background_mm)
+    if bounds_m is not None:
+        params["bounds_m"] = [list(map(float, b)) for b in bounds_m]
     cache = None
     if cache_dir is not None:
         cache = Path(cache_dir) / f"samba_{_cache_key(paths, params)}.npz"
-    lo, hi = mesh_bounds(paths)
+    lo, hi = mesh_bounds(paths) if bounds_m is None else map(np.asarray, bounds_m)
     cam, pose = samba_camera_and_pose(
         width=width, height=height, fov_x_deg=fov_x_deg, bounds_m=(lo, hi)
     )
@@ -224,10 +235,16 @@ def render_samba(
     for k, path in enumerate(paths):
         verts, faces = load_obj(path)
         verts = verts + k * shift
-        truth[k] = render_depth(verts, faces, cam, world_to_camera=pose)
+        truth[k] = render_depth(
+            verts, faces, cam, world_to_camera=pose, background_mm=background_mm
+        )
         for r, c in cams.items():
             lowres[r][k] = (
-                truth[k] if r == 1 else render_depth(verts, faces, c, world_to_camera=pose)
+                truth[k]
+                if r == 1
+                else render_depth(
+                    verts, faces, c, world_to_camera=pose, background_mm=background_mm
+                )
             )
     if not (truth > 0).any():
         raise InputError("the rendered meshes are not visible (no depth in the renders)")
