@@ -297,6 +297,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--out", default="results/bench/speed", help="output folder")
     p.add_argument("--data", default=str(DEFAULT_DATA), help="folder holding samba/")
+    p.add_argument(
+        "--cache", default="results/cache", help="folder for the cached Samba renders"
+    )
     p.add_argument("--quick", action="store_true", help="small runs, no memory benchmark")
     p.add_argument("--samba-frames", type=int, default=20, help="Samba meshes to render")
     p.add_argument("--memory-frames", type=int, default=1000, help="frames of the memory run")
@@ -317,7 +320,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         if samba_ok:
             count = 12 if args.quick else args.samba_frames
             print("Samba benchmark ...", flush=True)
-            truth, lowres = samba_frames(Path(args.data), count, 30.0, out / "cache")
+            truth, lowres = samba_frames(Path(args.data), count, 30.0, Path(args.cache))
             res["samba"] = samba_benchmark(truth, lowres, work)
             if not args.skip_straightforward:
                 print("straightforward path ...", flush=True)

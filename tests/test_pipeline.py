@@ -188,3 +188,17 @@ def test_flow_grid_scale_is_used_and_a_full_grid_matches_the_paper_setting():
         m = evaluate(out, scene.truth, 4)
         assert m["flying_pixels"] == 0.0
         assert m["surface_rmse"] < 10.0
+
+
+def test_engine_state_stays_bounded_on_long_videos():
+    # a long video keeps about N frames of state, whatever its length
+    scene = dynamic_scene(n_frames=40, lowres_shape=(12, 16), scale=2, noise_sigma_mm=10, seed=5)
+    engine = upsr.UPSR(scale=2, n_frames=5)
+    sizes = []
+    for frame in scene.lowres:
+        engine.push(frame)
+        sizes.append(
+            max(len(d) for d in (engine._lowres, engine._pre, engine._guide, engine._fwd))
+        )
+    assert max(sizes) <= 5 + 1
+    assert len(engine.flush()) == 4
