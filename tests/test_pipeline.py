@@ -197,8 +197,6 @@ def test_engine_state_stays_bounded_on_long_videos():
     sizes = []
     for frame in scene.lowres:
         engine.push(frame)
-        sizes.append(
-            max(len(d) for d in (engine._lowres, engine._pre, engine._guide, engine._fwd))
-        )
+        sizes.append(max(len(d) for d in (engine._lowres, engine._pre, engine._guide, engine._fwd)))
     assert max(sizes) <= 5 + 1
     assert len(engine.flush()) == 4

@@ -96,50 +96,6 @@ def test_sample_offsets_geometry():
 
 
 # -- compiled registration on a (coarser) flow grid ---------------------------------------------
-def _random_window(rng, n=5, h=12, w=16, r=4, s=4, motion_px=3.0):
-    lowres = rng.uniform(500, 3000, (n, h, w)).astype(np.float32)
-    lowres[rng.random(lowres.shape) < 0.1] = 0.0
-    maps = rng.normal(0, motion_px, (n, h * s, w * s, 2)).astype(np.float32)
-    return lowres, maps
-
-
-def test_register_lowres_equals_warp_of_upsampled_frames_on_the_output_grid():
-    from upsr.registration import register_lowres, sample_offsets, warp_nearest
-    from upsr.upsampling import upsample_nearest
-
-    rng = np.random.default_rng(3)
-    lowres, maps = _random_window(rng)
-    stack, weights = register_lowres(lowres, maps, 4, weight_sigma_px=1.4, weight_floor=0.25)
-    for k in range(len(lowres)):
-        expected = warp_nearest(upsample_nearest(lowres[k], 4), maps[k])
-        np.testing.assert_array_equal(np.isnan(stack[k]), np.isnan(expected))
-        inside = ~np.isnan(expected)
-        np.testing.assert_array_equal(stack[k][inside], expected[inside])
-        d = sample_offsets(maps[k], 4)
-        w = 0.25 + 0.75 * np.exp(-(d**2) / (2 * 1.4**2))
-        # the Gaussian is tabulated every 1/64 px
-        np.testing.assert_allclose(weights[k][inside], w[inside], atol=0.02)
-    _, ones = register_lowres(lowres, maps, 4)
-    assert np.all(ones == 1.0)
-
-
-def test_register_lowres_interpolates_a_coarse_flow_grid_bilinearly():
-    import cv2
-
-    from upsr.registration import register_lowres, warp_nearest
-    from upsr.upsampling import upsample_nearest
-
-    rng = np.random.default_rng(4)
-    lowres, coarse = _random_window(rng, s=2, motion_px=2.0)
-    stack, _ = register_lowres(lowres, coarse, 4)
-    for k in range(len(lowres)):
-        fine = cv2.resize(coarse[k], (64, 48), interpolation=cv2.INTER_LINEAR) * 2.0
-        expected = warp_nearest(upsample_nearest(lowres[k], 4), fine)
-        same = (stack[k] == expected) | (np.isnan(stack[k]) & np.isnan(expected))
-        # positions that round differently by float error of the interpolation are rare
-        assert same.mean() > 0.995
-
-
 def test_trace_to_reference_follows_the_chain_of_flows():
     import cv2
 

@@ -650,11 +650,14 @@ def register_and_fuse(
 ) -> np.ndarray:
     """Registration (eq. 20) and invalid-aware median fusion (eq. 28) in one compiled pass.
 
-    Equals ``temporal_median(*register_lowres(lowres, maps, scale, ...), ref, ...)``
-    (:func:`upsr.registration.register_lowres`) without building the (N, r·h, r·w) stacks
-    of registered samples and weights: each output pixel reads its N samples straight from
-    the low-res frames, and computes the vote weights only where they can matter (some
-    samples invalid, or samples from several surfaces).
+    With a flow grid of the output size (s = r) this equals
+    ``temporal_median(stack, ref, weights=w, ...)`` with ``stack[k] =
+    warp_nearest(upsample_nearest(lowres[k], r), maps[k])`` and ``w = floor + (1 − floor)·
+    exp(−d²/(2σ²))``, d from :func:`upsr.registration.sample_offsets` (the Gaussian is
+    tabulated every 1/64 px), without building those (N, r·h, r·w) stacks: each output pixel
+    reads its N samples straight from the low-res frames, and computes the vote weights only
+    where they can matter (some samples invalid, or samples from several surfaces). A coarser
+    flow grid (s < r) is interpolated bilinearly (pixel centres aligned, like ``cv2.resize``).
 
     Parameters
     ----------
@@ -666,8 +669,10 @@ def register_and_fuse(
         SR factor r.
     ref : int, optional
         Index of the reference frame (default the middle one).
-    weight_sigma_px, weight_floor
-        Vote weights, see :func:`upsr.registration.register_lowres`.
+    weight_sigma_px : float or None
+        σ of the vote weights (high-res px); ``None``: equal votes.
+    weight_floor : float
+        Smallest vote weight.
     guide, guide_bonus, min_valid_fraction, edge_mm
         As in :func:`temporal_median`.
     measured_only : bool

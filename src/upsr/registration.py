@@ -30,11 +30,12 @@ __all__ = [
     "cumulative_flows",
     "flows_to_reference",
     "identity_grid",
-    "register_lowres",
+    "interpolation_tables",
     "sample_offsets",
     "trace_to_reference",
     "warp_guide",
     "warp_nearest",
+    "weight_table",
 ]
 
 
@@ -220,7 +221,7 @@ def cumulative_flows(
 # The flow may be estimated on frames upsampled by a factor ``flow_scale`` = s ≤ r (the "flow
 # grid", s·h × s·w) rather than by r: a pixel centre x of the high-res grid sits at
 # (x + 0.5)·s/r − 0.5 on the flow grid, and a displacement of 1 flow px is r/s high-res px.
-# With s = r these kernels reproduce warp_nearest / sample_offsets exactly.
+# With s = r, upsr.fusion.register_and_fuse reproduces warp_nearest / sample_offsets exactly.
 
 
 @nb.njit(cache=True, nogil=True, inline="always")
@@ -238,47 +239,6 @@ def _bilinear(field, u, v, c):  # pragma: no cover - numba
     top = field[y0, x0, c] * (1.0 - fx) + field[y0, x1, c] * fx
     bot = field[y1, x0, c] * (1.0 - fx) + field[y1, x1, c] * fx
     return top * (1.0 - fy) + bot * fy
-
-
-@nb.njit(cache=True, nogil=True, parallel=True, fastmath=True)
-def _register_kernel(
-    lowres, maps, scale, ratio, cols, fx, rows, fy, table, step, floor, stack, weights
-):  # pragma: no cover - numba
-    n = lowres.shape[0]
-    hh, ww = stack.shape[1], stack.shape[2]
-    last = table.size - 1
-    for i in nb.prange(hh):
-        y0 = rows[i, 0]
-        y1 = rows[i, 1]
-        gy = fy[i]
-        for k in range(n):
-            m0 = maps[k, y0]
-            m1 = maps[k, y1]
-            srow = stack[k, i]
-            wrow = weights[k, i]
-            for j in range(ww):
-                a = cols[j, 0]
-                b = cols[j, 1]
-                gx = fx[j]
-                dx = (m0[a, 0] * (1 - gx) + m0[b, 0] * gx) * (1 - gy)
-                dx += (m1[a, 0] * (1 - gx) + m1[b, 0] * gx) * gy
-                dy = (m0[a, 1] * (1 - gx) + m0[b, 1] * gx) * (1 - gy)
-                dy += (m1[a, 1] * (1 - gx) + m1[b, 1] * gx) * gy
-                qx = j + dx * ratio
-                qy = i + dy * ratio
-                xi = int(np.floor(qx + 0.5))
-                yi = int(np.floor(qy + 0.5))
-                if xi < 0 or xi >= ww or yi < 0 or yi >= hh:
-                    srow[j] = np.nan
-                    wrow[j] = 1.0
-                    continue
-                li = yi // scale
-                lj = xi // scale
-                srow[j] = lowres[k, li, lj]
-                # weight: a tabulated Gaussian of the distance to the sampled pixel's centre
-                ex = min(int(abs(qx - ((lj + 0.5) * scale - 0.5)) * step + 0.5), last)
-                ey = min(int(abs(qy - ((li + 0.5) * scale - 0.5)) * step + 0.5), last)
-                wrow[j] = floor + (1.0 - floor) * table[ex] * table[ey]
 
 
 def interpolation_tables(
@@ -309,70 +269,6 @@ def _interpolation_table(n_out: int, n_in: int, ratio: float) -> tuple[np.ndarra
     lo = np.minimum(np.floor(u).astype(np.int64), max(n_in - 2, 0))
     hi = np.minimum(lo + 1, n_in - 1)
     return np.stack([lo, hi], axis=1), (u - lo).astype(np.float32)
-
-
-def register_lowres(
-    lowres: npt.ArrayLike,
-    maps: npt.ArrayLike,
-    scale: int,
-    *,
-    weight_sigma_px: float | None = None,
-    weight_floor: float = 0.25,
-    out: tuple[np.ndarray, np.ndarray] | None = None,
-) -> tuple[np.ndarray, np.ndarray]:
-    """Register every frame of a window to the reference and weight each sample (eq. 20).
-
-    One compiled pass that equals, for a flow grid of the output size,
-    ``warp_nearest(upsample_nearest(lowres[k], r), maps[k])`` (nearest neighbour, never an
-    interpolated depth; NaN outside the frame) and the vote weights of the fusion from
-    :func:`sample_offsets`, ``floor + (1 − floor)·exp(−d²/(2σ²))``. The dense upsampled
-    frames are never built: the registered position is read in the low-res frame directly.
-
-    Parameters
-    ----------
-    lowres : array_like (N, h, w)
-        Low-res frames (mm).
-    maps : array_like (N, s·h, s·w, 2)
-        Motion from the reference to each frame on the flow grid (s divides r, s ≤ r), in flow
-        px; it is interpolated bilinearly to the high-res grid.
-    scale : int
-        SR factor r.
-    weight_sigma_px : float or None
-        σ of the vote weights (high-res px); ``None``: all weights 1.
-    weight_floor : float
-        Smallest weight.
-    out : (stack, weights), optional
-        Preallocated float32 (N, r·h, r·w) arrays to fill.
-
-    Returns
-    -------
-    stack, weights : ndarray float32 (N, r·h, r·w)
-    """
-    lr = np.ascontiguousarray(lowres, np.float32)
-    mp = np.ascontiguousarray(maps, np.float32)
-    n, h, w = lr.shape
-    shape = (n, h * scale, w * scale)
-    if out is None:
-        out = (np.empty(shape, np.float32), np.empty(shape, np.float32))
-    stack, weights = out
-    (cols, fx), (rows, fy), ratio = interpolation_tables(shape[1:], mp.shape[1:3])
-    gauss, steps = weight_table(scale, weight_sigma_px)
-    _register_kernel(
-        lr,
-        mp,
-        int(scale),
-        ratio,
-        cols,
-        fx,
-        rows,
-        fy,
-        gauss,
-        steps,
-        float(weight_floor),
-        stack,
-        weights,
-    )
-    return stack, weights
 
 
 @nb.njit(cache=True, nogil=True, parallel=True)

@@ -20,8 +20,11 @@ Deblurring parameters. The paper picks them by an exhaustive search for the smal
 the test data itself. Here they are chosen per σ on a *held-out* frame: the centre frame of the
 next nine meshes (``mesh_0009`` … ``mesh_0017``, independent noise), fused by UP-SR and
 deblurred with every combination of λ ∈ {0.1, 0.3, 0.5, 1, 2} and the final surface smoothing
-on (30 mm) or off (the paper's plain L1+BTV); the combination with the smallest MSE on that
-frame is then used on the evaluation clip (``noise_deblur_search.csv`` lists the search).
+off (the paper's plain L1+BTV) or on with a range σ of 30 mm (UP-SR's default), 60 or 100 mm
+(a wider range also smooths the steep slopes of a body near its silhouette; it is safe only
+where no two surfaces are that close in depth, which the held-out frame and the flying-pixel
+metric check); the combination with the smallest MSE on that frame is then used on the
+evaluation clip (``noise_deblur_search.csv`` lists the search).
 """
 
 from __future__ import annotations
@@ -82,7 +85,7 @@ SEARCH_COLUMNS = ("sigma", "lam", "smooth_sigma_mm", "heldout_mse", "chosen")
 
 #: The deblurring search: (λ, final smoothing range σ in mm or None).
 DEBLUR_GRID: tuple[tuple[float, float | None], ...] = tuple(
-    (lam, smooth) for lam in (0.1, 0.3, 0.5, 1.0, 2.0) for smooth in (None, 30.0)
+    (lam, smooth) for lam in (0.1, 0.3, 0.5, 1.0, 2.0) for smooth in (None, 30.0, 60.0, 100.0)
 )
 QUICK_DEBLUR_GRID: tuple[tuple[float, float | None], ...] = ((0.3, 30.0), (1.0, None))
 
