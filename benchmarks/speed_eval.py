@@ -297,9 +297,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--out", default="results/bench/speed", help="output folder")
     p.add_argument("--data", default=str(DEFAULT_DATA), help="folder holding samba/")
-    p.add_argument(
-        "--cache", default="results/cache", help="folder for the cached Samba renders"
-    )
+    p.add_argument("--cache", default="results/cache", help="folder for the cached Samba renders")
     p.add_argument("--quick", action="store_true", help="small runs, no memory benchmark")
     p.add_argument("--samba-frames", type=int, default=20, help="Samba meshes to render")
     p.add_argument("--memory-frames", type=int, default=1000, help="frames of the memory run")

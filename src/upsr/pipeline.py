@@ -2,19 +2,22 @@
 
 For each reference frame t0 (every frame of the video):
 
-1. dense upsampling y_t↑ = U y_t (eq. 13–15), :mod:`upsr.upsampling`;
+1. dense upsampling (eq. 13–15) by s ≤ r for motion (the flow grid,
+   :meth:`UPSRConfig.flow_grid_scale <upsr.config.UPSRConfig.flow_grid_scale>`),
+   :mod:`upsr.upsampling`;
 2. bilateral prefilter and fixed 8-bit mapping, for motion only (§5.2), :mod:`upsr.motion`;
 3. optical flow between consecutive upsampled frames (§4, eq. 16–17), :mod:`upsr.motion`;
 4. cumulative motion to t0 by composition, with eq. 19 re-estimation, :mod:`upsr.registration`;
-5. nearest-neighbour warping of y_t↑ to t0 (eq. 20), :mod:`upsr.registration`;
-6. invalid-aware temporal median (eq. 28), :mod:`upsr.fusion`;
+5. nearest-neighbour warping of y_t↑ = U y_t to t0 (eq. 20) and 6. the invalid-aware temporal
+   median (eq. 28), in one compiled pass on the r·h × r·w grid that reads the samples from the
+   low-res frames (:func:`upsr.fusion.register_and_fuse`);
 7. L1 + BTV deblurring (eq. 29–30), then (beyond the paper) an edge-preserving smoothing of
    each surface that turns the staircase of dense upsampling into ramps, :mod:`upsr.deblurring`.
 
 Windows: N frames with the reference in the middle (``(N-1)//2`` before it); near the ends of a
 video the window is shifted inwards so that it still holds N frames. Each consecutive flow (both
-directions), each upsampled and each prefiltered frame is computed once per video and shared
-by every window that needs it.
+directions) and each prefiltered frame is computed once per video and shared by every window
+that needs it; the engine keeps only what later windows need (about N frames of state).
 """
 
 from __future__ import annotations
