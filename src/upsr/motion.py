@@ -16,6 +16,7 @@ from collections.abc import Callable
 from typing import Protocol
 
 import cv2
+import numba as nb
 import numpy as np
 import numpy.typing as npt
 
@@ -141,28 +142,68 @@ def suppress_spurious_motion(
     """
     h, w = first_mm.shape
     xs, ys = identity_grid(h, w)
+    first = np.ascontiguousarray(first_mm, np.float32)
+    second = np.ascontiguousarray(second_mm, np.float32)
     warped = cv2.remap(
-        second_mm,
+        second,
         xs + flow[..., 0],
         ys + flow[..., 1],
         cv2.INTER_NEAREST,
         borderMode=cv2.BORDER_REPLICATE,
     )
-    valid = ((first_mm > 0) & (second_mm > 0) & (warped > 0)).astype(np.float32)
+    sq_flow = np.empty_like(first)
+    sq_zero = np.empty_like(first)
+    _squared_residuals(first, second, warped, sq_flow, sq_zero)
     k = (window_px, window_px)
-    res_flow = cv2.boxFilter((first_mm - warped) ** 2 * valid, -1, k)
-    res_zero = cv2.boxFilter((first_mm - second_mm) ** 2 * valid, -1, k)
-    out = flow.copy()
-    # pixels without depth carry no evidence either way: their flow (which chaining reads
-    # when a moving surface's pixel lands just outside it) is left alone
-    unsupported = (res_zero <= tolerance * res_flow + noise_mm**2) & (first_mm > 0)
+    res_flow = cv2.boxFilter(sq_flow, -1, k)
+    res_zero = cv2.boxFilter(sq_zero, -1, k)
     if edge_mm is not None:
         side = max(edge_window_px or window_px, 1)
         kernel = np.ones((side, side), np.uint8)
-        span = cv2.dilate(first_mm, kernel) - cv2.erode(first_mm, kernel)
-        unsupported &= span <= edge_mm
-    out[unsupported] = 0.0
+        span = cv2.dilate(first, kernel) - cv2.erode(first, kernel)
+        edge = float(edge_mm)
+    else:
+        span = sq_flow  # unused: no edge test
+        edge = np.inf
+    out = np.array(flow, dtype=np.float32, copy=True)
+    _zero_unsupported(
+        first, res_flow, res_zero, span, float(tolerance), float(noise_mm) ** 2, edge, out
+    )
     return out
+
+
+@nb.njit(cache=True, nogil=True)
+def _squared_residuals(first, second, warped, sq_flow, sq_zero):  # pragma: no cover - numba
+    """(first − warped)² and (first − second)² where all three are valid, else 0."""
+    h, w = first.shape
+    for i in range(h):
+        for j in range(w):
+            a = first[i, j]
+            b = second[i, j]
+            c = warped[i, j]
+            if a > 0 and b > 0 and c > 0:
+                sq_flow[i, j] = (a - c) * (a - c)
+                sq_zero[i, j] = (a - b) * (a - b)
+            else:
+                sq_flow[i, j] = 0.0
+                sq_zero[i, j] = 0.0
+
+
+@nb.njit(cache=True, nogil=True)
+def _zero_unsupported(
+    first, res_flow, res_zero, span, tolerance, noise_sq, edge_mm, out
+):  # pragma: no cover - numba
+    """Zero the flow where the zero motion fits as well (and no edge is near)."""
+    h, w = first.shape
+    for i in range(h):
+        for j in range(w):
+            # pixels without depth carry no evidence either way: their flow (which chaining
+            # reads when a moving surface's pixel lands just outside it) is left alone
+            if first[i, j] <= 0:
+                continue
+            if res_zero[i, j] <= tolerance * res_flow[i, j] + noise_sq and span[i, j] <= edge_mm:
+                out[i, j, 0] = 0.0
+                out[i, j, 1] = 0.0
 
 
 _MIN_FLOW_SIZE = 16
