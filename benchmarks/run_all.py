@@ -1,6 +1,7 @@
 """Run every benchmark (``make bench``): speed (ToF always; Samba, speed-up and memory when the
-Samba meshes are at ``--data``, default ``../shared/data``), the synthetic scenes, and the Samba
-accuracy tables. Each benchmark prints its table and writes ``results.json`` under ``--out``."""
+Samba meshes are at ``--data``, default ``../shared/data``), the flow grid, the synthetic scenes,
+and the Samba accuracy tables. Each benchmark prints its table and writes ``results.json`` under
+``--out``."""
 
 from __future__ import annotations
 
@@ -10,6 +11,7 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
+import flow_grid_eval
 import samba_eval
 import speed_eval
 import synthetic_eval
@@ -23,6 +25,8 @@ def main() -> int:
     out = Path(args.out)
     print("== speed ==", flush=True)
     speed_eval.main(["--data", args.data, "--out", str(out / "speed")])
+    print("\n== flow grid ==", flush=True)
+    flow_grid_eval.main(["--data", args.data, "--out", str(out / "flow_grid")])
     print("\n== synthetic scenes ==", flush=True)
     synthetic_eval.main(["--out", str(out / "synthetic")])
     if (Path(args.data) / "samba" / "mesh_0000.obj").is_file():

@@ -140,8 +140,8 @@ class UPSRConfig:
     refine_preset : {"ultrafast", "fast", "medium"} or None
         DIS preset of the eq. 19 residual flows between registered frames, which are small
         (the consecutive flows already moved the frame most of the way). ``None``:
-        ``"ultrafast"`` (≈ 7× cheaper than ``"medium"``, as accurate, measured on Samba and
-        the synthetic scenes) where the flow grid is at least 192 px wide, else
+        ``"ultrafast"`` where the flow grid is at least 192 px wide (much cheaper, and as
+        accurate on Samba and the synthetic scenes: ``benchmarks/flow_grid_eval.py``), else
         ``flow_preset`` (ultrafast matches on a 4× coarser grid, too coarse for tiny frames).
         See :meth:`residual_flow_preset`.
     flow_scale : int or None
@@ -150,9 +150,9 @@ class UPSRConfig:
         grid where the frames are registered. The paper upsamples by r (§4, eq. 9–12).
         ``None``: the smallest s ≥ 2 that makes the flow grid at least 192 px wide, at most r
         (:meth:`flow_grid_scale`): DIS matches fixed-size patches, so small frames need a
-        finer grid (64×56 at r = 4: s = 3), while large ones lose nothing on a coarser grid
-        and gain a lot of speed (256×147 at r = 4: s = 2, 3.5× faster than s = 4). Measured
-        by ``benchmarks/speed_eval.py`` and in the README.
+        finer grid (64×56 at r = 4: s = 3), while large ones lose little on a coarser grid
+        and gain a lot of speed (256×147 at r = 4: s = 2, 4.5× faster than s = 4 with DIS
+        medium). Measured by ``benchmarks/flow_grid_eval.py`` (see the README).
     depth_range_mm : tuple of float or None
         (near, far) depths mapped to the 8-bit images the flow sees. ``None``: fixed once per
         video from the 1st–99th percentiles of the valid depths of the first window.
