@@ -197,14 +197,14 @@ def cumulative_flows(
     for direction, consecutive in ((-1, backward), (1, forward)):
         j = ref + direction
         while 0 <= j < n:
-            nb = j - direction
-            step = consecutive[nb]
-            assert step is not None and maps[nb] is not None
-            cum = compose_flows(maps[nb], step)
+            prev = j - direction
+            step = consecutive[prev]
+            assert step is not None and maps[prev] is not None
+            cum = compose_flows(maps[prev], step)
             if refine is not None and abs(j - ref) > 1:
                 # eq. 19; the reference's direct neighbours are skipped: their motion *is* an
                 # estimate against the (trivially registered) reference already
-                residual = refine(registered[nb], warp_guide(guides[j], cum))  # type: ignore
+                residual = refine(registered[prev], warp_guide(guides[j], cum))  # type: ignore
                 cum = compose_flows(residual, cum)
                 registered[j] = warp_guide(guides[j], cum)  # type: ignore[index]
             elif refine is not None:
