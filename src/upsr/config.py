@@ -188,7 +188,7 @@ class UPSRConfig:
         forward-registered to the reference at its sub-pixel position, and where the
         backward-registered samples of a pixel come from several surfaces, the surface of the
         nearest forward-registered sample within this radius (high-res px) wins
-        (:func:`upsr.fusion.splat_nearest`). ``None``: vote only.
+        (:func:`upsr.fusion.splat_points`). ``None``: vote only.
     deblur : DeblurConfig
         Deblurring parameters (eq. 29–30).
     """
