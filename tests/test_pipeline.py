@@ -200,3 +200,22 @@ def test_engine_state_stays_bounded_on_long_videos():
         sizes.append(max(len(d) for d in (engine._lowres, engine._pre, engine._guide, engine._fwd)))
     assert max(sizes) <= 5 + 1
     assert len(engine.flush()) == 4
+
+
+def test_feed_has_half_the_latency_and_the_same_frames():
+    scene = dynamic_scene(n_frames=9, lowres_shape=(12, 16), scale=2, noise_sigma_mm=10, seed=6)
+    batch = upsr.super_resolve(scene.lowres, 2, 5)
+    engine = upsr.UPSR(scale=2, n_frames=5)
+    counts = [len(out) for out in (engine.feed(f) for f in scene.lowres[:4])]
+    assert counts == [0, 0, 0, 0]
+    engine.reset()
+    got = []
+    returned_at = {}
+    for k, frame in enumerate(scene.lowres):
+        for out in engine.feed(frame):
+            returned_at[len(got)] = k
+            got.append(out)
+    # N = 5: frames 0-2 once the first window is full, then frame t after frame t + 2
+    assert returned_at == {0: 4, 1: 4, 2: 4, 3: 5, 4: 6, 5: 7, 6: 8}
+    got.extend(engine.flush())
+    np.testing.assert_array_equal(np.stack(got), batch)

@@ -61,9 +61,10 @@ class UPSR:
     """Streaming UP-SR: push low-res frames one by one, get high-res frames back in order.
 
     ``push(frame)`` returns the next finished high-res frame, or ``None`` while the first window
-    fills (the latency is N−1 frames); ``flush()`` returns the remaining ones at the end of the
-    video and makes the object ready for a new video; ``reset()`` forgets everything. The
-    output is identical to :func:`super_resolve` on the whole video.
+    fills (the latency is N−1 frames); ``feed(frame)`` returns every frame whose window is
+    complete (latency N−1−(N−1)//2 frames, for live use); ``flush()`` returns the remaining ones
+    at the end of the video and makes the object ready for a new video; ``reset()`` forgets
+    everything. The output is identical to :func:`super_resolve` on the whole video.
 
     Parameters
     ----------
@@ -316,12 +317,39 @@ class UPSR:
         finally:
             self.reset()
 
+    def feed(self, frame: npt.ArrayLike) -> list[np.ndarray]:
+        """Add the next low-res frame; return every high-res frame whose window is now complete.
+
+        The low-latency form of :meth:`push` for live use: output frame t comes out as soon as
+        frame t + N − 1 − (N−1)//2 has been fed (4 frames later at N = 9, against N − 1 = 8
+        for :meth:`push`); the first call that completes a window returns the first
+        (N−1)//2 + 1 frames at once. Use either ``push`` or ``feed`` for a video, then
+        :meth:`flush`. The frames are the same as :func:`super_resolve`'s.
+
+        Returns
+        -------
+        list of ndarray float32 (r·h, r·w), in order (possibly empty)
+        """
+        self._ingest(frame)
+        n = self.config.n_frames
+        outs: list[np.ndarray] = []
+        if self._count < n:
+            return outs
+        # a window that lies in the frames seen so far is final whatever the video's length
+        horizon = self._count + n
+        while self._next_out < self._count:
+            t = self._next_out
+            if window_start(t, horizon, self.config) + n > self._count:
+                break
+            outs.append(self._finish(t, n_total=horizon))
+            self._next_out += 1
+        return outs
+
     def process(self, frames: Iterable[npt.ArrayLike]) -> Iterator[np.ndarray]:
-        """Super-resolve a stream of frames; yields one high-res frame per input frame."""
+        """Super-resolve a stream of frames; yields one high-res frame per input frame, each as
+        soon as its window is complete (see :meth:`feed`)."""
         for frame in frames:
-            out = self.push(frame)
-            if out is not None:
-                yield out
+            yield from self.feed(frame)
         yield from self.flush()
 
 
