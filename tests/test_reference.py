@@ -6,9 +6,15 @@ import numpy as np
 import pytest
 
 from upsr.config import DeblurConfig
-from upsr.deblurring import btv_subgradient, deblur
+from upsr.deblurring import btv_subgradient, deblur, estimate_noise_mm
+from upsr.errors import InputError
 from upsr.fusion import temporal_median
-from upsr.reference import btv_subgradient_numpy, deblur_numpy, temporal_median_numpy
+from upsr.reference import (
+    btv_subgradient_numpy,
+    deblur_numpy,
+    estimate_noise_mm_numpy,
+    temporal_median_numpy,
+)
 
 
 def _random_stack(rng: np.random.Generator, n: int, h: int = 24, w: int = 20) -> np.ndarray:
@@ -115,6 +121,30 @@ def test_deblur_matches_kernel(smooth):
     assert actual.dtype == np.float32
     np.testing.assert_array_equal(actual == 0, z == 0)
     np.testing.assert_allclose(actual, expected, atol=0.05, rtol=0)
+
+
+@pytest.mark.parametrize("lag", [1, 2, 4])
+@pytest.mark.parametrize("case", ["noisy", "steps", "noiseless", "sparse", "invalid", "even"])
+def test_estimate_noise_matches_numpy_exactly(case, lag):
+    rng = np.random.default_rng(lag)
+    z = (2000.0 + rng.laplace(0.0, 15.0, (37, 53))).astype(np.float32)
+    if case == "steps":  # two surfaces and holes: the edge pairs must not count
+        z[:, 20:] += 600.0
+        z[rng.random(z.shape) < 0.2] = 0.0
+    elif case == "noiseless":  # every difference is 0: one histogram bin holds them all
+        z[:] = 1500.0
+    elif case == "sparse":
+        z[rng.random(z.shape) < 0.9] = 0.0
+    elif case == "invalid":
+        z[:] = 0.0
+    elif case == "even":  # an even number of differences: mean of the two middle ones
+        z = z[:2, :3].copy()
+    assert estimate_noise_mm(z, lag) == estimate_noise_mm_numpy(z, lag)
+
+
+def test_estimate_noise_rejects_a_video():
+    with pytest.raises(InputError, match="2-D"):
+        estimate_noise_mm(np.ones((2, 4, 4), np.float32))
 
 
 def test_deblur_numpy_rejects_a_blur_model():

@@ -53,7 +53,10 @@ class DeblurConfig:
     blur_sigma_px : float
         Standard deviation of the Gaussian blur model (px, high-res grid).
     iterations : int
-        Number of subgradient steps.
+        Number of subgradient steps. 15 by default: on Samba (σ = 10/30/60 mm) and the
+        synthetic ToF scene, 15 steps give the same or a lower MSE and surface RMSE than 30
+        (the step schedule has moved 83 % of its total length by then; the objective is
+        1–9 % higher, but the extra steps fit the noise, not the surfaces).
     step_mm : float or None
         First step length β₀ (mm). ``None``: a robust estimate of the noise left in the fused
         image (:func:`upsr.deblurring.estimate_noise_mm` at a lag of r px), at least 0.5 mm.
@@ -77,7 +80,7 @@ class DeblurConfig:
     radius_px: int = 2
     blur: BlurModel = "none"
     blur_sigma_px: float = 1.0
-    iterations: int = 30
+    iterations: int = 15
     step_mm: float | None = None
     step_decay: float = 0.9
     edge_mm: float | None = 100.0

@@ -4,6 +4,7 @@ These are "the straightforward path": vectorised NumPy versions of
 
 * :func:`upsr.fusion.temporal_median` (:func:`temporal_median_numpy`),
 * :func:`upsr.deblurring.btv_subgradient` (:func:`btv_subgradient_numpy`),
+* :func:`upsr.deblurring.estimate_noise_mm` (:func:`estimate_noise_mm_numpy`),
 * :func:`upsr.deblurring.deblur` with B = I (:func:`deblur_numpy`),
 * :func:`upsr.super_resolve` with nothing shared between windows, flows at the full r and
   the kernels above (:func:`super_resolve_straightforward`),
@@ -20,11 +21,12 @@ import numpy as np
 import numpy.typing as npt
 
 from .config import DeblurConfig, UPSRConfig
-from .deblurring import estimate_noise_mm, smooth_surfaces
+from .deblurring import smooth_surfaces
 
 __all__ = [
     "btv_subgradient_numpy",
     "deblur_numpy",
+    "estimate_noise_mm_numpy",
     "super_resolve_straightforward",
     "temporal_median_numpy",
 ]
@@ -166,6 +168,20 @@ def temporal_median_numpy(
     return np.where(known, med, np.float32(0.0)).astype(np.float32)
 
 
+def estimate_noise_mm_numpy(z: npt.ArrayLike, lag_px: int = 1) -> float:
+    """:func:`upsr.deblurring.estimate_noise_mm` with NumPy: 1.4826·MAD/√2 of the valid
+    same-surface (|Δ| < 100 mm) differences ``lag_px`` apart, horizontally and vertically."""
+    z = np.asarray(z, np.float32)
+    diffs = []
+    for a, b in ((z[:, lag_px:], z[:, :-lag_px]), (z[lag_px:, :], z[:-lag_px, :])):
+        d = (a - b)[(a > 0) & (b > 0)]
+        diffs.append(d[np.abs(d) < 100.0])
+    d = np.concatenate(diffs)
+    if d.size == 0:
+        return 0.0
+    return float(1.4826 * np.median(np.abs(d - np.median(d))) / np.sqrt(2.0))
+
+
 def btv_subgradient_numpy(
     x: npt.ArrayLike,
     guide: npt.ArrayLike,
@@ -264,7 +280,7 @@ def deblur_numpy(
     mask = z > 0
     if not cfg.enabled or not mask.any():
         return z
-    beta = cfg.step_mm if cfg.step_mm is not None else max(0.5, estimate_noise_mm(z, scale))
+    beta = cfg.step_mm if cfg.step_mm is not None else max(0.5, estimate_noise_mm_numpy(z, scale))
     s1 = sum(cfg.alpha ** abs(k) for k in range(-cfg.radius_px, cfg.radius_px + 1))
     norm = 1.0 + cfg.lam * 2.0 * (s1 * s1 - 1.0)
     x = z.copy()
@@ -330,7 +346,7 @@ def super_resolve_straightforward(frames: npt.ArrayLike, config: UPSRConfig) -> 
     near, far = cfg.depth_range_mm or depth_range(first)
     noise = cfg.noise_mm
     if noise is None:
-        noise = float(np.median([estimate_noise_mm(f) for f in first]))
+        noise = float(np.median([estimate_noise_mm_numpy(f) for f in first]))
     edge_mm = max(cfg.edge_mm, 4.0 * noise)
     flow = make_flow_backend(cfg.flow, cfg.flow_preset)
 
