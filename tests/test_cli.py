@@ -151,12 +151,15 @@ def test_run_options_reach_the_config(
         2,
         "--refine-preset",
         "ultrafast",
+        "--speckle-px",
+        0,
         "--no-refine",
         "-q",
     )
     assert rc == 0, err
     cfg = seen["cfg"]
     assert (cfg.flow_scale, cfg.refine_preset) == (2, "ultrafast")
+    assert cfg.speckle_size_px == 0
     assert (cfg.scale, cfg.n_frames, cfg.flow, cfg.flow_preset, cfg.refine) == (
         3,
         5,
@@ -414,6 +417,7 @@ def test_empty_frame_in_the_middle_is_fine(
         (["-r", "2", "-n", "3", "--flow-scale", "3"], "flow_scale"),
         (["-r", "2", "-n", "3", "--flow-scale", "0"], "--flow-scale"),
         (["-r", "2", "-n", "3", "--refine-preset", "slow"], "--refine-preset"),
+        (["-r", "2", "-n", "3", "--speckle-px", "-1"], "--speckle-px"),
         (["-r", "2", "-n", "3", "--depth-scale", "0"], "depth_scale"),
         (["-r", "2", "-n", "3", "--key", "depth"], "only applies to .npz"),
         (["-r", "2", "-n", "3", "--bogus"], "No such option"),

@@ -76,9 +76,22 @@ def test_flow_grid_scale_and_residual_preset_follow_the_frame_width():
     assert UPSRConfig(refine_preset="fast").residual_flow_preset(10) == "fast"
 
 
+def test_speckle_size_is_one_lowres_pixel_by_default():
+    assert UPSRConfig(scale=4).speckle_size_px == 16
+    assert UPSRConfig(scale=4, speckle_px=0).speckle_size_px == 0
+    assert UPSRConfig(scale=2, speckle_px=9).speckle_size_px == 9
+
+
 @pytest.mark.parametrize(
     "options",
-    [{"flow_scale": 0}, {"flow_scale": 5}, {"flow_scale": 1.5}, {"refine_preset": "slow"}],
+    [
+        {"flow_scale": 0},
+        {"flow_scale": 5},
+        {"flow_scale": 1.5},
+        {"refine_preset": "slow"},
+        {"speckle_px": -1},
+        {"speckle_px": 2.5},
+    ],
 )
 def test_bad_flow_grid_options_are_rejected(options):
     with pytest.raises(InputError):

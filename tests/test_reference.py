@@ -161,7 +161,8 @@ def test_straightforward_path_agrees_with_the_engine_at_the_paper_settings():
 
     scene = dynamic_scene(n_frames=6, lowres_shape=(14, 18), scale=2, noise_sigma_mm=10, seed=4)
     # the engine with the flow grid at r and DIS medium everywhere is the same algorithm
-    cfg = UPSRConfig(scale=2, n_frames=5, flow_scale=2, refine_preset="medium")
+    # (without the speckle removal: a close vote at an edge can make an island in one only)
+    cfg = UPSRConfig(scale=2, n_frames=5, flow_scale=2, refine_preset="medium", speckle_px=0)
     slow = super_resolve_straightforward(scene.lowres, cfg)
     fast = super_resolve(scene.lowres, 2, config=cfg)
     assert slow.shape == fast.shape == scene.truth.shape

@@ -16,6 +16,7 @@ from .config import DeblurConfig, UPSRConfig
 from .deblurring import deblur
 from .errors import InputError
 from .fusion import temporal_median
+from .outliers import remove_speckles
 from .pipeline import UPSR, super_resolve
 from .upsampling import decimate, upsample_nearest
 
@@ -28,6 +29,7 @@ __all__ = [
     "deblur",
     "decimate",
     "metrics",
+    "remove_speckles",
     "super_resolve",
     "synth",
     "temporal_median",

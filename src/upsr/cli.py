@@ -288,6 +288,15 @@ def run(
             ">= 192 px wide, else --flow-preset].",
         ),
     ] = None,
+    speckle_px: Annotated[
+        int | None,
+        typer.Option(
+            "--speckle-px",
+            min=0,
+            help="Isolated regions of at most this many output px with no neighbour within "
+            "100 mm (noise outliers) become 0 = unknown [default: r*r; 0 keeps them].",
+        ),
+    ] = None,
     no_refine: Annotated[
         bool,
         typer.Option(
@@ -333,6 +342,7 @@ def run(
         flow_preset=flow_preset,
         flow_scale=flow_scale,
         refine_preset=refine_preset,
+        speckle_px=speckle_px,
         no_deblur=no_deblur,
         no_refine=no_refine,
         keep_all_motion=keep_all_motion,

@@ -46,6 +46,7 @@ def config_from_options(
     flow_preset: Enum | None = None,
     flow_scale: int | None = None,
     refine_preset: Enum | None = None,
+    speckle_px: int | None = None,
     no_deblur: bool = False,
     no_refine: bool = False,
     keep_all_motion: bool = False,
@@ -59,6 +60,7 @@ def config_from_options(
         ("deblur_radius_px", btv_radius),
         ("deblur_iterations", iterations),
         ("flow_scale", flow_scale),
+        ("speckle_px", speckle_px),
     ):
         if value is not None:
             options[name] = value
@@ -604,6 +606,10 @@ def batch(
         FlowPreset | None,
         typer.Option("--refine-preset", case_sensitive=False, help="DIS preset of eq. 19."),
     ] = None,
+    speckle_px: Annotated[
+        int | None,
+        typer.Option("--speckle-px", min=0, help="Largest isolated outlier removed (px)."),
+    ] = None,
     no_refine: Annotated[
         bool, typer.Option("--no-refine", help="Skip the eq. 19 re-estimation.")
     ] = False,
@@ -638,6 +644,7 @@ def batch(
         flow_preset=flow_preset,
         flow_scale=flow_scale,
         refine_preset=refine_preset,
+        speckle_px=speckle_px,
         no_deblur=no_deblur,
         no_refine=no_refine,
         keep_all_motion=keep_all_motion,

@@ -192,6 +192,11 @@ class UPSRConfig:
         backward-registered samples of a pixel come from several surfaces, the surface of the
         nearest forward-registered sample within this radius (high-res px) wins
         (:func:`upsr.fusion.splat_points`). ``None``: vote only.
+    speckle_px : int or None
+        Beyond the paper: after the deblurring, connected regions of at most this many
+        high-res px that no neighbour joins within ``edge_mm`` (isolated noise outliers that
+        survived the median) are set to 0 = unknown (:func:`upsr.outliers.remove_speckles`).
+        ``None``: r² (one low-res pixel's footprint); 0: keep everything.
     deblur : DeblurConfig
         Deblurring parameters (eq. 29–30).
     """
@@ -209,6 +214,7 @@ class UPSRConfig:
     zero_motion_tolerance: float | None = 1.1
     refine: bool = True
     splat_radius_px: float | None = 1.0
+    speckle_px: int | None = None
     min_valid_fraction: float = 0.5
     edge_mm: float = 100.0
     edge_weight_px: float | None = 0.35
@@ -254,6 +260,10 @@ class UPSRConfig:
             "noise_mm must be a finite number >= 0 (or None to estimate it)",
         )
         _check(0 <= self.min_valid_fraction < 1, "min_valid_fraction must be in [0, 1)")
+        _check(
+            self.speckle_px is None or (_is_int(self.speckle_px) and self.speckle_px >= 0),
+            f"speckle_px must be an integer >= 0 (or None), got {self.speckle_px!r}",
+        )
         _check(self.edge_mm > 0, "edge_mm must be > 0")
         object.__setattr__(self, "scale", int(self.scale))
         object.__setattr__(self, "n_frames", int(self.n_frames))
@@ -275,6 +285,11 @@ class UPSRConfig:
         if self.refine_preset is not None:
             return self.refine_preset
         return "ultrafast" if grid_width_px >= FLOW_GRID_MIN_WIDTH_PX else self.flow_preset
+
+    @property
+    def speckle_size_px(self) -> int:
+        """Largest isolated region removed from the output (high-res px, ``speckle_px``)."""
+        return self.scale * self.scale if self.speckle_px is None else int(self.speckle_px)
 
     @property
     def spatial_sigma_px(self) -> float:

@@ -42,6 +42,7 @@ from .motion import (
     make_flow_backend,
     suppress_spurious_motion,
 )
+from .outliers import remove_speckles
 from .registration import cumulative_flows, trace_to_reference
 from .upsampling import upsample_nearest
 from .validation import as_depth_frame, as_depth_video
@@ -270,6 +271,7 @@ class UPSR:
             )
         with self._timed("deblur"):
             out = deblur(fused, cfg.deblur, scale=r)
+            out = remove_speckles(out, cfg.speckle_size_px, cfg.edge_mm)
         # forget what no later window needs: the next window starts at window_start(t + 1, T)
         # for a video of T >= frames_seen frames, which is at least this
         keep_from = max(min(t + 1 - cfg.half_before, self._count - cfg.n_frames), 0)

@@ -22,6 +22,7 @@ import numpy.typing as npt
 
 from .config import DeblurConfig, UPSRConfig
 from .deblurring import smooth_surfaces
+from .outliers import remove_speckles
 
 __all__ = [
     "btv_subgradient_numpy",
@@ -404,5 +405,7 @@ def super_resolve_straightforward(frames: npt.ArrayLike, config: UPSRConfig) -> 
             edge_mm=edge_mm,
         )
         fused[~upsample_nearest((lowres > 0).any(axis=0), r)] = 0.0
-        out[t] = deblur_numpy(fused, cfg.deblur, scale=r)
+        out[t] = remove_speckles(
+            deblur_numpy(fused, cfg.deblur, scale=r), cfg.speckle_size_px, cfg.edge_mm
+        )
     return out

@@ -38,10 +38,11 @@ from typing import Any
 import numpy as np
 
 from .. import baselines
-from ..config import DeblurConfig
+from ..config import DeblurConfig, UPSRConfig
 from ..deblurring import deblur
 from ..errors import InputError
 from ..metrics import evaluate
+from ..outliers import remove_speckles
 from ..pipeline import super_resolve
 from ..plotting import PALETTE, Series, line_plot
 from ..synth import add_laplacian_noise
@@ -127,7 +128,7 @@ def search_deblur(
     best: tuple[float, DeblurConfig] | None = None
     for lam, smooth in grid:
         cfg = DeblurConfig(lam=lam, smooth_sigma_mm=smooth)
-        err = evaluate(deblur(fused, cfg, scale=r), truth, r)["mse"]
+        err = evaluate(_deblur_frame(fused, cfg, r), truth, r)["mse"]
         rows.append({"lam": lam, "smooth_sigma_mm": smooth, "heldout_mse": err, "chosen": False})
         if best is None or err < best[0]:
             best = (err, cfg)
@@ -139,8 +140,15 @@ def search_deblur(
     return best[1], rows
 
 
+def _deblur_frame(fused: np.ndarray, cfg: DeblurConfig, r: int) -> np.ndarray:
+    """UP-SR's last steps on a fused frame, as in :class:`upsr.UPSR`: deblurring, then the
+    removal of isolated outliers (:func:`upsr.outliers.remove_speckles`)."""
+    defaults = UPSRConfig(scale=r)
+    return remove_speckles(deblur(fused, cfg, scale=r), defaults.speckle_size_px, defaults.edge_mm)
+
+
 def _deblur_video(fused: np.ndarray, cfg: DeblurConfig, r: int) -> np.ndarray:
-    return np.stack([deblur(f, cfg, scale=r) for f in fused])
+    return np.stack([_deblur_frame(f, cfg, r) for f in fused])
 
 
 def run_noise(
