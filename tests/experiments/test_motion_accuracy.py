@@ -18,6 +18,8 @@ from upsr.experiments.data import disparity_to_depth_mm, load_middlebury_art
 from upsr.experiments.motion_accuracy import (
     CSV_COLUMNS,
     ESTIMATORS,
+    _trend_ok,
+    dis_scaled,
     measure_motion_accuracy,
     select_estimator,
     shifted_pair,
@@ -65,6 +67,43 @@ def test_error_falls_with_r_on_a_synthetic_disparity() -> None:
     assert errs[0] > 0.05  # r = 1: sub-pixel but visible error
     assert all(b <= a + 1e-9 for a, b in itertools.pairwise(errs))
     assert errs[-1] <= 0.3 * errs[0]
+
+
+def test_dis_scaled_recovers_an_integer_shift_at_every_r() -> None:
+    depth = disparity_to_depth_mm(synthetic_disparity())
+    img = np.clip((depth - 1500) / 4, 1, 255).astype(np.uint8)
+    for r in (1, 3, 6):
+        big = cv2.resize(img, None, fx=r, fy=r, interpolation=cv2.INTER_NEAREST)
+        first, second = big[r:, r:], big[:-r, :-r]  # true motion (r, r)
+        flow = dis_scaled(r)(np.ascontiguousarray(first), np.ascontiguousarray(second))
+        assert flow.shape == (*first.shape, 2) and flow.dtype == np.float32
+        inner = flow[8 * r : -8 * r, 8 * r : -8 * r] / r
+        assert np.median(np.abs(inner - 1.0)) < 0.05
+    with pytest.raises(InputError):
+        dis_scaled(0)
+
+
+def test_trend_check_allows_the_paper_precision_only() -> None:
+    assert _trend_ok([0.5, 0.25, 0.13, 0.08, 0.06])
+    assert _trend_ok([0.12, 0.04, 0.002, 0.006, 0.001])  # +0.004 px: below 0.01 px
+    assert not _trend_ok([3.6, 0.13, 0.11, 0.36, 0.10])  # the r = 6 bump of dis-medium
+    assert not _trend_ok([0.5, 0.4, 0.3, 0.2])  # eps_R > 0.3 eps_1
+
+
+def test_scaled_dis_error_falls_with_r_including_r6() -> None:
+    depth = disparity_to_depth_mm(synthetic_disparity())
+    rows = measure_motion_accuracy(depth, (1, 2, 4, 6, 8), ("dis-medium-r",), margin_px=4)
+    errs = [r["error_mean_px"] for r in sorted(rows, key=lambda r: r["r"])]
+    # the synthetic stand-in is easy (eps_1 is already ~0.01 px): no factor may be worse
+    assert all(e2 <= 1.1 * e1 + 0.01 for e1, e2 in itertools.pairwise(errs)), errs
+    assert max(errs) < 0.05
+    assert select_estimator(rows) == "dis-medium-r"
+
+
+def test_unknown_estimator_is_rejected() -> None:
+    depth = disparity_to_depth_mm(synthetic_disparity())
+    with pytest.raises(InputError, match="unknown estimator"):
+        measure_motion_accuracy(depth, (1, 2), ("dis-huge",))
 
 
 def test_command_writes_csv_plot_and_summary(
