@@ -49,26 +49,25 @@ def _shift_table(radius: int, alpha: float, lam: float = 1.0):
 
 
 @nb.njit(cache=True, nogil=True, parallel=True)
-def _pair_masks(guide, dls, dms, edge_mm, masks):  # pragma: no cover - numba
+def _pair_masks(gp, dls, dms, pad, edge_mm, masks):  # pragma: no cover - numba
     """Bit b % 31 of masks[b // 31, i, j] is set where the pair (p, p + shift b) is
-    regularised: both pixels valid in ``guide`` and on one surface (|Δguide| ≤ edge_mm).
-    Computed once per image."""
-    h, w = guide.shape
-    words = masks.shape[0]
+    regularised: both pixels valid in the guide and on one surface (|Δguide| ≤ edge_mm).
+    Computed once per image. ``gp`` is the guide zero-padded by ``pad`` ≥ P on every side
+    (outside the image = invalid), so that the loop over a row has no bounds test and
+    vectorises (SIMD)."""
+    words, h, w = masks.shape
     for i in nb.prange(h):
-        for j in range(w):
-            gv = guide[i, j]
-            for word in range(words):
-                m = np.int32(0)
-                if gv > 0:
-                    for b in range(word * 31, min(word * 31 + 31, dls.size)):
-                        ii = i + dls[b]
-                        jj = j + dms[b]
-                        if 0 <= ii < h and 0 <= jj < w:
-                            gn = guide[ii, jj]
-                            if gn > 0 and abs(gn - gv) <= edge_mm:
-                                m |= np.int32(1) << np.int32(b - word * 31)
-                masks[word, i, j] = m
+        g = gp[i + pad, pad : pad + w]
+        for word in range(words):
+            m = masks[word, i]
+            m[:] = 0
+            for b in range(word * 31, min(word * 31 + 31, dls.size)):
+                c0 = pad + dms[b]
+                n = gp[i + pad + dls[b], c0 : c0 + w]
+                bit = np.int32(b - word * 31)
+                for j in range(w):
+                    ok = (g[j] > 0) & (n[j] > 0) & (abs(n[j] - g[j]) <= edge_mm)
+                    m[j] |= np.int32(ok) << bit
 
 
 @nb.njit(cache=True, nogil=True, inline="always", fastmath=True)
@@ -148,7 +147,8 @@ def _valid_spans(mask: np.ndarray) -> np.ndarray:
 
 def _masks(guide: np.ndarray, dls: np.ndarray, dms: np.ndarray, edge_mm: float) -> np.ndarray:
     masks = np.empty((-(-dls.size // 31), *guide.shape), np.int32)
-    _pair_masks(np.ascontiguousarray(guide, np.float32), dls, dms, float(edge_mm), masks)
+    pad = int(max(np.abs(dls).max(initial=0), np.abs(dms).max(initial=0)))
+    _pair_masks(_padded(guide, pad), dls, dms, pad, float(edge_mm), masks)
     return masks
 
 
