@@ -1,11 +1,11 @@
-"""Single-frame baselines of paper §7: nearest and naive bicubic upsampling."""
+"""Single-frame baselines of paper §7: nearest, naive bicubic and patch-based SISR."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from upsr.baselines import bicubic, nearest
+from upsr.baselines import PatchSISR, bicubic, nearest, patch_sisr, train_patch_sisr
 from upsr.errors import InputError
 from upsr.upsampling import upsample_nearest
 
@@ -89,3 +89,106 @@ def test_bad_input_raises(method):
         method(np.ones((2, 2, 2, 2)), 2)
     with pytest.raises(InputError, match="negative"):
         method(-step_video(), 2)
+
+
+# ----------------------------------------------------------------------------------- patch SISR
+@pytest.fixture(scope="module")
+def small_model():
+    return train_patch_sisr(4, n_examples=3000, seed=0, lowres_shape=(12, 16))
+
+
+def diagonal_step(near: float, far: float, h: int = 10, w: int = 12) -> np.ndarray:
+    lr = np.full((h, w), near, np.float32)
+    for i in range(h):
+        lr[i, 5 + i // 3 :] = far
+    return lr
+
+
+def step_dictionary(height: float, r: int = 4, **kw) -> PatchSISR:
+    """A dictionary of vertical steps of one height (every edge position, both directions)."""
+    side = 3 * r
+    lo, hi = [], []
+    for cut in range(1, side):  # the edge between high-res columns cut − 1 and cut
+        for sign in (1.0, -1.0):
+            h_patch = np.where(np.arange(side) < cut, 0.0, sign * height)
+            h_patch = np.broadcast_to(h_patch, (side, side))
+            l_patch = h_patch[r // 2 :: r, r // 2 :: r]  # point samples at the low-res centres
+            mean = l_patch.mean()
+            lo.append((l_patch - mean).ravel())
+            hi.append((h_patch - mean).ravel())
+    return PatchSISR(r, np.array(lo), np.array(hi), k=2, **kw)
+
+
+def test_patch_sisr_step_of_unseen_height_lands_on_the_two_surfaces():
+    # The dictionary only knows 300 mm steps; shifted by the query's mean, a 300 mm step
+    # put on a 1200 mm step lands between its surfaces unless the guard moves it back.
+    near, far = 1500.0, 2700.0
+    lr = diagonal_step(near, far)
+    plain = step_dictionary(300.0, guard_connect_mm=None)(lr)
+    assert ((plain > near + 200) & (plain < far - 200)).any()  # the cause: flying pixels
+    out = step_dictionary(300.0, guard_margin_mm=0.0)(lr)
+    assert set(np.unique(out)) <= {near, far}
+    assert (out == near).any() and (out == far).any()
+
+
+@pytest.mark.parametrize(("near", "far"), [(1000.0, 1150.0), (2000.0, 2450.0), (800.0, 5000.0)])
+def test_patch_sisr_no_value_between_the_surfaces_of_a_step(small_model, near, far):
+    out = small_model(diagonal_step(near, far))
+    margin = small_model.guard_margin_mm
+    assert not ((out > near + margin) & (out < far - margin)).any()
+    assert out.min() >= near - margin and out.max() <= far + margin
+    # the plain composition (no guard) does fly on these steps
+    plain = PatchSISR(
+        4, small_model.lowres_patches, small_model.highres_patches, guard_connect_mm=None
+    )(diagonal_step(near, far))
+    assert ((plain > near + margin) & (plain < far - margin)).any()
+
+
+def test_patch_sisr_values_stay_on_the_surfaces_of_a_piecewise_constant_scene(small_model):
+    rng = np.random.default_rng(3)
+    levels = np.array([1000.0, 1700.0, 2900.0], np.float32)
+    lr = levels[rng.integers(0, 3, (6, 8))].repeat(2, axis=0).repeat(2, axis=1)
+    lr[0:3, 10:13] = 0.0  # a hole
+    out = patch_sisr(lr, 4, model=small_model)
+    valid = out > 0
+    np.testing.assert_array_equal(valid, nearest(lr, 4) > 0)  # invalid stays invalid
+    dist = np.abs(out[valid][:, None] - levels[None]).min(axis=1)
+    assert dist.max() <= small_model.guard_margin_mm
+
+
+def test_patch_sisr_removes_an_isolated_outlier(small_model):
+    i, j = np.mgrid[0:10, 0:12]
+    plane = (2000.0 + 20.0 * i + 12.0 * j).astype(np.float32)
+    lr = plane.copy()
+    lr[5, 6] += 400.0  # one noise outlier, 400 mm off its surface
+    out = small_model(lr)
+    y, x = np.mgrid[0:40, 0:48]
+    truth = 2000.0 + 20.0 * ((y + 0.5) / 4 - 0.5) + 12.0 * ((x + 0.5) / 4 - 0.5)
+    assert np.abs(out - truth).max() < 60.0
+    # no guard: the outlier is reproduced
+    plain = PatchSISR(
+        4, small_model.lowres_patches, small_model.highres_patches, guard_connect_mm=None
+    )(lr)
+    assert np.abs(plain - truth).max() > 100.0
+
+
+def test_patch_sisr_guard_keeps_slopes(small_model):
+    # neighbouring samples 60 mm apart are one surface: values between them are allowed
+    i, j = np.mgrid[0:10, 0:12]
+    ramp = (2000.0 + 60.0 * j + 0.0 * i).astype(np.float32)
+    out = small_model(ramp)
+    x = np.arange(48)
+    truth = 2000.0 + 60.0 * ((x + 0.5) / 4 - 0.5)
+    inner = slice(4, 44)  # away from the clamped border
+    assert np.abs(out[:, inner] - truth[inner]).max() < 30.0
+    assert len(np.unique(np.round(out[20, inner]))) > 20  # not staircased to the samples
+
+
+def test_patch_sisr_bad_guard_parameters(small_model):
+    lo, hi = small_model.lowres_patches, small_model.highres_patches
+    with pytest.raises(InputError, match="guard_margin_mm"):
+        PatchSISR(4, lo, hi, guard_margin_mm=-1.0)
+    with pytest.raises(InputError, match="guard_connect_mm"):
+        PatchSISR(4, lo, hi, guard_connect_mm=float("nan"))
+    with pytest.raises(InputError, match="guard_margin_mm"):
+        train_patch_sisr(4, n_examples=10, guard_margin_mm=float("inf"))

@@ -953,24 +953,42 @@ def _dihedral(a: np.ndarray) -> list[np.ndarray]:
 
 
 class PatchSISR:
-    """Example-based single depth image SR in the spirit of Mac Aodha et al. 2012.
+    """Example-based single depth image SR after Mac Aodha et al. 2012, without the MRF.
 
     Mac Aodha, Campbell, Nair, Brostow, "Patch based synthesis for single depth image
     super-resolution", ECCV 2012 (the paper's "patch-based SISR" [12]): a dictionary of
     (low-res patch → high-res patch) pairs from synthetic depth; each low-res patch of the
-    input, normalised by its mean, is matched to the dictionary and the high-res candidates
-    are composed into the output. This version is MRF-free:
+    input, normalised for its depth offset, is matched to the dictionary and the high-res
+    candidates are composed into the output. This version replaces their MRF labelling by a
+    median and adds a depth guard so that no output lies between two surfaces. Exactly:
 
+    * clean-up: a valid low-res sample that is ``guard_connect_mm`` or more away from each of
+      its valid 8-neighbours, and half that from each valid sample two pixels away (the outer
+      ring of its 5×5 neighbourhood), matches no surface there (a noise outlier); it is
+      replaced by the depth of its closest valid 8-neighbour (a depth present there);
     * feature: the 3×3 low-res patch around each low-res pixel minus its mean (mm);
     * candidates: the ``k`` nearest dictionary patches (Euclidean, ``scipy.spatial.cKDTree``),
       each a high-res patch covering the low-res pixel and ``overlap`` low-res pixels around
-      it ((2·overlap + 1)·r px square), plus the query's mean;
+      it ((2·overlap + 1)·r px square), minus its training mean, plus the query's mean;
     * composition: every high-res pixel takes the (lower) median of all the candidate values
-      that cover it (k candidates × (2·overlap + 1)² overlapping patches) instead of Mac
-      Aodha's MRF labelling; the median of real candidate depths never averages foreground
-      with background (no flying pixels from the composition);
+      that cover it (k candidates × (2·overlap + 1)² overlapping patches);
+    * depth guard: a candidate whose training edge has another height than the query's edge
+      lands, once shifted by the query's mean, between (or beyond) the query's two surfaces
+      (flying pixels). So every high-res pixel is checked against the (up to) four valid
+      low-res samples around it (the cell of its position (y + 0.5)/r − 0.5,
+      (x + 0.5)/r − 0.5, ``SPEC.md`` §1; clamped at the border, its own low-res pixel is
+      always one of them): its value may be within ``guard_margin_mm`` of one of their
+      depths, or between two of them that are less than ``guard_connect_mm`` apart (one
+      surface, e.g. a slope); otherwise it is moved to the nearest such depth. Nothing is
+      interpolated across a larger jump;
     * patches with an invalid (0) sample are not matched; pixels no candidate covers keep the
-      nearest-neighbour upsampling (invalid pixels of the input stay 0).
+      nearest-neighbour upsampling (of the cleaned-up input); invalid pixels of the input stay
+      0.
+
+    Normalising the contrast too (dividing patches by their range, the high-res candidate
+    rescaled by the query's range) was tried for the edge-height mismatch: on the Samba noise
+    experiment it gained nothing once the guard is on and was worse with noise (noise then
+    reads as contrast), so patches are matched in mm after removing the mean.
 
     Build one with :func:`train_patch_sisr`; call it on a frame or a video.
 
@@ -986,6 +1004,12 @@ class PatchSISR:
         Candidates per patch.
     overlap : int
         0 or 1: margin of the high-res patches around their low-res pixel (low-res px).
+    guard_margin_mm : float
+        Tolerance of the depth guard around a low-res depth (mm, ≥ 0).
+    guard_connect_mm : float or None
+        Neighbouring low-res depths closer than this (mm) belong to one surface (the guard
+        allows the values between them; a sample this far from all its neighbours is an
+        outlier); ``None`` switches the clean-up and the guard off (the plain method).
     """
 
     def __init__(
@@ -996,6 +1020,8 @@ class PatchSISR:
         *,
         k: int = 4,
         overlap: int = 1,
+        guard_margin_mm: float = 30.0,
+        guard_connect_mm: float | None = 100.0,
     ) -> None:
         self.scale = _check_scale(scale)
         if overlap not in (0, 1):
@@ -1011,6 +1037,10 @@ class PatchSISR:
             )
         if isinstance(k, bool) or not isinstance(k, (int, np.integer)) or not 1 <= k <= len(lo):
             raise InputError(f"k must be an integer in [1, {len(lo)}], got {k!r}")
+        self.guard_margin_mm = _check_mm(guard_margin_mm, "guard_margin_mm")
+        self.guard_connect_mm = (
+            None if guard_connect_mm is None else _check_mm(guard_connect_mm, "guard_connect_mm")
+        )
         self.k = int(k)
         self.overlap = int(overlap)
         self.lowres_patches = lo
@@ -1041,6 +1071,8 @@ class PatchSISR:
         r, ov, k = self.scale, self.overlap, self.k
         h, w = f.shape
         n_sub = 2 * ov + 1
+        if self.guard_connect_mm is not None:
+            f = _replace_isolated(f, self.guard_connect_mm)
         padded = np.pad(f, 1, mode="edge")
         patches = np.lib.stride_tricks.sliding_window_view(padded, (_PATCH, _PATCH))
         patches = patches.reshape(h * w, _PATCH * _PATCH)
@@ -1072,8 +1104,80 @@ class PatchSISR:
         votes.sort(axis=0)  # NaN last
         lower = np.take_along_axis(votes, np.maximum(n_votes - 1, 0)[None] // 2, axis=0)[0]
         out = np.where(n_votes > 0, lower, fallback)
+        if self.guard_connect_mm is not None:
+            out = _depth_guard(out, f, r, self.guard_connect_mm, self.guard_margin_mm)
         out[fallback <= 0] = 0.0
         return np.maximum(out, 0.0).astype(np.float32)
+
+
+def _check_mm(value: float, name: str) -> float:
+    """``value`` as a finite float ≥ 0 (mm)."""
+    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
+        raise InputError(f"{name} must be a finite number >= 0, got {value!r}")
+    v = float(value)
+    if not (math.isfinite(v) and v >= 0):
+        raise InputError(f"{name} must be a finite number >= 0, got {value!r}")
+    return v
+
+
+def _replace_isolated(f: np.ndarray, jump_mm: float) -> np.ndarray:
+    """Replace the valid samples that match no surface around them (noise outliers).
+
+    Isolated: ≥ ``jump_mm`` from each valid 8-neighbour and ≥ ``jump_mm``/2 from each valid
+    sample of the outer ring of the 5×5 neighbourhood (so that a correct sample whose only
+    same-surface 8-neighbour is itself an outlier is kept). An isolated sample becomes the
+    depth of its closest valid 8-neighbour (a depth present right there, on the surface the
+    sample most likely belongs to). Samples without a valid 8-neighbour and invalid ones are
+    kept.
+    """
+    h, w = f.shape
+    padded = np.pad(f, 2)
+    offsets = [(dy, dx) for dy in range(-2, 3) for dx in range(-2, 3) if dy or dx]
+    nbrs = np.stack([padded[2 + dy : 2 + dy + h, 2 + dx : 2 + dx + w] for dy, dx in offsets])
+    valid = nbrs > 0
+    ring1 = np.array([max(abs(dy), abs(dx)) == 1 for dy, dx in offsets])
+    diff = np.where(valid, np.abs(nbrs - f), np.inf)
+    near = (diff[ring1] < jump_mm).any(axis=0) | (diff[~ring1] < 0.5 * jump_mm).any(axis=0)
+    isolated = (f > 0) & valid[ring1].any(axis=0) & ~near
+    if not isolated.any():
+        return f
+    cols = np.argmin(diff[ring1][:, isolated], axis=0)
+    out = f.copy()
+    out[isolated] = nbrs[ring1][:, isolated][cols, np.arange(len(cols))]
+    return out
+
+
+def _depth_guard(
+    out: np.ndarray, lowres: np.ndarray, r: int, connect_mm: float, margin_mm: float
+) -> np.ndarray:
+    """Move every high-res value onto the depths its cell of low-res samples allows.
+
+    The high-res pixel (y, x) lies in the cell of the low-res samples around low-res
+    coordinate ((y + 0.5)/r − 0.5, (x + 0.5)/r − 0.5) (``SPEC.md`` §1; clamped at the border,
+    its own low-res pixel is always one of them). Allowed: within ``margin_mm`` of a valid
+    corner depth, or between two valid corners less than ``connect_mm`` apart (one surface);
+    a value outside is moved to the nearest allowed depth.
+    """
+    h, w = lowres.shape
+    rows = np.floor((np.arange(h * r) + 0.5) / r - 0.5).astype(np.intp)
+    cols = np.floor((np.arange(w * r) + 0.5) / r - 0.5).astype(np.intp)
+    y0, x0 = np.clip(rows, 0, h - 1), np.clip(cols, 0, w - 1)
+    y1, x1 = np.minimum(y0 + 1, h - 1), np.minimum(x0 + 1, w - 1)
+    corners = [lowres[yy][:, xx] for yy in (y0, y1) for xx in (x0, x1)]
+    best = np.full(out.shape, np.inf, np.float32)
+    moved = out.copy()
+    for a in range(4):
+        for b in range(a, 4):
+            da, db = corners[a], corners[b]
+            ok = (da > 0) & (db > 0)
+            if a != b:
+                ok &= np.abs(da - db) < connect_mm
+            target = np.clip(out, np.minimum(da, db) - margin_mm, np.maximum(da, db) + margin_mm)
+            dist = np.where(ok, np.abs(target - out), np.inf)
+            take = dist < best
+            best[take] = dist[take]
+            moved[take] = target[take]
+    return moved
 
 
 def train_patch_sisr(
@@ -1086,6 +1190,8 @@ def train_patch_sisr(
     noise_sigma_mm: float = 0.0,
     lowres_shape: tuple[int, int] = (24, 32),
     fov_x_deg: float = 60.0,
+    guard_margin_mm: float = 30.0,
+    guard_connect_mm: float | None = 100.0,
 ) -> PatchSISR:
     """Build a :class:`PatchSISR` dictionary from rendered synthetic depth (no downloads).
 
@@ -1114,6 +1220,8 @@ def train_patch_sisr(
         Size of the rendered low-res images.
     fov_x_deg : float
         Horizontal field of view of the training camera (degrees).
+    guard_margin_mm, guard_connect_mm : float
+        See :class:`PatchSISR`.
 
     Returns
     -------
@@ -1172,6 +1280,8 @@ def train_patch_sisr(
         (hi_all[pick] - mean).astype(np.float32),
         k=k,
         overlap=overlap,
+        guard_margin_mm=guard_margin_mm,
+        guard_connect_mm=guard_connect_mm,
     )
 
 
