@@ -1,7 +1,7 @@
 """Run every benchmark (``make bench``): speed (ToF always; Samba, speed-up and memory when the
 Samba meshes are at ``--data``, default ``../shared/data``), the flow grid, the synthetic scenes,
-and the Samba accuracy tables. Each benchmark prints its table and writes ``results.json`` under
-``--out``."""
+the deblurring iterations and speckle removal, and the Samba accuracy tables. Each benchmark
+prints its table and writes ``results.json`` under ``--out``."""
 
 from __future__ import annotations
 
@@ -11,6 +11,7 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
+import deblur_eval
 import flow_grid_eval
 import samba_eval
 import speed_eval
@@ -29,6 +30,8 @@ def main() -> int:
     flow_grid_eval.main(["--data", args.data, "--out", str(out / "flow_grid")])
     print("\n== synthetic scenes ==", flush=True)
     synthetic_eval.main(["--out", str(out / "synthetic")])
+    print("\n== deblurring iterations and speckle removal ==", flush=True)
+    deblur_eval.main(["--data", args.data, "--out", str(out / "deblur")])
     if (Path(args.data) / "samba" / "mesh_0000.obj").is_file():
         for r in (2, 4):
             print(f"\n== Samba, r = {r} ==", flush=True)
