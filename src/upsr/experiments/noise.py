@@ -13,7 +13,9 @@ Methods: ``nearest``, ``bicubic``, ``bicubic_noflying`` (flying pixels removed w
 100 mm threshold), ``shift_add`` (dynamic median Shift & Add), ``lidarboost``, ``sisr``
 (patch-based single-image SR, the dictionary of :func:`upsr.baselines.train_patch_sisr`),
 ``upsr_fused`` (UP-SR without deblurring), ``upsr`` (UP-SR with the deblurring parameters
-chosen per σ, see below) and ``upsr_default`` (UP-SR with its default parameters). Shift & Add
+chosen per σ, see below) and ``upsr_default`` (UP-SR with its default parameters); all three
+end, as :class:`upsr.UPSR` does, with the removal of isolated outliers
+(:func:`upsr.outliers.remove_speckles`). Shift & Add
 and LidarBoost use UP-SR's motion (:func:`upsr.baselines.upsampled_flows`).
 
 Deblurring parameters. The paper picks them by an exhaustive search for the smallest error on
