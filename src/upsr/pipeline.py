@@ -43,6 +43,7 @@ from .motion import (
     suppress_spurious_motion,
 )
 from .outliers import remove_speckles
+from .parallel import both
 from .registration import cumulative_flows, trace_to_reference
 from .upsampling import upsample_nearest
 from .validation import as_depth_frame, as_depth_video
@@ -191,8 +192,10 @@ class UPSR:
                     self._guide[k] = depth_to_u8(self._pre[k], *self._range)
                     if k - 1 in self._guide:
                         with self._timed("flow"):
-                            self._fwd[k - 1] = self._consecutive_flow(k - 1, k)
-                            self._bwd[k] = self._consecutive_flow(k, k - 1)
+                            self._fwd[k - 1], self._bwd[k] = both(
+                                lambda k=k: self._consecutive_flow(k - 1, k),
+                                lambda k=k: self._consecutive_flow(k, k - 1),
+                            )
 
     def _edge_for(self, noise_mm: float) -> float:
         """Depth step (mm) that separates surfaces: ``edge_mm``, at least 4× the noise."""

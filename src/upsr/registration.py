@@ -24,6 +24,8 @@ import numba as nb
 import numpy as np
 import numpy.typing as npt
 
+from .parallel import both
+
 __all__ = [
     "add_flows",
     "compose_flows",
@@ -194,7 +196,8 @@ def cumulative_flows(
         if guides is None:
             raise ValueError("refine needs the guide images")
         registered[ref] = guides[ref]
-    for direction, consecutive in ((-1, backward), (1, forward)):
+
+    def chain(direction: int, consecutive: Sequence[np.ndarray | None]) -> None:
         j = ref + direction
         while 0 <= j < n:
             prev = j - direction
@@ -211,6 +214,9 @@ def cumulative_flows(
                 registered[j] = warp_guide(guides[j], cum)  # type: ignore[index]
             maps[j] = cum
             j += direction
+
+    # the frames before and after the reference are independent chains: one per core
+    both(lambda: chain(-1, backward), lambda: chain(1, forward))
     return maps  # type: ignore[return-value]
 
 
