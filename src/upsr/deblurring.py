@@ -329,7 +329,8 @@ def estimate_noise_mm(z: npt.ArrayLike, lag_px: int = 1) -> float:
     1.4826·MAD/√2 of the differences between pixels ``lag_px`` apart (horizontally and
     vertically), over pairs of valid pixels on one surface (|Δ| < 100 mm). Use the SR factor as
     the lag for a fused image, whose noise comes in r×r blocks. Compiled: one pass, no
-    temporaries (a 256×224 frame in about 0.3 ms instead of 2.5 ms with NumPy).
+    temporaries, two O(n) medians; the same value as the NumPy version
+    (:func:`upsr.reference.estimate_noise_mm_numpy`).
     """
     z = np.ascontiguousarray(z, np.float32)
     if z.ndim != 2:
