@@ -108,7 +108,8 @@ class UPSR:
         self._custom_flow = flow_backend
         #: Seconds spent in each stage since the engine was made (kept across videos):
         #: "prefilter", "flow" (consecutive flows), "registration" (cumulative motion with
-        #: eq. 19), "fusion" (forward splat, registration of the samples and median), "deblur".
+        #: eq. 19), "fusion" (forward splat, registration of the samples and median), "deblur"
+        #: (deblurring and speckle removal).
         self.timings: dict[str, float] = dict.fromkeys(STAGES, 0.0)
         self.reset()
 
