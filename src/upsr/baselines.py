@@ -32,6 +32,7 @@ from scipy.spatial import cKDTree
 from .config import UPSRConfig
 from .deblurring import estimate_noise_mm
 from .errors import InputError
+from .metrics import _check_mm
 from .motion import (
     bilateral_prefilter,
     depth_range,
@@ -1108,16 +1109,6 @@ class PatchSISR:
             out = _depth_guard(out, f, r, self.guard_connect_mm, self.guard_margin_mm)
         out[fallback <= 0] = 0.0
         return np.maximum(out, 0.0).astype(np.float32)
-
-
-def _check_mm(value: float, name: str) -> float:
-    """``value`` as a finite float ≥ 0 (mm)."""
-    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
-        raise InputError(f"{name} must be a finite number >= 0, got {value!r}")
-    v = float(value)
-    if not (math.isfinite(v) and v >= 0):
-        raise InputError(f"{name} must be a finite number >= 0, got {value!r}")
-    return v
 
 
 def _replace_isolated(f: np.ndarray, jump_mm: float) -> np.ndarray:

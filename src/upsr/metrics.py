@@ -91,10 +91,13 @@ def _check_radius(r: int) -> int:
 
 
 def _check_mm(value: float, name: str) -> float:
-    value = float(value)
-    if not (math.isfinite(value) and value >= 0):
+    """``value`` as a finite float ≥ 0 (mm); booleans and non-numbers are refused."""
+    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
         raise InputError(f"{name} must be a finite number >= 0 (mm), got {value!r}")
-    return value
+    v = float(value)
+    if not (math.isfinite(v) and v >= 0):
+        raise InputError(f"{name} must be a finite number >= 0 (mm), got {value!r}")
+    return v
 
 
 def _share(numerator: np.ndarray, denominator: np.ndarray) -> float:
