@@ -69,3 +69,34 @@ def test_cumulative_motion_is_the_same_with_one_or_two_threads(monkeypatch):
     monkeypatch.setattr(upsr.parallel, "_serial", lambda: True)
     one = upsr.super_resolve(scene.lowres, 2, 5)
     np.testing.assert_array_equal(one, two)
+
+
+def test_a_registered_backend_is_never_called_from_two_threads(monkeypatch):
+    """Registered backends may keep state between calls: the engine calls them in sequence."""
+    import time
+
+    import upsr
+    from upsr import motion
+    from upsr.synth import dynamic_scene
+
+    active, most = [0], [0]
+    dis = motion.make_flow_backend("dis", "medium")
+
+    def factory(preset="medium"):
+        def flow(a, b):
+            active[0] += 1
+            most[0] = max(most[0], active[0])
+            time.sleep(0.002)  # long enough for a second thread to overlap
+            try:
+                return dis(a, b)
+            finally:
+                active[0] -= 1
+
+        return flow
+
+    monkeypatch.setitem(motion._BACKENDS, "stateful", factory)
+    assert motion.flow_backend_is_thread_safe("dis")
+    assert not motion.flow_backend_is_thread_safe("stateful")
+    scene = dynamic_scene(n_frames=7, lowres_shape=(16, 20), scale=2, noise_sigma_mm=10, seed=2)
+    upsr.super_resolve(scene.lowres, 2, 5, flow="stateful")
+    assert most[0] == 1

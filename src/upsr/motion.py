@@ -29,6 +29,7 @@ __all__ = [
     "bilateral_prefilter",
     "depth_range",
     "depth_to_u8",
+    "flow_backend_is_thread_safe",
     "make_flow_backend",
     "register_flow_backend",
     "suppress_spurious_motion",
@@ -252,6 +253,8 @@ _BACKENDS: dict[str, Callable[..., FlowBackend]] = {
     "dis": _dis_factory,
     "farneback": _farneback_factory,
 }
+#: Built-in factories whose flows keep no state and may run on two threads at once.
+_THREAD_SAFE_FACTORIES = frozenset({_dis_factory, _farneback_factory})
 
 
 def register_flow_backend(name: str, factory: Callable[..., FlowBackend]) -> None:
@@ -261,6 +264,12 @@ def register_flow_backend(name: str, factory: Callable[..., FlowBackend]) -> Non
     (backends may keep state between calls).
     """
     _BACKENDS[name] = factory
+
+
+def flow_backend_is_thread_safe(name: str) -> bool:
+    """Whether the backend ``name`` is a built-in one, safe to call from two threads at once
+    (a registered backend may keep state between calls: it is always called in sequence)."""
+    return _BACKENDS.get(name) in _THREAD_SAFE_FACTORIES
 
 
 def available_flow_backends() -> list[str]:

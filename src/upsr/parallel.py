@@ -42,13 +42,14 @@ def _serial() -> bool:
     return (os.cpu_count() or 1) < 2 or threading.current_thread().name.startswith(_THREAD_PREFIX)
 
 
-def both(first: Callable[[], T], second: Callable[[], U]) -> tuple[T, U]:
+def both(first: Callable[[], T], second: Callable[[], U], *, enabled: bool = True) -> tuple[T, U]:
     """``(first(), second())``, with ``second`` on a helper thread while ``first`` runs here.
 
-    Serial on a one-core machine and when called from the helper thread itself (no nesting).
-    An exception of either is raised after both have finished.
+    Serial when ``enabled`` is false (e.g. tasks that call a flow backend that is not known to
+    be thread-safe), on a one-core machine, and when called from the helper thread itself (no
+    nesting). An exception of either is raised after both have finished.
     """
-    if _serial():
+    if not enabled or _serial():
         return first(), second()
     future = _helper().submit(second)
     try:

@@ -39,6 +39,7 @@ from .motion import (
     bilateral_prefilter,
     depth_range,
     depth_to_u8,
+    flow_backend_is_thread_safe,
     make_flow_backend,
     suppress_spurious_motion,
 )
@@ -119,6 +120,8 @@ class UPSR:
         cfg = self.config
         self._flow = self._custom_flow or make_flow_backend(cfg.flow, cfg.flow_preset)
         self._residual_flow: FlowBackend | None = self._custom_flow  # set by the first frame
+        # flows on two threads at once only with a built-in backend (others may keep state)
+        self._parallel = self._custom_flow is None and flow_backend_is_thread_safe(cfg.flow)
         self._s = 1  # upsampling factor of the flow grid, set by the first frame
         self._shape: tuple[int, int] | None = None
         self._count = 0
@@ -196,6 +199,7 @@ class UPSR:
                             self._fwd[k - 1], self._bwd[k] = both(
                                 lambda k=k: self._consecutive_flow(k - 1, k),
                                 lambda k=k: self._consecutive_flow(k, k - 1),
+                                enabled=self._parallel,
                             )
 
     def _edge_for(self, noise_mm: float) -> float:
@@ -253,6 +257,7 @@ class UPSR:
                 self._guide[t].shape,
                 refine=self._refine_flow if cfg.refine else None,
                 guides=[self._guide[k] for k in idx],
+                parallel=self._parallel,
             )
         with self._timed("fusion"):
             lowres = np.stack([self._lowres[k] for k in idx])

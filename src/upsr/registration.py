@@ -160,6 +160,7 @@ def cumulative_flows(
     *,
     refine: Callable[[np.ndarray, np.ndarray], np.ndarray] | None = None,
     guides: Sequence[np.ndarray] | None = None,
+    parallel: bool = False,
 ) -> list[np.ndarray]:
     """Motion from the reference to every frame of a window, by composition (eq. 20–21).
 
@@ -182,6 +183,9 @@ def cumulative_flows(
         the same estimate — measured: no gain, 25 % more flows at N = 9.)
     guides : sequence of N uint8 images, optional
         The images the flow is computed on (required with ``refine``).
+    parallel : bool
+        Compute the frames before and after the reference side by side
+        (:func:`upsr.parallel.both`; same result). Only for a thread-safe ``refine``.
 
     Returns
     -------
@@ -216,7 +220,7 @@ def cumulative_flows(
             j += direction
 
     # the frames before and after the reference are independent chains: one per core
-    both(lambda: chain(-1, backward), lambda: chain(1, forward))
+    both(lambda: chain(-1, backward), lambda: chain(1, forward), enabled=parallel)
     return maps  # type: ignore[return-value]
 
 
