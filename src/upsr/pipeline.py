@@ -49,10 +49,17 @@ from .registration import cumulative_flows, trace_to_reference
 from .upsampling import upsample_nearest
 from .validation import as_depth_frame, as_depth_video
 
-__all__ = ["STAGES", "UPSR", "super_resolve", "window_start"]
+__all__ = ["STAGES", "UPSR", "finish_fused", "super_resolve", "window_start"]
 
 #: The stages of :attr:`UPSR.timings`.
 STAGES = ("prefilter", "flow", "registration", "fusion", "deblur")
+
+
+def finish_fused(fused_mm: np.ndarray, cfg: UPSRConfig) -> np.ndarray:
+    """UP-SR's steps after the fusion of a window: the deblurring (eq. 29–30, ``cfg.deblur``),
+    then the removal of isolated outliers (:func:`upsr.outliers.remove_speckles`)."""
+    out = deblur(fused_mm, cfg.deblur, scale=cfg.scale)
+    return remove_speckles(out, cfg.speckle_size_px, cfg.edge_mm)
 
 
 def window_start(t: int, n_total: int, cfg: UPSRConfig) -> int:
@@ -279,8 +286,7 @@ class UPSR:
                 measured_only=True,  # never invent depth where no frame measured anything
             )
         with self._timed("deblur"):
-            out = deblur(fused, cfg.deblur, scale=r)
-            out = remove_speckles(out, cfg.speckle_size_px, cfg.edge_mm)
+            out = finish_fused(fused, cfg)
         # forget what no later window needs: the next window starts at window_start(t + 1, T)
         # for a video of T >= frames_seen frames, which is at least this
         keep_from = max(min(t + 1 - cfg.half_before, self._count - cfg.n_frames), 0)

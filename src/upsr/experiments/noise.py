@@ -41,11 +41,9 @@ import numpy as np
 
 from .. import baselines
 from ..config import DeblurConfig, UPSRConfig
-from ..deblurring import deblur
 from ..errors import InputError
 from ..metrics import evaluate
-from ..outliers import remove_speckles
-from ..pipeline import super_resolve
+from ..pipeline import finish_fused, super_resolve
 from ..plotting import PALETTE, Series, line_plot
 from ..synth import add_laplacian_noise
 from .common import (
@@ -143,10 +141,8 @@ def search_deblur(
 
 
 def _deblur_frame(fused: np.ndarray, cfg: DeblurConfig, r: int) -> np.ndarray:
-    """UP-SR's last steps on a fused frame, as in :class:`upsr.UPSR`: deblurring, then the
-    removal of isolated outliers (:func:`upsr.outliers.remove_speckles`)."""
-    defaults = UPSRConfig(scale=r)
-    return remove_speckles(deblur(fused, cfg, scale=r), defaults.speckle_size_px, defaults.edge_mm)
+    """UP-SR's last steps on a fused frame (:func:`upsr.pipeline.finish_fused`) with ``cfg``."""
+    return finish_fused(fused, UPSRConfig(scale=r, deblur=cfg))
 
 
 def _deblur_video(fused: np.ndarray, cfg: DeblurConfig, r: int) -> np.ndarray:
