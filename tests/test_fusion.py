@@ -125,10 +125,10 @@ def test_sorting_network_sorts_every_zero_one_input(n):
 
 
 def test_unrolled_networks_equal_the_generated_ones():
-    from upsr.fusion import _sort8, _sort16
+    from upsr.fusion import _sort8, _sort9, _sort16
 
     rng = np.random.default_rng(0)
-    for size, fn in ((8, _sort8), (16, _sort16)):
+    for size, fn in ((8, _sort8), (9, _sort9), (16, _sort16)):
         for _ in range(50):
             v = rng.normal(size=size).astype(np.float32)
             v[rng.random(size) < 0.3] = np.inf

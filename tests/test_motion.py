@@ -5,6 +5,7 @@ from upsr import InputError
 from upsr.motion import (
     available_flow_backends,
     bilateral_prefilter,
+    bilateral_prefilter_nearest,
     depth_range,
     depth_to_u8,
     make_flow_backend,
@@ -98,3 +99,39 @@ def test_flow_does_not_depend_on_earlier_calls(name):
     used = make_flow_backend(name)
     used(b, a)
     np.testing.assert_array_equal(used(a, b), fresh)
+
+
+@pytest.mark.parametrize(
+    ("factor", "sigma_px", "shape"),
+    [(3, 2.625, (23, 29)), (2, 1.75, (20, 31)), (4, 3.5, (15, 14)), (3, 1.0, (9, 11))],
+)
+def test_block_prefilter_equals_opencv_on_the_upsampled_frame(factor, sigma_px, shape):
+    rng = np.random.default_rng(3)
+    low = rng.uniform(1500, 1600, shape).astype(np.float32)
+    low[shape[0] // 3 :, : shape[1] // 2] -= 700  # a depth edge
+    low[rng.random(shape) < 0.1] = 0.0  # holes
+    expected = bilateral_prefilter(upsample_nearest(low, factor), 40.0, sigma_px)
+    out = bilateral_prefilter_nearest(low, factor, 40.0, sigma_px)
+    assert out.shape == expected.shape and out.dtype == np.float32
+    np.testing.assert_allclose(out, expected, atol=0.01)
+    assert (out[upsample_nearest(low, factor) == 0] == 0).all()
+
+
+def test_block_prefilter_small_constant_and_factor_one_frames():
+    # factor 1 and frames smaller than the window go to OpenCV: its result exactly
+    rng = np.random.default_rng(4)
+    for low, factor in (
+        (rng.uniform(1000, 2000, (10, 12)).astype(np.float32), 1),
+        (rng.uniform(1000, 2000, (2, 3)).astype(np.float32), 3),
+    ):
+        expected = bilateral_prefilter(upsample_nearest(low, factor), 40.0, 2.625)
+        np.testing.assert_array_equal(
+            bilateral_prefilter_nearest(low, factor, 40.0, 2.625), expected
+        )
+    # a constant frame stays exactly constant (OpenCV: within float rounding)
+    low = np.full((12, 12), 1234.0, np.float32)
+    out = bilateral_prefilter_nearest(low, 3, 40.0, 2.625)
+    assert (out == 1234.0).all() and out.shape == (36, 36)
+    np.testing.assert_allclose(
+        out, bilateral_prefilter(upsample_nearest(low, 3), 40.0, 2.625), atol=0.01
+    )

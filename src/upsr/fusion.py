@@ -81,6 +81,42 @@ def _sort8(v):  # pragma: no cover - numba
 
 
 @nb.njit(cache=True, nogil=True, inline="always")
+def _sort9(v):  # pragma: no cover - numba
+    """Sort v[0:9] in place in registers: the 28 comparators of
+    ``sorting_network(9)``, unrolled (generated; checked by tests/test_fusion.py)."""
+    a0, a1, a2, a3, a4, a5, a6, a7, a8 = v[0], v[1], v[2], v[3], v[4], v[5], v[6], v[7], v[8]
+    a0, a1 = min(a0, a1), max(a0, a1)
+    a2, a3 = min(a2, a3), max(a2, a3)
+    a0, a2 = min(a0, a2), max(a0, a2)
+    a1, a3 = min(a1, a3), max(a1, a3)
+    a1, a2 = min(a1, a2), max(a1, a2)
+    a4, a5 = min(a4, a5), max(a4, a5)
+    a6, a7 = min(a6, a7), max(a6, a7)
+    a4, a6 = min(a4, a6), max(a4, a6)
+    a5, a7 = min(a5, a7), max(a5, a7)
+    a5, a6 = min(a5, a6), max(a5, a6)
+    a0, a4 = min(a0, a4), max(a0, a4)
+    a2, a6 = min(a2, a6), max(a2, a6)
+    a2, a4 = min(a2, a4), max(a2, a4)
+    a1, a5 = min(a1, a5), max(a1, a5)
+    a3, a7 = min(a3, a7), max(a3, a7)
+    a3, a5 = min(a3, a5), max(a3, a5)
+    a1, a2 = min(a1, a2), max(a1, a2)
+    a3, a4 = min(a3, a4), max(a3, a4)
+    a5, a6 = min(a5, a6), max(a5, a6)
+    a0, a8 = min(a0, a8), max(a0, a8)
+    a4, a8 = min(a4, a8), max(a4, a8)
+    a2, a4 = min(a2, a4), max(a2, a4)
+    a6, a8 = min(a6, a8), max(a6, a8)
+    a3, a5 = min(a3, a5), max(a3, a5)
+    a1, a2 = min(a1, a2), max(a1, a2)
+    a3, a4 = min(a3, a4), max(a3, a4)
+    a5, a6 = min(a5, a6), max(a5, a6)
+    a7, a8 = min(a7, a8), max(a7, a8)
+    v[0], v[1], v[2], v[3], v[4], v[5], v[6], v[7], v[8] = a0, a1, a2, a3, a4, a5, a6, a7, a8
+
+
+@nb.njit(cache=True, nogil=True, inline="always")
 def _sort16(v):  # pragma: no cover - numba
     """Sort v[0:16] in place in registers: the 63 comparators of
     ``sorting_network(16)``, unrolled (generated; checked by tests/test_fusion.py)."""
@@ -338,7 +374,7 @@ def _register_fuse_kernel(
     hh, ww = out.shape
     inf = np.float32(np.inf)
     last = table.size - 1
-    padded = 8 if n <= 8 else (16 if n <= 16 else n)
+    padded = 8 if n <= 8 else (9 if n == 9 else (16 if n <= 16 else n))
     # low-res index of a high-res index, and the high-res coordinate of that pixel's centre
     big = max(hh, ww)
     low_of = np.empty(big, np.int64)
@@ -350,7 +386,7 @@ def _register_fuse_kernel(
         y0 = rows[i, 0]
         y1 = rows[i, 1]
         gy = fy[i]
-        # padded to the unrolled network's size (8 or 16): the padding stays +inf
+        # padded to the unrolled network's size (8, 9 or 16): the padding stays +inf
         vals = np.full(padded, inf, np.float32)
         wts = np.empty(n, np.float32)
         raw = np.empty(n, np.float32)
@@ -416,6 +452,8 @@ def _register_fuse_kernel(
                     vals[k] = v if v == v else inf
                 if padded == 8:
                     _sort8(vals)
+                elif padded == 9:
+                    _sort9(vals)
                 elif padded == 16:
                     _sort16(vals)
                 else:

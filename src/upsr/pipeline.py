@@ -36,7 +36,7 @@ from .errors import InputError
 from .fusion import register_and_fuse, splat_points
 from .motion import (
     FlowBackend,
-    bilateral_prefilter,
+    bilateral_prefilter_nearest,
     depth_range,
     depth_to_u8,
     flow_backend_is_thread_safe,
@@ -46,7 +46,6 @@ from .motion import (
 from .outliers import remove_speckles
 from .parallel import both
 from .registration import cumulative_flows, trace_to_reference
-from .upsampling import upsample_nearest
 from .validation import as_depth_frame, as_depth_video
 
 __all__ = ["STAGES", "UPSR", "finish_fused", "super_resolve", "window_start"]
@@ -183,8 +182,9 @@ class UPSR:
         s = self._s
         self._lowres[t] = f
         with self._timed("prefilter"):
-            self._pre[t] = bilateral_prefilter(
-                upsample_nearest(f, s),
+            self._pre[t] = bilateral_prefilter_nearest(
+                f,
+                s,
                 cfg.prefilter_sigma_mm,
                 cfg.spatial_sigma_px * s / cfg.scale,
             )
