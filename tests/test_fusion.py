@@ -124,19 +124,6 @@ def test_sorting_network_sorts_every_zero_one_input(n):
         assert a == sorted(a)
 
 
-def test_unrolled_networks_equal_the_generated_ones():
-    from upsr.fusion import _sort8, _sort9, _sort16
-
-    rng = np.random.default_rng(0)
-    for size, fn in ((8, _sort8), (9, _sort9), (16, _sort16)):
-        for _ in range(50):
-            v = rng.normal(size=size).astype(np.float32)
-            v[rng.random(size) < 0.3] = np.inf
-            expected = np.sort(v)
-            fn.py_func(v)
-            np.testing.assert_array_equal(v, expected)
-
-
 def _window(rng, n, h=10, w=12, s=2, r=4):
     lowres = rng.uniform(1000, 1100, (n, h, w)).astype(np.float32)
     lowres[:, 3:7, 4:9] -= 600  # a second surface

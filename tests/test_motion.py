@@ -101,6 +101,25 @@ def test_flow_does_not_depend_on_earlier_calls(name):
     np.testing.assert_array_equal(used(a, b), fresh)
 
 
+@pytest.mark.parametrize("preset", ["ultrafast", "fast", "medium"])
+def test_dis_backend_result_does_not_depend_on_earlier_pairs(preset):
+    # the backend keeps its OpenCV object between pairs: pairs of other sizes (small ones,
+    # on which OpenCV lowers the finest pyramid level, and a tiny padded one) and other
+    # contents computed before must not change a result
+    import cv2
+
+    rng = np.random.default_rng(2)
+    used = make_flow_backend("dis", preset)
+    for shape in ((40, 48), (12, 9), (32, 40), (64, 80), (168, 192), (64, 80), (40, 48)):
+        for _ in range(3):
+            a = rng.uniform(0, 255, shape).astype(np.uint8)
+            if rng.random() < 0.5:
+                a = cv2.GaussianBlur(a, (5, 5), 1.5)
+            b = np.roll(a, int(rng.integers(-4, 5)), axis=int(rng.integers(0, 2)))
+            np.testing.assert_array_equal(used(a, b), make_flow_backend("dis", preset)(a, b))
+            np.testing.assert_array_equal(used(b, a), make_flow_backend("dis", preset)(b, a))
+
+
 @pytest.mark.parametrize(
     ("factor", "sigma_px", "shape"),
     [(3, 2.625, (23, 29)), (2, 1.75, (20, 31)), (4, 3.5, (15, 14)), (3, 1.0, (9, 11))],

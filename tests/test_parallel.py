@@ -100,3 +100,26 @@ def test_a_registered_backend_is_never_called_from_two_threads(monkeypatch):
     scene = dynamic_scene(n_frames=7, lowres_shape=(16, 20), scale=2, noise_sigma_mm=10, seed=2)
     upsr.super_resolve(scene.lowres, 2, 5, flow="stateful")
     assert most[0] == 1
+
+
+def test_window_pool_threads_run_numba_and_both_serially():
+    import numba
+
+    from upsr.parallel import window_pool
+
+    assert window_pool(0) is None
+    pool = window_pool(2)
+    if pool is None:  # numba's "workqueue" layer: windows are finished one at a time
+        pytest.skip("numba threading layer cannot be shared by threads")
+    assert window_pool(2) is pool  # one pool per process and size
+
+    def inside():
+        name = threading.current_thread().name
+        order = []
+        both(lambda: order.append("a"), lambda: order.append(threading.current_thread().name))
+        return name, numba.get_num_threads(), order
+
+    name, threads, order = pool.submit(inside).result()
+    assert name.startswith("upsr-helper")
+    assert threads == 1
+    assert order == ["a", name]  # nested: on the same thread, in sequence

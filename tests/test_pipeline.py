@@ -219,3 +219,56 @@ def test_feed_has_half_the_latency_and_the_same_frames():
     assert returned_at == {0: 4, 1: 4, 2: 4, 3: 5, 4: 6, 5: 7, 6: 8}
     got.extend(engine.flush())
     np.testing.assert_array_equal(np.stack(got), batch)
+
+
+@pytest.mark.parametrize("workers", [1, 2, 3])
+def test_windows_finished_in_the_background_give_the_same_frames(workers):
+    scene = dynamic_scene(n_frames=13, lowres_shape=(14, 18), scale=2, noise_sigma_mm=20, seed=7)
+    serial = upsr.super_resolve(scene.lowres, 2, 5, workers=0)
+    engine = upsr.UPSR(scale=2, n_frames=5, workers=workers)
+    assert engine.workers == workers
+    pushed = [engine.push(f) for f in scene.lowres]
+    assert [o is None for o in pushed] == [True] * 4 + [False] * 9  # the same latency
+    got = [o for o in pushed if o is not None] + engine.flush()
+    np.testing.assert_array_equal(np.stack(got), serial)
+    fed = [o for f in scene.lowres for o in engine.feed(f)] + engine.flush()
+    np.testing.assert_array_equal(np.stack(fed), serial)
+    np.testing.assert_array_equal(np.stack(list(engine.process(scene.lowres))), serial)
+    np.testing.assert_array_equal(upsr.super_resolve(scene.lowres, 2, 5, workers=workers), serial)
+    # a reset with windows still being finished forgets them; the next video is unaffected
+    for frame in scene.lowres[:9]:
+        engine.push(frame)
+    engine.reset()
+    np.testing.assert_array_equal(np.stack(list(engine.process(scene.lowres))), serial)
+
+
+def test_workers_parameter():
+    assert upsr.UPSR(2, 3, workers=0).workers == 0
+    for bad in (-1, 1.5, True, "2"):
+        with pytest.raises(InputError, match="workers"):
+            upsr.UPSR(2, 3, workers=bad)
+    # a custom flow backend may keep state: windows are finished one at a time
+    dis = upsr.motion.make_flow_backend("dis")
+    assert upsr.UPSR(2, 3, flow_backend=dis, workers=2).workers == 0
+
+
+def test_an_error_while_finishing_a_window_reaches_the_caller(monkeypatch):
+    import upsr.pipeline as pipeline
+
+    scene = dynamic_scene(n_frames=8, lowres_shape=(12, 16), scale=2, noise_sigma_mm=10, seed=8)
+    calls = []
+
+    def broken(fused, cfg):
+        calls.append(1)
+        if len(calls) == 2:
+            raise RuntimeError("deblurring failed")
+        return fused
+
+    monkeypatch.setattr(pipeline, "finish_fused", broken)
+    engine = upsr.UPSR(scale=2, n_frames=3, workers=2)
+    with pytest.raises(RuntimeError, match="deblurring failed"):
+        for frame in scene.lowres:
+            engine.push(frame)
+    engine.reset()
+    monkeypatch.setattr(pipeline, "finish_fused", lambda fused, cfg: fused)
+    assert len(list(engine.process(scene.lowres))) == 8

@@ -186,7 +186,8 @@ def _run_chunk(spec: dict[str, Any]) -> dict[str, Any]:
                 if t >= lo:
                     yield frame
 
-    engine = UPSR(config=cfg)
+    # the cluster runs chunks side by side: one thread per chunk, no window threads
+    engine = UPSR(config=cfg, workers=0)
     part.parent.mkdir(parents=True, exist_ok=True)
     with io.VideoWriter(part, n_frames=b - a, fmt="npy", overwrite=True) as writer:
         for t, out in enumerate(engine.process(window()), start=lo):

@@ -314,6 +314,15 @@ def run(
             "on static backgrounds.",
         ),
     ] = False,
+    workers: Annotated[
+        int | None,
+        typer.Option(
+            "--workers",
+            min=0,
+            help="Threads that finish windows side by side (same output) [default: 2 on a "
+            "machine with 2 or more cores; 0: one window at a time].",
+        ),
+    ] = None,
     overwrite: Annotated[
         bool, typer.Option("--overwrite", help="Replace OUTPUT if it exists.")
     ] = False,
@@ -365,7 +374,7 @@ def run(
             f"upsr: note: the video has {info.n_frames} frame(s): N = {cfg.n_frames}", err=True
         )
     source = io.iter_frames(input_path, key=key, depth_scale=depth_scale, fmt=in_fmt, topic=topic)
-    engine = UPSR(cfg.scale, cfg.n_frames, config=cfg)
+    engine = UPSR(cfg.scale, cfg.n_frames, config=cfg, workers=workers)
 
     start = time.perf_counter()
     with (

@@ -53,174 +53,6 @@ def _median_sorted(vals, lo, hi):  # pragma: no cover - numba
     return 0.5 * (vals[m - 1] + vals[m])
 
 
-@nb.njit(cache=True, nogil=True, inline="always")
-def _sort8(v):  # pragma: no cover - numba
-    """Sort v[0:8] in place in registers: the 19 comparators of
-    ``sorting_network(8)``, unrolled (generated; checked by tests/test_fusion.py)."""
-    a0, a1, a2, a3, a4, a5, a6, a7 = v[0], v[1], v[2], v[3], v[4], v[5], v[6], v[7]
-    a0, a1 = min(a0, a1), max(a0, a1)
-    a2, a3 = min(a2, a3), max(a2, a3)
-    a0, a2 = min(a0, a2), max(a0, a2)
-    a1, a3 = min(a1, a3), max(a1, a3)
-    a1, a2 = min(a1, a2), max(a1, a2)
-    a4, a5 = min(a4, a5), max(a4, a5)
-    a6, a7 = min(a6, a7), max(a6, a7)
-    a4, a6 = min(a4, a6), max(a4, a6)
-    a5, a7 = min(a5, a7), max(a5, a7)
-    a5, a6 = min(a5, a6), max(a5, a6)
-    a0, a4 = min(a0, a4), max(a0, a4)
-    a2, a6 = min(a2, a6), max(a2, a6)
-    a2, a4 = min(a2, a4), max(a2, a4)
-    a1, a5 = min(a1, a5), max(a1, a5)
-    a3, a7 = min(a3, a7), max(a3, a7)
-    a3, a5 = min(a3, a5), max(a3, a5)
-    a1, a2 = min(a1, a2), max(a1, a2)
-    a3, a4 = min(a3, a4), max(a3, a4)
-    a5, a6 = min(a5, a6), max(a5, a6)
-    v[0], v[1], v[2], v[3], v[4], v[5], v[6], v[7] = a0, a1, a2, a3, a4, a5, a6, a7
-
-
-@nb.njit(cache=True, nogil=True, inline="always")
-def _sort9(v):  # pragma: no cover - numba
-    """Sort v[0:9] in place in registers: the 28 comparators of
-    ``sorting_network(9)``, unrolled (generated; checked by tests/test_fusion.py)."""
-    a0, a1, a2, a3, a4, a5, a6, a7, a8 = v[0], v[1], v[2], v[3], v[4], v[5], v[6], v[7], v[8]
-    a0, a1 = min(a0, a1), max(a0, a1)
-    a2, a3 = min(a2, a3), max(a2, a3)
-    a0, a2 = min(a0, a2), max(a0, a2)
-    a1, a3 = min(a1, a3), max(a1, a3)
-    a1, a2 = min(a1, a2), max(a1, a2)
-    a4, a5 = min(a4, a5), max(a4, a5)
-    a6, a7 = min(a6, a7), max(a6, a7)
-    a4, a6 = min(a4, a6), max(a4, a6)
-    a5, a7 = min(a5, a7), max(a5, a7)
-    a5, a6 = min(a5, a6), max(a5, a6)
-    a0, a4 = min(a0, a4), max(a0, a4)
-    a2, a6 = min(a2, a6), max(a2, a6)
-    a2, a4 = min(a2, a4), max(a2, a4)
-    a1, a5 = min(a1, a5), max(a1, a5)
-    a3, a7 = min(a3, a7), max(a3, a7)
-    a3, a5 = min(a3, a5), max(a3, a5)
-    a1, a2 = min(a1, a2), max(a1, a2)
-    a3, a4 = min(a3, a4), max(a3, a4)
-    a5, a6 = min(a5, a6), max(a5, a6)
-    a0, a8 = min(a0, a8), max(a0, a8)
-    a4, a8 = min(a4, a8), max(a4, a8)
-    a2, a4 = min(a2, a4), max(a2, a4)
-    a6, a8 = min(a6, a8), max(a6, a8)
-    a3, a5 = min(a3, a5), max(a3, a5)
-    a1, a2 = min(a1, a2), max(a1, a2)
-    a3, a4 = min(a3, a4), max(a3, a4)
-    a5, a6 = min(a5, a6), max(a5, a6)
-    a7, a8 = min(a7, a8), max(a7, a8)
-    v[0], v[1], v[2], v[3], v[4], v[5], v[6], v[7], v[8] = a0, a1, a2, a3, a4, a5, a6, a7, a8
-
-
-@nb.njit(cache=True, nogil=True, inline="always")
-def _sort16(v):  # pragma: no cover - numba
-    """Sort v[0:16] in place in registers: the 63 comparators of
-    ``sorting_network(16)``, unrolled (generated; checked by tests/test_fusion.py)."""
-    a0, a1, a2, a3, a4, a5, a6, a7, a8, a9, a10, a11, a12, a13, a14, a15 = (
-        v[0],
-        v[1],
-        v[2],
-        v[3],
-        v[4],
-        v[5],
-        v[6],
-        v[7],
-        v[8],
-        v[9],
-        v[10],
-        v[11],
-        v[12],
-        v[13],
-        v[14],
-        v[15],
-    )
-    a0, a1 = min(a0, a1), max(a0, a1)
-    a2, a3 = min(a2, a3), max(a2, a3)
-    a0, a2 = min(a0, a2), max(a0, a2)
-    a1, a3 = min(a1, a3), max(a1, a3)
-    a1, a2 = min(a1, a2), max(a1, a2)
-    a4, a5 = min(a4, a5), max(a4, a5)
-    a6, a7 = min(a6, a7), max(a6, a7)
-    a4, a6 = min(a4, a6), max(a4, a6)
-    a5, a7 = min(a5, a7), max(a5, a7)
-    a5, a6 = min(a5, a6), max(a5, a6)
-    a0, a4 = min(a0, a4), max(a0, a4)
-    a2, a6 = min(a2, a6), max(a2, a6)
-    a2, a4 = min(a2, a4), max(a2, a4)
-    a1, a5 = min(a1, a5), max(a1, a5)
-    a3, a7 = min(a3, a7), max(a3, a7)
-    a3, a5 = min(a3, a5), max(a3, a5)
-    a1, a2 = min(a1, a2), max(a1, a2)
-    a3, a4 = min(a3, a4), max(a3, a4)
-    a5, a6 = min(a5, a6), max(a5, a6)
-    a8, a9 = min(a8, a9), max(a8, a9)
-    a10, a11 = min(a10, a11), max(a10, a11)
-    a8, a10 = min(a8, a10), max(a8, a10)
-    a9, a11 = min(a9, a11), max(a9, a11)
-    a9, a10 = min(a9, a10), max(a9, a10)
-    a12, a13 = min(a12, a13), max(a12, a13)
-    a14, a15 = min(a14, a15), max(a14, a15)
-    a12, a14 = min(a12, a14), max(a12, a14)
-    a13, a15 = min(a13, a15), max(a13, a15)
-    a13, a14 = min(a13, a14), max(a13, a14)
-    a8, a12 = min(a8, a12), max(a8, a12)
-    a10, a14 = min(a10, a14), max(a10, a14)
-    a10, a12 = min(a10, a12), max(a10, a12)
-    a9, a13 = min(a9, a13), max(a9, a13)
-    a11, a15 = min(a11, a15), max(a11, a15)
-    a11, a13 = min(a11, a13), max(a11, a13)
-    a9, a10 = min(a9, a10), max(a9, a10)
-    a11, a12 = min(a11, a12), max(a11, a12)
-    a13, a14 = min(a13, a14), max(a13, a14)
-    a0, a8 = min(a0, a8), max(a0, a8)
-    a4, a12 = min(a4, a12), max(a4, a12)
-    a4, a8 = min(a4, a8), max(a4, a8)
-    a2, a10 = min(a2, a10), max(a2, a10)
-    a6, a14 = min(a6, a14), max(a6, a14)
-    a6, a10 = min(a6, a10), max(a6, a10)
-    a2, a4 = min(a2, a4), max(a2, a4)
-    a6, a8 = min(a6, a8), max(a6, a8)
-    a10, a12 = min(a10, a12), max(a10, a12)
-    a1, a9 = min(a1, a9), max(a1, a9)
-    a5, a13 = min(a5, a13), max(a5, a13)
-    a5, a9 = min(a5, a9), max(a5, a9)
-    a3, a11 = min(a3, a11), max(a3, a11)
-    a7, a15 = min(a7, a15), max(a7, a15)
-    a7, a11 = min(a7, a11), max(a7, a11)
-    a3, a5 = min(a3, a5), max(a3, a5)
-    a7, a9 = min(a7, a9), max(a7, a9)
-    a11, a13 = min(a11, a13), max(a11, a13)
-    a1, a2 = min(a1, a2), max(a1, a2)
-    a3, a4 = min(a3, a4), max(a3, a4)
-    a5, a6 = min(a5, a6), max(a5, a6)
-    a7, a8 = min(a7, a8), max(a7, a8)
-    a9, a10 = min(a9, a10), max(a9, a10)
-    a11, a12 = min(a11, a12), max(a11, a12)
-    a13, a14 = min(a13, a14), max(a13, a14)
-    (
-        v[0],
-        v[1],
-        v[2],
-        v[3],
-        v[4],
-        v[5],
-        v[6],
-        v[7],
-        v[8],
-        v[9],
-        v[10],
-        v[11],
-        v[12],
-        v[13],
-        v[14],
-        v[15],
-    ) = a0, a1, a2, a3, a4, a5, a6, a7, a8, a9, a10, a11, a12, a13, a14, a15
-
-
 def sorting_network(n: int) -> np.ndarray:
     """Comparators (i, j), i < j, of Batcher's odd–even merge sort for n keys, as an (m, 2) array.
 
@@ -348,6 +180,21 @@ def _median_kernel(
             )
 
 
+@nb.njit(cache=True, nogil=True, fastmath=_SAFE_FASTMATH)
+def _sort_columns(a, network):  # pragma: no cover - numba
+    """Sort every column of a (n, m) at once: a branch-free min/max sorting network whose
+    compare-exchanges are loops over the row (SIMD; a function of its own so that LLVM
+    vectorises them)."""
+    m = a.shape[1]
+    for c in range(network.shape[0]):
+        ap = a[network[c, 0]]
+        aq = a[network[c, 1]]
+        for j in range(m):
+            lo = min(ap[j], aq[j])
+            aq[j] = max(ap[j], aq[j])
+            ap[j] = lo
+
+
 @nb.njit(cache=True, nogil=True, parallel=True, fastmath=_SAFE_FASTMATH)
 def _register_fuse_kernel(
     lowres,
@@ -372,9 +219,10 @@ def _register_fuse_kernel(
 ):  # pragma: no cover - numba
     n = lowres.shape[0]
     hh, ww = out.shape
+    grid_w = maps.shape[2]
     inf = np.float32(np.inf)
+    nan = np.float32(np.nan)
     last = table.size - 1
-    padded = 8 if n <= 8 else (9 if n == 9 else (16 if n <= 16 else n))
     # low-res index of a high-res index, and the high-res coordinate of that pixel's centre
     big = max(hh, ww)
     low_of = np.empty(big, np.int64)
@@ -382,113 +230,102 @@ def _register_fuse_kernel(
     for x in range(big):
         low_of[x] = x // scale
         centre_of[x] = (x // scale + 0.5) * scale - 0.5
+    col_a = cols[:, 0].copy()
+    col_b = cols[:, 1].copy()
     for i in nb.prange(hh):
         y0 = rows[i, 0]
         y1 = rows[i, 1]
         gy = fy[i]
-        # padded to the unrolled network's size (8, 9 or 16): the padding stays +inf
-        vals = np.full(padded, inf, np.float32)
+        # one output row at a time, every frame's sample of every pixel: loops over the row
+        # that vectorise (SIMD)
+        raw = np.empty((n, ww), np.float32)  # the sample; NaN: outside its frame (abstains)
+        srt = np.empty((n, ww), np.float32)  # the valid samples (+inf for the others), sorted
+        ex = np.empty((n, ww), np.float32)  # distance (px) to the sampled low-res pixel's centre
+        ey = np.empty((n, ww), np.float32)
+        n_in = np.zeros(ww, np.int64)
+        nv = np.zeros(ww, np.int64)
+        vx = np.empty(grid_w, np.float32)
+        vy = np.empty(grid_w, np.float32)
+        vals = np.empty(n, np.float32)
         wts = np.empty(n, np.float32)
-        raw = np.empty(n, np.float32)
-        ex = np.empty(n, np.float32)  # distance (px) to the sampled low-res pixel's centre
-        ey = np.empty(n, np.float32)
+        for k in range(n):
+            # the flow-grid row interpolated to this output row, in output px (times r/s)
+            m0 = maps[k, y0]
+            m1 = maps[k, y1]
+            for c in range(grid_w):
+                vx[c] = ((1 - gy) * m0[c, 0] + gy * m1[c, 0]) * ratio
+                vy[c] = ((1 - gy) * m0[c, 1] + gy * m1[c, 1]) * ratio
+            lk = lowres[k]
+            rk = raw[k]
+            sk = srt[k]
+            exk = ex[k]
+            eyk = ey[k]
+            for j in range(ww):
+                a = col_a[j]
+                b = col_b[j]
+                gx = fx[j]
+                qx = j + (vx[a] + gx * (vx[b] - vx[a]))
+                qy = i + (vy[a] + gx * (vy[b] - vy[a]))
+                inside = (-0.5 <= qx) & (qx < ww - 0.5) & (-0.5 <= qy) & (qy < hh - 0.5)
+                xi = min(max(int(qx + 0.5), 0), ww - 1)  # qx + 0.5 >= 0 inside: the floor
+                yi = min(max(int(qy + 0.5), 0), hh - 1)
+                v = lk[low_of[yi], low_of[xi]]
+                valid = inside & (v > 0)
+                rk[j] = v if inside else nan
+                sk[j] = v if valid else inf
+                n_in[j] += 1 if inside else 0
+                nv[j] += 1 if valid else 0
+                exk[j] = abs(qx - centre_of[xi])
+                eyk[j] = abs(qy - centre_of[yi])
+        _sort_columns(srt, network)
         mrow = measured[low_of[i]]
         for j in range(ww):
-            if not mrow[low_of[j]]:
-                # no frame of the window measured this low-res pixel: never invent depth
+            m = nv[j]
+            if m == 0 or not mrow[low_of[j]]:
+                # no valid sample, or no frame of the window measured this low-res pixel:
+                # never invent depth
                 out[i, j] = 0.0
                 continue
-            a = cols[j, 0]
-            b = cols[j, 1]
-            gx = fx[j]
-            # bilinear weights of the four flow-grid neighbours, times r/s
-            w00 = (1 - gx) * (1 - gy) * ratio
-            w01 = gx * (1 - gy) * ratio
-            w10 = (1 - gx) * gy * ratio
-            w11 = gx * gy * ratio
-            n_in = 0
-            nv = 0
-            spread_lo = inf
-            spread_hi = -inf
-            for k in range(n):
-                dx = (
-                    maps[k, y0, a, 0] * w00
-                    + maps[k, y0, b, 0] * w01
-                    + maps[k, y1, a, 0] * w10
-                    + maps[k, y1, b, 0] * w11
-                )
-                dy = (
-                    maps[k, y0, a, 1] * w00
-                    + maps[k, y0, b, 1] * w01
-                    + maps[k, y1, a, 1] * w10
-                    + maps[k, y1, b, 1] * w11
-                )
-                qx = j + dx
-                qy = i + dy
-                if not (-0.5 <= qx < ww - 0.5 and -0.5 <= qy < hh - 0.5):
-                    raw[k] = np.nan  # outside the frame: abstains
-                    continue
-                xi = int(qx + 0.5)  # qx + 0.5 >= 0: truncation is the floor
-                yi = int(qy + 0.5)
-                li = low_of[yi]
-                lj = low_of[xi]
-                v = lowres[k, li, lj]
-                raw[k] = v
-                n_in += 1
-                ex[k] = abs(qx - centre_of[xi])
-                ey[k] = abs(qy - centre_of[yi])
-                if v > 0:
-                    nv += 1
-                    spread_lo = min(spread_lo, v)
-                    spread_hi = max(spread_hi, v)
-            if nv == 0:
-                out[i, j] = 0.0
-                continue
-            if nv == n_in and spread_hi - spread_lo <= edge_mm:
-                # the common case: every in-frame sample valid, one surface: the plain
-                # median, by a branch-free min/max sorting network
-                for k in range(n):
-                    v = raw[k]
-                    vals[k] = v if v == v else inf
-                if padded == 8:
-                    _sort8(vals)
-                elif padded == 9:
-                    _sort9(vals)
-                elif padded == 16:
-                    _sort16(vals)
-                else:
-                    for c in range(network.shape[0]):
-                        p = network[c, 0]
-                        q = network[c, 1]
-                        lo_v = min(vals[p], vals[q])
-                        vals[q] = max(vals[p], vals[q])
-                        vals[p] = lo_v
-                out[i, j] = _median_sorted(vals, 0, nv)
+            one_surface = srt[m - 1, j] - srt[0, j] <= edge_mm
+            mid = m // 2
+            median = srt[mid, j] if m % 2 == 1 else 0.5 * (srt[mid - 1, j] + srt[mid, j])
+            if m == n_in[j] and one_surface:
+                # the common case: every in-frame sample valid, one surface: the plain median
+                out[i, j] = median
                 continue
             # some samples invalid, or samples from several surfaces: the vote weights
             # matter (and are only computed) here
             w_in = 0.0
             w_valid = 0.0
             for k in range(n):
-                v = raw[k]
+                v = raw[k, j]
                 vals[k] = inf
                 wts[k] = 0.0
                 if v != v:
                     continue
-                gx_k = table[min(int(ex[k] * step + 0.5), last)]
-                gy_k = table[min(int(ey[k] * step + 0.5), last)]
+                gx_k = table[min(int(ex[k, j] * step + 0.5), last)]
+                gy_k = table[min(int(ey[k, j] * step + 0.5), last)]
                 wk = floor + (1.0 - floor) * gx_k * gy_k
                 w_in += wk
                 if v > 0:
                     w_valid += wk
                     vals[k] = v
                     wts[k] = wk
-            r = raw[ref]
+            r = raw[ref, j]
             ref_value = r if (r == r and r > 0) else 0.0
+            if one_surface:
+                # what _fuse_pixel gives on one surface, without sorting again
+                frac = w_valid / w_in
+                too_few = frac < min_valid_fraction
+                if too_few or (frac == min_valid_fraction and ref_value == 0.0):
+                    out[i, j] = 0.0
+                else:
+                    out[i, j] = median
+                continue
             out[i, j] = _fuse_pixel(
                 vals,
                 wts,
-                nv,
+                m,
                 w_in,
                 w_valid,
                 ref_value,

@@ -13,6 +13,7 @@ Flow convention: ``flow[i, j] = (dx, dy)`` maps the pixel (x=j, y=i) of the firs
 from __future__ import annotations
 
 import math
+import threading
 from collections.abc import Callable
 from typing import Protocol
 
@@ -374,13 +375,19 @@ _DIS_PRESETS = {
 def _dis_factory(preset: str = "medium") -> FlowBackend:
     """OpenCV's DIS optical flow (Kroeger et al. 2016): pyramidal, patch-based, fast."""
     code = _DIS_PRESETS[preset]
+    finest = cv2.DISOpticalFlow_create(code).getFinestScale()
+    # One OpenCV object per thread (one object must not compute two pairs at once), kept:
+    # allocating a fresh one costs a third of a 192×168 px call. Its only state: on an image
+    # too small for the preset's finest pyramid level, ``calc`` lowers that level for good,
+    # so it is set again before every pair: the result is then a fresh object's, whatever
+    # pairs came before (a chunk of a video gives what the whole run gives; tests check it).
+    local = threading.local()
 
     def flow(first: np.ndarray, second: np.ndarray) -> np.ndarray:
-        # a fresh DIS object for every pair: OpenCV's keeps state from one call to the next
-        # (the same pair gives another flow on a second call), which would make a result
-        # depend on what the engine computed before (a chunk of a video would differ from
-        # the whole run). Creating it costs ~20 % of a call.
-        dis = cv2.DISOpticalFlow_create(code)
+        dis = getattr(local, "dis", None)
+        if dis is None:
+            dis = local.dis = cv2.DISOpticalFlow_create(code)
+        dis.setFinestScale(finest)
         h, w = first.shape[:2]
         if min(h, w) >= _MIN_FLOW_SIZE:
             return dis.calc(first, second, None)

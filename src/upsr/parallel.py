@@ -1,4 +1,4 @@
-"""Two independent pieces of work at once, on the two cores of a small CPU (beyond the paper).
+"""Independent pieces of work at once, on the cores of a small CPU (beyond the paper).
 
 OpenCV runs a small image (the 64×56 → 256×224 frames of a time-of-flight camera) on one
 thread, so the per-window work of UP-SR that is a chain of OpenCV calls (the two directions of
@@ -7,6 +7,13 @@ the second core idle. :func:`both` runs two such independent tasks side by side:
 helper thread, one on the caller's. They must release the GIL (OpenCV calls, ``nogil`` numba
 kernels that are not ``parallel``) and write to disjoint outputs; the results are then exactly
 those of running them one after the other.
+
+:func:`window_pool` gives the threads that finish whole windows of a video side by side
+(:class:`upsr.UPSR` ``workers``): the windows of a video are independent once their frames'
+flows are known, so on two cores two windows at a time use both fully, where the threads of
+one window's kernels leave much of the second core idle or spinning. In those threads
+numba's kernels run on the calling thread only (``numba.set_num_threads(1)``) and
+:func:`both` runs serially.
 """
 
 from __future__ import annotations
@@ -17,7 +24,9 @@ from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
 from typing import TypeVar
 
-__all__ = ["both"]
+import numba as nb
+
+__all__ = ["both", "window_pool"]
 
 T = TypeVar("T")
 U = TypeVar("U")
@@ -26,6 +35,8 @@ _THREAD_PREFIX = "upsr-helper"
 _LOCK = threading.Lock()
 _POOL: ThreadPoolExecutor | None = None
 _POOL_PID: int | None = None
+_WINDOW_POOLS: dict[int, ThreadPoolExecutor] = {}
+_WINDOW_POOLS_PID: int | None = None
 
 
 def _helper() -> ThreadPoolExecutor:
@@ -57,3 +68,45 @@ def both(first: Callable[[], T], second: Callable[[], U], *, enabled: bool = Tru
     finally:
         b = future.result()
     return a, b
+
+
+@nb.njit(cache=True, parallel=True)
+def _touch(n):  # pragma: no cover - numba
+    total = 0
+    for i in nb.prange(n):
+        total += i
+    return total
+
+
+def _one_numba_thread() -> None:
+    nb.set_num_threads(1)  # per thread: this thread's parallel kernels run on it alone
+
+
+def _threads_may_share_numba() -> bool:
+    """Whether several threads may run numba's parallel kernels at once: true for the "omp"
+    and "tbb" threading layers, false for "workqueue" (which aborts the process)."""
+    _touch(2)  # starts the threading layer
+    return nb.threading_layer() in ("omp", "tbb")
+
+
+def window_pool(workers: int) -> ThreadPoolExecutor | None:
+    """The process's pool of ``workers`` threads for whole windows, made on first use (again
+    in a forked child); ``None`` when ``workers`` < 1 or numba's threading layer cannot be
+    used from several threads at once."""
+    global _WINDOW_POOLS_PID
+    if workers < 1:
+        return None
+    with _LOCK:
+        if _WINDOW_POOLS_PID != os.getpid():
+            _WINDOW_POOLS.clear()
+            _WINDOW_POOLS_PID = os.getpid()
+        pool = _WINDOW_POOLS.get(workers)
+        if pool is None:
+            if not _threads_may_share_numba():
+                return None
+            pool = _WINDOW_POOLS[workers] = ThreadPoolExecutor(
+                max_workers=workers,
+                thread_name_prefix=_THREAD_PREFIX,
+                initializer=_one_numba_thread,
+            )
+        return pool

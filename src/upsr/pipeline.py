@@ -23,8 +23,11 @@ that needs it; the engine keeps only what later windows need (about N frames of 
 from __future__ import annotations
 
 import contextlib
+import os
+import threading
 import time
 from collections.abc import Iterable, Iterator
+from concurrent.futures import Future, wait
 from typing import Any
 
 import numpy as np
@@ -44,7 +47,7 @@ from .motion import (
     suppress_spurious_motion,
 )
 from .outliers import remove_speckles
-from .parallel import both
+from .parallel import both, window_pool
 from .registration import cumulative_flows, trace_to_reference
 from .validation import as_depth_frame, as_depth_video
 
@@ -85,6 +88,13 @@ class UPSR:
         Full configuration (overrides ``scale``, ``n_frames`` and ``options``).
     flow_backend : FlowBackend, optional
         A flow estimator to use instead of ``config.flow``.
+    workers : int, optional
+        Threads that finish windows in the background, several at a time (beyond the paper;
+        the output is the same). ``None``: 2 on a machine with 2 or more cores, else 0.
+        0: each window is finished on the calling thread. Without effect (0) with a
+        ``flow_backend`` or a registered flow backend, which may not be thread-safe.
+        :meth:`push` and :meth:`process` finish up to 2·``workers`` windows ahead of the one
+        they return; :meth:`feed` returns its frames as early as without workers.
     **options
         Any :class:`~upsr.config.UPSRConfig` field (``deblur_*`` for :class:`DeblurConfig`).
 
@@ -107,22 +117,37 @@ class UPSR:
         *,
         config: UPSRConfig | None = None,
         flow_backend: FlowBackend | None = None,
+        workers: int | None = None,
         **options: Any,
     ) -> None:
         self.config = (
             config if config is not None else UPSRConfig.from_options(scale, n_frames, **options)
         )
+        if workers is None:
+            workers = 2 if (os.cpu_count() or 1) >= 2 else 0
+        if isinstance(workers, bool) or not isinstance(workers, int) or workers < 0:
+            raise InputError(f"workers must be an integer >= 0, got {workers!r}")
         self._custom_flow = flow_backend
+        self._timing_lock = threading.Lock()
+        self._pending: dict[int, Future[np.ndarray]] = {}
         #: Seconds spent in each stage since the engine was made (kept across videos):
         #: "prefilter", "flow" (consecutive flows), "registration" (cumulative motion with
         #: eq. 19), "fusion" (forward splat, registration of the samples and median), "deblur"
-        #: (deblurring and speckle removal).
+        #: (deblurring and speckle removal). With ``workers``, the time of all threads.
         self.timings: dict[str, float] = dict.fromkeys(STAGES, 0.0)
         self.reset()
+        # windows in the background only with a built-in (thread-safe) flow backend
+        self._pool = window_pool(workers) if self._parallel else None
+        #: Threads that finish windows in the background (0: none).
+        self.workers = workers if self._pool is not None else 0
 
     # -- state -------------------------------------------------------------------------------
     def reset(self) -> None:
         """Forget all frames and flows (start a new video)."""
+        pending, self._pending = self._pending, {}
+        for future in pending.values():
+            future.cancel()
+        wait(pending.values())  # none still reads the frames of this video
         cfg = self.config
         self._flow = self._custom_flow or make_flow_backend(cfg.flow, cfg.flow_preset)
         self._residual_flow: FlowBackend | None = self._custom_flow  # set by the first frame
@@ -132,6 +157,7 @@ class UPSR:
         self._shape: tuple[int, int] | None = None
         self._count = 0
         self._next_out = 0
+        self._next_submit = 0
         self._any_valid = False
         self._range: tuple[float, float] | None = self.config.depth_range_mm
         self._noise_mm = self.config.noise_mm
@@ -161,7 +187,9 @@ class UPSR:
         try:
             yield
         finally:
-            self.timings[stage] += time.perf_counter() - start
+            elapsed = time.perf_counter() - start
+            with self._timing_lock:
+                self.timings[stage] += elapsed
 
     # -- per-frame work (once per video) --------------------------------------------------------
     def _ingest(self, frame: npt.ArrayLike) -> None:
@@ -206,7 +234,7 @@ class UPSR:
                             self._fwd[k - 1], self._bwd[k] = both(
                                 lambda k=k: self._consecutive_flow(k - 1, k),
                                 lambda k=k: self._consecutive_flow(k, k - 1),
-                                enabled=self._parallel,
+                                enabled=self._parallel and self._pool is None,
                             )
 
     def _edge_for(self, noise_mm: float) -> float:
@@ -286,14 +314,46 @@ class UPSR:
                 measured_only=True,  # never invent depth where no frame measured anything
             )
         with self._timed("deblur"):
-            out = finish_fused(fused, cfg)
-        # forget what no later window needs: the next window starts at window_start(t + 1, T)
-        # for a video of T >= frames_seen frames, which is at least this
+            return finish_fused(fused, cfg)
+
+    # -- windows in order, some finished ahead in the background --------------------------------
+    def _submit_ready(self, n_total: int, ahead: int) -> None:
+        """Start finishing, in the background, the windows (up to ``ahead`` beyond the next
+        output) that lie in the frames seen so far (final for a video of ``n_total``)."""
+        if self._pool is None:
+            return
+        cfg = self.config
+        t = max(self._next_submit, self._next_out)
+        while (
+            t < self._count
+            and t - self._next_out < ahead
+            and window_start(t, n_total, cfg) + cfg.n_frames <= self._count
+        ):
+            self._pending[t] = self._pool.submit(self._finish, t, n_total)
+            t += 1
+        self._next_submit = t
+
+    def _take(self, n_total: int) -> np.ndarray:
+        """The next output frame (finished in the background, or now), then forget what no
+        later window needs."""
+        t = self._next_out
+        future = self._pending.pop(t, None)
+        out = future.result() if future is not None else self._finish(t, n_total)
+        self._next_out = t + 1
+        # the next window starts at window_start(t + 1, T) for a video of T >= frames_seen
+        # frames, which is at least this; windows in the background start later still
+        cfg = self.config
         keep_from = max(min(t + 1 - cfg.half_before, self._count - cfg.n_frames), 0)
         for store in (self._lowres, self._pre, self._guide, self._fwd, self._bwd):
             for k in [k for k in store if k < keep_from]:
                 del store[k]
         return out
+
+    def _complete(self, n_total: int) -> bool:
+        """Whether the window of the next output frame lies in the frames seen so far."""
+        t = self._next_out
+        n = self.config.n_frames
+        return t < self._count and window_start(t, n_total, self.config) + n <= self._count
 
     # -- public streaming API -------------------------------------------------------------------
     def push(self, frame: npt.ArrayLike) -> np.ndarray | None:
@@ -305,11 +365,11 @@ class UPSR:
             Output frame number ``frames_seen - N`` once N frames have been pushed, else None.
         """
         self._ingest(frame)
-        if self._count < self.config.n_frames:
+        n = self.config.n_frames
+        if self._count < n:
             return None
-        out = self._finish(self._next_out, n_total=self._count + self.config.n_frames)
-        self._next_out += 1
-        return out
+        self._submit_ready(self._count + n, ahead=2 * self.workers)
+        return self._take(n_total=self._count + n)
 
     def flush(self) -> list[np.ndarray]:
         """Finish the video: return the high-res frames not returned yet, then reset.
@@ -329,8 +389,8 @@ class UPSR:
                 )
             if not self._any_valid:
                 raise InputError("no valid depth in any frame (all pixels are 0 or NaN)")
-            outs = [self._finish(t, self._count) for t in range(self._next_out, self._count)]
-            return outs
+            self._submit_ready(self._count, ahead=self._count)
+            return [self._take(self._count) for _ in range(self._next_out, self._count)]
         finally:
             self.reset()
 
@@ -354,19 +414,31 @@ class UPSR:
             return outs
         # a window that lies in the frames seen so far is final whatever the video's length
         horizon = self._count + n
-        while self._next_out < self._count:
-            t = self._next_out
-            if window_start(t, horizon, self.config) + n > self._count:
-                break
-            outs.append(self._finish(t, n_total=horizon))
-            self._next_out += 1
+        self._submit_ready(horizon, ahead=self._count)
+        while self._complete(horizon):
+            outs.append(self._take(horizon))
         return outs
 
     def process(self, frames: Iterable[npt.ArrayLike]) -> Iterator[np.ndarray]:
         """Super-resolve a stream of frames; yields one high-res frame per input frame, each as
         soon as its window is complete (see :meth:`feed`)."""
+        if self._pool is None:
+            for frame in frames:
+                yield from self.feed(frame)
+            yield from self.flush()
+            return
+        n = self.config.n_frames
+        ahead = 2 * self.workers
         for frame in frames:
-            yield from self.feed(frame)
+            self._ingest(frame)
+            horizon = self._count + n
+            self._submit_ready(horizon, ahead)
+            # in order, as the background finishes them; wait only with enough ahead
+            while self._complete(horizon) and (
+                self._next_submit - self._next_out >= ahead
+                or (self._next_out in self._pending and self._pending[self._next_out].done())
+            ):
+                yield self._take(horizon)
         yield from self.flush()
 
 
@@ -377,6 +449,7 @@ def super_resolve(
     *,
     config: UPSRConfig | None = None,
     progress: bool | None = None,
+    workers: int | None = None,
     **options: Any,
 ) -> np.ndarray:
     """Super-resolve a depth video with UP-SR (paper Table 1).
@@ -393,6 +466,8 @@ def super_resolve(
         Full configuration; overrides ``scale``, ``n_frames`` and ``options``.
     progress : bool, optional
         Show a progress bar on stderr.
+    workers : int, optional
+        Threads that finish windows side by side (see :class:`UPSR`); the output is the same.
     **options
         Any :class:`~upsr.config.UPSRConfig` field, ``deblur_*`` for deblurring options.
 
@@ -414,7 +489,7 @@ def super_resolve(
             f"N={cfg.n_frames} frames per window but the video has only {t_total} frame(s)"
         )
     out = np.empty((t_total, h * cfg.scale, w * cfg.scale), np.float32)
-    engine = UPSR(config=cfg)
+    engine = UPSR(config=cfg, workers=workers)
     results = engine.process(video)
     if progress:
         from tqdm import tqdm
