@@ -103,29 +103,67 @@ def _btv_gradient_kernel(xp, masks, weights, dls, dms, pad, out):  # pragma: no 
 
 @nb.njit(cache=True, nogil=True, parallel=True, fastmath=True)
 def _descent_step(
-    xp, z, spans, masks, weights, dls, dms, pad, step, out
+    xp, z, spans, masks, weights, dls, dms, pos, pad, step, n_chunks, out
 ):  # pragma: no cover - numba
     """One normalised subgradient step of eq. 30 with B = I, fused in one pass:
     out = x − step·(sign(x − z) + λ·∂Γ_BTV/∂x) on the pixels valid in z (0 elsewhere, as
     ``out`` already holds outside the span [spans[i, 0], spans[i, 1]) of valid pixels of each
-    row); ``xp`` and ``out`` are padded by ``pad``; the weights include λ."""
-    h = z.shape[0]
-    for i in nb.prange(h):
-        j0 = spans[i, 0]
-        j1 = spans[i, 1]
-        w = j1 - j0
-        if w <= 0:
-            continue
+    row); ``xp`` and ``out`` are padded by ``pad``; the weights include λ.
+
+    Each pair of pixels is visited once: the term T_b(p) = w_b·sign(x_p − x_{p+s_b}) of a
+    shift s_b in ``pos`` (the half of the shifts that point down or right) enters the
+    gradient at p with + and at p + s_b with − (the pair and its rule are symmetric), so
+    the gradient at p is Σ_b T_b(p) − T_b(p − s_b). The terms of the last ``pad`` + 1 rows
+    are kept in a ring; the rows are cut into ``n_chunks`` bands (one per thread), each
+    starting ``pad`` rows early. The result does not depend on ``n_chunks``."""
+    h, w = z.shape
+    n_pos = pos.size
+    depth = pad + 1
+    band = (h + n_chunks - 1) // n_chunks
+    for c in nb.prange(n_chunks):
+        r0 = c * band
+        r1 = min(h, r0 + band)
+        # terms[row % depth, q, pad + j] of the pair (p, p + s_pos[q]), p = (row, j); zero
+        # outside the image (rows above it, the padding columns)
+        terms = np.zeros((depth, n_pos, w + 2 * pad), np.float32)
         acc = np.empty(w, np.float32)
-        _btv_row(xp, masks, weights, dls, dms, pad, i, j0, j1, acc)
-        xr = xp[i + pad, pad + j0 : pad + j1]
-        orow = out[i + pad, pad + j0 : pad + j1]
-        zr = z[i, j0:j1]
-        for j in range(w):
-            zv = zr[j]
-            d = xr[j] - zv
-            s = np.float32(d > 0) - np.float32(d < 0)
-            orow[j] = (xr[j] - step * (s + acc[j])) if zv > 0 else np.float32(0.0)
+        for i in range(max(r0 - pad, 0), r1):
+            slot = i % depth
+            xr = xp[i + pad, pad : pad + w]
+            for q in range(n_pos):
+                b = pos[q]
+                wb = weights[b]
+                c0 = pad + dms[b]
+                xn = xp[i + pad + dls[b], c0 : c0 + w]
+                mrow = masks[b // 31, i]
+                bit = np.int32(b % 31)
+                trow = terms[slot, q, pad : pad + w]
+                for j in range(w):
+                    d = xr[j] - xn[j]
+                    sgn = np.float32(d > 0) - np.float32(d < 0)
+                    trow[j] = sgn * (wb * np.float32((mrow[j] >> bit) & np.int32(1)))
+            j0 = spans[i, 0]
+            j1 = spans[i, 1]
+            if i < r0 or j1 <= j0:
+                continue
+            # (every loop index below is the loop variable: no index arithmetic, SIMD)
+            n = j1 - j0
+            acc[:n] = 0.0
+            for q in range(n_pos):
+                b = pos[q]
+                cur = terms[slot, q, pad + j0 : pad + j1]
+                c0 = pad - dms[b] + j0
+                prev = terms[(i - dls[b]) % depth, q, c0 : c0 + n]
+                for j in range(n):
+                    acc[j] += cur[j] - prev[j]
+            xr = xp[i + pad, pad + j0 : pad + j1]
+            orow = out[i + pad, pad + j0 : pad + j1]
+            zr = z[i, j0:j1]
+            for j in range(n):
+                zv = zr[j]
+                d = xr[j] - zv
+                sgn = np.float32(d > 0) - np.float32(d < 0)
+                orow[j] = (xr[j] - step * (sgn + acc[j])) if zv > 0 else np.float32(0.0)
 
 
 def _padded(x: np.ndarray, pad: int) -> np.ndarray:
@@ -371,10 +409,12 @@ def deblur(z: npt.ArrayLike, cfg: DeblurConfig | None = None, *, scale: int = 1)
         weights, dls, dms = _shift_table(cfg.radius_px, cfg.alpha, cfg.lam)
         masks = _masks(z, dls, dms, edge)
         spans = _valid_spans(mask)
+        pos = np.flatnonzero((dls > 0) | ((dls == 0) & (dms > 0)))
+        n_chunks = min(nb.get_num_threads(), z.shape[0])
         xp, nxt = _padded(z, pad), _padded(np.zeros_like(z), pad)
         for _ in range(cfg.iterations):
             step = np.float32(beta / norm)
-            _descent_step(xp, z, spans, masks, weights, dls, dms, pad, step, nxt)
+            _descent_step(xp, z, spans, masks, weights, dls, dms, pos, pad, step, n_chunks, nxt)
             xp, nxt = nxt, xp
             beta *= cfg.step_decay
         x = xp[pad : pad + z.shape[0], pad : pad + z.shape[1]].copy()

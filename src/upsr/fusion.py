@@ -240,32 +240,30 @@ def _register_fuse_kernel(
         # that vectorise (SIMD)
         raw = np.empty((n, ww), np.float32)  # the sample; NaN: outside its frame (abstains)
         srt = np.empty((n, ww), np.float32)  # the valid samples (+inf for the others), sorted
-        ex = np.empty((n, ww), np.float32)  # distance (px) to the sampled low-res pixel's centre
-        ey = np.empty((n, ww), np.float32)
         n_in = np.zeros(ww, np.int64)
         nv = np.zeros(ww, np.int64)
-        vx = np.empty(grid_w, np.float32)
-        vy = np.empty(grid_w, np.float32)
+        vx = np.empty((n, grid_w), np.float32)
+        vy = np.empty((n, grid_w), np.float32)
         vals = np.empty(n, np.float32)
         wts = np.empty(n, np.float32)
         for k in range(n):
             # the flow-grid row interpolated to this output row, in output px (times r/s)
             m0 = maps[k, y0]
             m1 = maps[k, y1]
+            vxk = vx[k]
+            vyk = vy[k]
             for c in range(grid_w):
-                vx[c] = ((1 - gy) * m0[c, 0] + gy * m1[c, 0]) * ratio
-                vy[c] = ((1 - gy) * m0[c, 1] + gy * m1[c, 1]) * ratio
+                vxk[c] = ((1 - gy) * m0[c, 0] + gy * m1[c, 0]) * ratio
+                vyk[c] = ((1 - gy) * m0[c, 1] + gy * m1[c, 1]) * ratio
             lk = lowres[k]
             rk = raw[k]
             sk = srt[k]
-            exk = ex[k]
-            eyk = ey[k]
             for j in range(ww):
                 a = col_a[j]
                 b = col_b[j]
                 gx = fx[j]
-                qx = j + (vx[a] + gx * (vx[b] - vx[a]))
-                qy = i + (vy[a] + gx * (vy[b] - vy[a]))
+                qx = j + (vxk[a] + gx * (vxk[b] - vxk[a]))
+                qy = i + (vyk[a] + gx * (vyk[b] - vyk[a]))
                 inside = (-0.5 <= qx) & (qx < ww - 0.5) & (-0.5 <= qy) & (qy < hh - 0.5)
                 xi = min(max(int(qx + 0.5), 0), ww - 1)  # qx + 0.5 >= 0 inside: the floor
                 yi = min(max(int(qy + 0.5), 0), hh - 1)
@@ -275,8 +273,6 @@ def _register_fuse_kernel(
                 sk[j] = v if valid else inf
                 n_in[j] += 1 if inside else 0
                 nv[j] += 1 if valid else 0
-                exk[j] = abs(qx - centre_of[xi])
-                eyk[j] = abs(qy - centre_of[yi])
         _sort_columns(srt, network)
         mrow = measured[low_of[i]]
         for j in range(ww):
@@ -294,17 +290,25 @@ def _register_fuse_kernel(
                 out[i, j] = median
                 continue
             # some samples invalid, or samples from several surfaces: the vote weights
-            # matter (and are only computed) here
+            # matter (and are only computed) here, from the distance (px) of the registered
+            # position to the centre of the low-res pixel sampled there
             w_in = 0.0
             w_valid = 0.0
+            a = col_a[j]
+            b = col_b[j]
+            gx = fx[j]
             for k in range(n):
                 v = raw[k, j]
                 vals[k] = inf
                 wts[k] = 0.0
                 if v != v:
                     continue
-                gx_k = table[min(int(ex[k, j] * step + 0.5), last)]
-                gy_k = table[min(int(ey[k, j] * step + 0.5), last)]
+                qx = j + (vx[k, a] + gx * (vx[k, b] - vx[k, a]))
+                qy = i + (vy[k, a] + gx * (vy[k, b] - vy[k, a]))
+                ex = abs(qx - centre_of[int(qx + 0.5)])
+                ey = abs(qy - centre_of[int(qy + 0.5)])
+                gx_k = table[min(int(ex * step + 0.5), last)]
+                gy_k = table[min(int(ey * step + 0.5), last)]
                 wk = floor + (1.0 - floor) * gx_k * gy_k
                 w_in += wk
                 if v > 0:
