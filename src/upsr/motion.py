@@ -23,7 +23,7 @@ import numpy as np
 import numpy.typing as npt
 
 from .errors import InputError
-from .registration import identity_grid
+from .registration import remap_by_flow
 from .upsampling import upsample_nearest
 
 __all__ = [
@@ -297,17 +297,9 @@ def suppress_spurious_motion(
     -------
     ndarray (H, W, 2) float32, a copy of ``flow`` with the unsupported motion zeroed.
     """
-    h, w = first_mm.shape
-    xs, ys = identity_grid(h, w)
     first = np.ascontiguousarray(first_mm, np.float32)
     second = np.ascontiguousarray(second_mm, np.float32)
-    warped = cv2.remap(
-        second,
-        xs + flow[..., 0],
-        ys + flow[..., 1],
-        cv2.INTER_NEAREST,
-        borderMode=cv2.BORDER_REPLICATE,
-    )
+    warped = remap_by_flow(second, flow, cv2.INTER_NEAREST, cv2.BORDER_REPLICATE)
     sq_flow = np.empty_like(first)
     sq_zero = np.empty_like(first)
     _squared_residuals(first, second, warped, sq_flow, sq_zero)

@@ -285,7 +285,8 @@ class UPSR:
         forward = [self._fwd.get(k) for k in idx]
         with self._timed("registration"):
             # motion from the reference to every frame, on the flow grid (eq. 19–21)
-            maps = cumulative_flows(
+            maps = np.empty((cfg.n_frames, *self._guide[t].shape, 2), np.float32)
+            cumulative_flows(
                 ref,
                 backward,
                 forward,
@@ -293,6 +294,7 @@ class UPSR:
                 refine=self._refine_flow if cfg.refine else None,
                 guides=[self._guide[k] for k in idx],
                 parallel=self._parallel,
+                out=maps,
             )
         with self._timed("fusion"):
             lowres = np.stack([self._lowres[k] for k in idx])
@@ -303,7 +305,7 @@ class UPSR:
             # registration (eq. 20) and the invalid-aware median (eq. 28), one compiled pass
             fused = register_and_fuse(
                 lowres,
-                np.stack(maps),
+                maps,
                 r,
                 ref,
                 weight_sigma_px=cfg.edge_weight_px * r if cfg.edge_weight_px else None,

@@ -33,6 +33,7 @@ __all__ = [
     "flows_to_reference",
     "identity_grid",
     "interpolation_tables",
+    "remap_by_flow",
     "sample_offsets",
     "trace_to_reference",
     "warp_guide",
@@ -50,18 +51,36 @@ def identity_grid(height: int, width: int) -> tuple[np.ndarray, np.ndarray]:
     return xs, ys
 
 
-def compose_flows(first: np.ndarray, second: np.ndarray) -> np.ndarray:
+@functools.lru_cache(maxsize=8)
+def _identity_xy(height: int, width: int) -> np.ndarray:
+    """Pixel coordinates of an (height, width) grid as one (H, W, 2) float32 array (x, y),
+    the layout of a flow: ``_identity_xy + flow`` is the map of ``cv2.remap`` (cached)."""
+    xs, ys = identity_grid(height, width)
+    xy = np.dstack([xs, ys])
+    xy.flags.writeable = False
+    return xy
+
+
+def remap_by_flow(
+    image: np.ndarray, flow: np.ndarray, interpolation: int, border: int, value: float = 0.0
+) -> np.ndarray:
+    """``cv2.remap`` of ``image`` at p + flow(p) (one interleaved map: no channel copies)."""
+    h, w = flow.shape[:2]
+    return cv2.remap(
+        image, _identity_xy(h, w) + flow, None, interpolation, borderMode=border, borderValue=value
+    )
+
+
+def compose_flows(
+    first: np.ndarray, second: np.ndarray, out: np.ndarray | None = None
+) -> np.ndarray:
     """Chain two dense motions (eq. 20): first a→b (on a's grid), then b→c (on b's grid).
 
     Returns the a→c flow ``first(p) + second(p + first(p))``, ``second`` sampled bilinearly at the
-    displaced positions (clamped at the border).
+    displaced positions (clamped at the border); in ``out`` if given.
     """
-    h, w = first.shape[:2]
-    xs, ys = identity_grid(h, w)
-    map_x = xs + first[..., 0]
-    map_y = ys + first[..., 1]
-    sampled = cv2.remap(second, map_x, map_y, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
-    return first + sampled
+    sampled = remap_by_flow(second, first, cv2.INTER_LINEAR, cv2.BORDER_REPLICATE)
+    return np.add(first, sampled, out=out)
 
 
 def add_flows(first: np.ndarray, second: np.ndarray) -> np.ndarray:
@@ -140,16 +159,7 @@ def warp_guide(image: np.ndarray, flow: np.ndarray) -> np.ndarray:
     Only for the images the flow is estimated on (eq. 19): sub-pixel accuracy matters there,
     and they are never fused. Depth itself is only ever warped by :func:`warp_nearest`.
     """
-    h, w = image.shape[:2]
-    xs, ys = identity_grid(h, w)
-    return cv2.remap(
-        image,
-        xs + flow[..., 0],
-        ys + flow[..., 1],
-        cv2.INTER_LINEAR,
-        borderMode=cv2.BORDER_CONSTANT,
-        borderValue=0,
-    )
+    return remap_by_flow(image, flow, cv2.INTER_LINEAR, cv2.BORDER_CONSTANT)
 
 
 def cumulative_flows(
@@ -161,6 +171,7 @@ def cumulative_flows(
     refine: Callable[[np.ndarray, np.ndarray], np.ndarray] | None = None,
     guides: Sequence[np.ndarray] | None = None,
     parallel: bool = False,
+    out: np.ndarray | None = None,
 ) -> list[np.ndarray]:
     """Motion from the reference to every frame of a window, by composition (eq. 20–21).
 
@@ -186,6 +197,8 @@ def cumulative_flows(
     parallel : bool
         Compute the frames before and after the reference side by side
         (:func:`upsr.parallel.both`; same result). Only for a thread-safe ``refine``.
+    out : ndarray (N, H, W, 2) float32, optional
+        Where to write the flows (the list then holds views of it).
 
     Returns
     -------
@@ -193,8 +206,11 @@ def cumulative_flows(
     """
     n = len(forward)
     h, w = shape
+    if out is None:
+        out = np.empty((n, h, w, 2), np.float32)
     maps: list[np.ndarray | None] = [None] * n
-    maps[ref] = np.zeros((h, w, 2), np.float32)
+    out[ref] = 0.0
+    maps[ref] = out[ref]
     registered: list[np.ndarray | None] = [None] * n
     if refine is not None:
         if guides is None:
@@ -207,16 +223,18 @@ def cumulative_flows(
             prev = j - direction
             step = consecutive[prev]
             assert step is not None and maps[prev] is not None
-            cum = compose_flows(maps[prev], step)
             if refine is not None and abs(j - ref) > 1:
                 # eq. 19; the reference's direct neighbours are skipped: their motion *is* an
                 # estimate against the (trivially registered) reference already
+                cum = compose_flows(maps[prev], step)
                 residual = refine(registered[prev], warp_guide(guides[j], cum))  # type: ignore
-                cum = compose_flows(residual, cum)
-                registered[j] = warp_guide(guides[j], cum)  # type: ignore[index]
-            elif refine is not None:
-                registered[j] = warp_guide(guides[j], cum)  # type: ignore[index]
-            maps[j] = cum
+                compose_flows(residual, cum, out=out[j])
+            else:
+                compose_flows(maps[prev], step, out=out[j])
+            maps[j] = out[j]
+            if refine is not None and 0 <= j + direction < n:
+                # the registered image of the next frame's neighbour (none after the last)
+                registered[j] = warp_guide(guides[j], maps[j])  # type: ignore[index]
             j += direction
 
     # the frames before and after the reference are independent chains: one per core
