@@ -302,9 +302,10 @@ def deblur_energy(x: npt.ArrayLike, z: npt.ArrayLike, cfg: DeblurConfig, scale: 
 
 
 @nb.njit(cache=True, nogil=True)
-def _select(d, k, lo, hi):  # pragma: no cover - numba
-    """The k-th smallest value of ``d`` (0-based), exactly, in O(n): a 4096-bin histogram
-    over [lo, hi] finds the bin that holds rank k, and only that bin is sorted."""
+def _select_pair(d, k, lo, hi):  # pragma: no cover - numba
+    """The (k−1)-th and k-th smallest values of ``d`` (0-based, k ≥ 1), exactly, in O(n): a
+    4096-bin histogram over [lo, hi] finds the bins that hold the two ranks, and only the
+    values of those bins are sorted."""
     n_bins = 4096
     scale = n_bins / (hi - lo)
     counts = np.zeros(n_bins, np.int64)
@@ -312,26 +313,34 @@ def _select(d, k, lo, hi):  # pragma: no cover - numba
         counts[min(max(int((v - lo) * scale), 0), n_bins - 1)] += 1
     below = 0
     b = 0
-    while below + counts[b] <= k:
+    while below + counts[b] <= k - 1:
         below += counts[b]
         b += 1
-    members = np.empty(counts[b], d.dtype)
+    # rank k lies in bin b too, or in the next non-empty bin
+    last = b
+    while below + counts[b : last + 1].sum() <= k:
+        last += 1
+    members = np.empty(counts[b : last + 1].sum(), d.dtype)
     m = 0
     for v in d:
-        if min(max(int((v - lo) * scale), 0), n_bins - 1) == b:
+        bin_v = min(max(int((v - lo) * scale), 0), n_bins - 1)
+        if b <= bin_v <= last:
             members[m] = v
             m += 1
     members.sort()
-    return members[k - below]
+    return members[k - 1 - below], members[k - below]
 
 
 @nb.njit(cache=True, nogil=True)
 def _median(d, lo, hi):  # pragma: no cover - numba
     """np.median of a float32 array with values in [lo, hi] (same float32 arithmetic)."""
     n = d.size
+    if n == 1:
+        return d[0]
+    below, above = _select_pair(d, n // 2, lo, hi)
     if n % 2:
-        return _select(d, n // 2, lo, hi)
-    return (_select(d, n // 2 - 1, lo, hi) + _select(d, n // 2, lo, hi)) / np.float32(2.0)
+        return above
+    return (below + above) / np.float32(2.0)
 
 
 @nb.njit(cache=True, nogil=True)

@@ -300,59 +300,69 @@ def suppress_spurious_motion(
     first = np.ascontiguousarray(first_mm, np.float32)
     second = np.ascontiguousarray(second_mm, np.float32)
     warped = remap_by_flow(second, flow, cv2.INTER_NEAREST, cv2.BORDER_REPLICATE)
-    sq_flow = np.empty_like(first)
-    sq_zero = np.empty_like(first)
-    _squared_residuals(first, second, warped, sq_flow, sq_zero)
-    k = (window_px, window_px)
-    res_flow = cv2.boxFilter(sq_flow, -1, k)
-    res_zero = cv2.boxFilter(sq_zero, -1, k)
+    # both squared residuals in one 2-channel image, box-filtered in one call
+    squared = np.empty((*first.shape, 2), np.float32)
+    _squared_residuals(first, second, warped, squared)
+    residuals = cv2.boxFilter(squared, -1, (window_px, window_px))
     if edge_mm is not None:
         side = max(edge_window_px or window_px, 1)
         kernel = np.ones((side, side), np.uint8)
-        span = cv2.dilate(first, kernel) - cv2.erode(first, kernel)
+        span = cv2.morphologyEx(first, cv2.MORPH_GRADIENT, kernel)  # dilate − erode
         edge = float(edge_mm)
     else:
-        span = sq_flow  # unused: no edge test
+        span = first  # unused: no edge test
         edge = np.inf
-    out = np.array(flow, dtype=np.float32, copy=True)
+    out = np.empty(np.shape(flow), np.float32)
     _zero_unsupported(
-        first, res_flow, res_zero, span, float(tolerance), float(noise_mm) ** 2, edge, out
+        first,
+        np.ascontiguousarray(flow, np.float32),
+        residuals,
+        span,
+        float(tolerance),
+        float(noise_mm) ** 2,
+        edge,
+        out,
     )
     return out
 
 
 @nb.njit(cache=True, nogil=True)
-def _squared_residuals(first, second, warped, sq_flow, sq_zero):  # pragma: no cover - numba
-    """(first − warped)² and (first − second)² where all three are valid, else 0."""
+def _squared_residuals(first, second, warped, out):  # pragma: no cover - numba
+    """out[..., 0] = (first − warped)², out[..., 1] = (first − second)² where all three are
+    valid, else 0."""
     h, w = first.shape
     for i in range(h):
-        for j in range(w):
-            a = first[i, j]
-            b = second[i, j]
-            c = warped[i, j]
-            if a > 0 and b > 0 and c > 0:
-                sq_flow[i, j] = (a - c) * (a - c)
-                sq_zero[i, j] = (a - b) * (a - b)
-            else:
-                sq_flow[i, j] = 0.0
-                sq_zero[i, j] = 0.0
+        fr = first[i]
+        sr = second[i]
+        wr = warped[i]
+        orow = out[i]
+        for j in range(w):  # branch-free (SIMD)
+            a = fr[j]
+            b = sr[j]
+            c = wr[j]
+            ok = (a > 0) & (b > 0) & (c > 0)
+            orow[j, 0] = (a - c) * (a - c) if ok else np.float32(0.0)
+            orow[j, 1] = (a - b) * (a - b) if ok else np.float32(0.0)
 
 
 @nb.njit(cache=True, nogil=True)
 def _zero_unsupported(
-    first, res_flow, res_zero, span, tolerance, noise_sq, edge_mm, out
+    first, flow, residuals, span, tolerance, noise_sq, edge_mm, out
 ):  # pragma: no cover - numba
-    """Zero the flow where the zero motion fits as well (and no edge is near)."""
+    """out = flow, zero where the zero motion fits as well (and no edge is near)."""
     h, w = first.shape
     for i in range(h):
-        for j in range(w):
+        fr = first[i]
+        rr = residuals[i]
+        sr = span[i]
+        flr = flow[i]
+        orow = out[i]
+        for j in range(w):  # branch-free (SIMD)
             # pixels without depth carry no evidence either way: their flow (which chaining
             # reads when a moving surface's pixel lands just outside it) is left alone
-            if first[i, j] <= 0:
-                continue
-            if res_zero[i, j] <= tolerance * res_flow[i, j] + noise_sq and span[i, j] <= edge_mm:
-                out[i, j, 0] = 0.0
-                out[i, j, 1] = 0.0
+            zero = (fr[j] > 0) & (rr[j, 1] <= tolerance * rr[j, 0] + noise_sq) & (sr[j] <= edge_mm)
+            orow[j, 0] = np.float32(0.0) if zero else flr[j, 0]
+            orow[j, 1] = np.float32(0.0) if zero else flr[j, 1]
 
 
 _MIN_FLOW_SIZE = 16
