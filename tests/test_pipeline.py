@@ -272,3 +272,36 @@ def test_an_error_while_finishing_a_window_reaches_the_caller(monkeypatch):
     engine.reset()
     monkeypatch.setattr(pipeline, "finish_fused", lambda fused, cfg: fused)
     assert len(list(engine.process(scene.lowres))) == 8
+
+
+def test_sample_chains_kept_across_windows_equal_the_traced_ones(monkeypatch):
+    # the engine extends each frame's chain of sample positions by one flow per window;
+    # the positions must be those of tracing every window from scratch
+    import upsr.pipeline as pipeline
+    from upsr.pipeline import window_start
+    from upsr.registration import trace_to_reference
+
+    scene = dynamic_scene(n_frames=9, lowres_shape=(12, 16), scale=2, noise_sigma_mm=10, seed=9)
+    seen = []
+    splat = pipeline.splat_points
+
+    def spy(values, positions, shape, radius):
+        seen.append(np.array(positions))
+        return splat(values, positions, shape, radius)
+
+    monkeypatch.setattr(pipeline, "splat_points", spy)
+    engine = upsr.UPSR(scale=2, n_frames=5, workers=0)
+    fwd, bwd = {}, {}
+    for frame in scene.lowres:
+        engine.push(frame)
+        fwd.update(engine._fwd)
+        bwd.update(engine._bwd)
+    engine.flush()
+    assert len(seen) == 9
+    for t, positions in enumerate(seen):
+        s = window_start(t, 9, engine.config)
+        idx = range(s, s + 5)
+        expected = trace_to_reference(
+            t - s, [fwd.get(k) for k in idx], [bwd.get(k) for k in idx], (12, 16), 2
+        )
+        np.testing.assert_array_equal(positions, expected)

@@ -48,7 +48,7 @@ from .motion import (
 )
 from .outliers import remove_speckles
 from .parallel import both, window_pool
-from .registration import cumulative_flows, trace_to_reference
+from .registration import advance_positions, cumulative_flows, sample_centres, to_output_grid
 from .validation import as_depth_frame, as_depth_video
 
 __all__ = ["STAGES", "UPSR", "finish_fused", "super_resolve", "window_start"]
@@ -167,6 +167,8 @@ class UPSR:
         self._guide: dict[int, np.ndarray] = {}
         self._fwd: dict[int, np.ndarray] = {}
         self._bwd: dict[int, np.ndarray] = {}
+        # (k, m): frame k's low-res sample centres carried by the consecutive flows to frame m
+        self._chains: dict[tuple[int, int], np.ndarray] = {}
 
     @property
     def frames_seen(self) -> int:
@@ -300,7 +302,11 @@ class UPSR:
             lowres = np.stack([self._lowres[k] for k in idx])
             guide = None
             if cfg.splat_radius_px and cfg.n_frames > 1:
-                positions = trace_to_reference(ref, forward, backward, (h, w), r)
+                # where each sample lands in the reference (upsr.registration.
+                # trace_to_reference), each frame's chain kept from one window to the next
+                positions = np.empty((cfg.n_frames, h, w, 2), np.float32)
+                for k in idx:
+                    to_output_grid(self._chain(k, t), r / self._s, out=positions[k - s])
                 guide = splat_points(lowres, positions, (h * r, w * r), cfg.splat_radius_px)
             # registration (eq. 20) and the invalid-aware median (eq. 28), one compiled pass
             fused = register_and_fuse(
@@ -317,6 +323,21 @@ class UPSR:
             )
         with self._timed("deblur"):
             return finish_fused(fused, cfg)
+
+    def _chain(self, k: int, m: int) -> np.ndarray:
+        """Frame k's low-res sample centres carried by the consecutive flows to frame m (flow
+        grid px), one flow step beyond what an earlier window computed. Windows finished at
+        once may compute a step twice (same values); never a wrong one."""
+        pos = self._chains.get((k, m))
+        if pos is None:
+            if m == k:
+                pos = sample_centres(self._shape, self._s)  # type: ignore[arg-type]
+            elif m > k:
+                pos = advance_positions(self._chain(k, m - 1), self._fwd[m - 1])
+            else:
+                pos = advance_positions(self._chain(k, m + 1), self._bwd[m + 1])
+            self._chains[(k, m)] = pos
+        return pos
 
     # -- windows in order, some finished ahead in the background --------------------------------
     def _submit_ready(self, n_total: int, ahead: int) -> None:
@@ -349,6 +370,9 @@ class UPSR:
         for store in (self._lowres, self._pre, self._guide, self._fwd, self._bwd):
             for k in [k for k in store if k < keep_from]:
                 del store[k]
+        for key in list(self._chains):  # (list(): workers may add chains meanwhile)
+            if key[0] < keep_from:
+                self._chains.pop(key, None)
         return out
 
     def _complete(self, n_total: int) -> bool:

@@ -28,13 +28,16 @@ from .parallel import both
 
 __all__ = [
     "add_flows",
+    "advance_positions",
     "compose_flows",
     "cumulative_flows",
     "flows_to_reference",
     "identity_grid",
     "interpolation_tables",
     "remap_by_flow",
+    "sample_centres",
     "sample_offsets",
+    "to_output_grid",
     "trace_to_reference",
     "warp_guide",
     "warp_nearest",
@@ -299,28 +302,48 @@ def _interpolation_table(n_out: int, n_in: int, ratio: float) -> tuple[np.ndarra
     return np.stack([lo, hi], axis=1), (u - lo).astype(np.float32)
 
 
-@nb.njit(cache=True, nogil=True, parallel=True)
-def _trace_kernel(ref, forward, backward, s, ratio, out):  # pragma: no cover - numba
-    n, h, w = out.shape[0], out.shape[1], out.shape[2]
-    for i in nb.prange(h):
-        for k in range(n):
-            for j in range(w):
-                u = (j + 0.5) * s - 0.5
-                v = (i + 0.5) * s - 0.5
-                if k < ref:
-                    for m in range(k, ref):
-                        du = _bilinear(forward[m], u, v, 0)
-                        dv = _bilinear(forward[m], u, v, 1)
-                        u += du
-                        v += dv
-                else:
-                    for m in range(k, ref, -1):
-                        du = _bilinear(backward[m], u, v, 0)
-                        dv = _bilinear(backward[m], u, v, 1)
-                        u += du
-                        v += dv
-                out[k, i, j, 0] = (u + 0.5) * ratio - 0.5
-                out[k, i, j, 1] = (v + 0.5) * ratio - 0.5
+def sample_centres(lowres_shape: tuple[int, int], grid_scale: int) -> np.ndarray:
+    """The centres of the low-res pixels (``SPEC.md`` §1) on a flow grid upsampled by
+    ``grid_scale``: (h, w, 2) float64 (x, y) = ((j + 0.5)·s − 0.5, (i + 0.5)·s − 0.5)."""
+    h, w = lowres_shape
+    s = float(grid_scale)
+    out = np.empty((h, w, 2), np.float64)
+    out[..., 0] = (np.arange(w) + 0.5) * s - 0.5
+    out[..., 1] = ((np.arange(h) + 0.5) * s - 0.5)[:, None]
+    return out
+
+
+@nb.njit(cache=True, nogil=True)
+def _advance_kernel(pos, flow, out):  # pragma: no cover - numba
+    h, w = pos.shape[0], pos.shape[1]
+    for i in range(h):
+        for j in range(w):
+            u = pos[i, j, 0]
+            v = pos[i, j, 1]
+            du = _bilinear(flow, u, v, 0)
+            dv = _bilinear(flow, u, v, 1)
+            out[i, j, 0] = u + du
+            out[i, j, 1] = v + dv
+
+
+def advance_positions(positions: np.ndarray, flow: np.ndarray) -> np.ndarray:
+    """One step of a chain of consecutive flows: ``p + flow(p)`` for each position p (flow
+    grid px, (…, 2) float64), the flow read bilinearly at p (clamped to the border)."""
+    out = np.empty_like(positions)
+    _advance_kernel(positions, np.ascontiguousarray(flow, np.float32), out)
+    return out
+
+
+def to_output_grid(
+    positions: np.ndarray, ratio: float, out: np.ndarray | None = None
+) -> np.ndarray:
+    """Flow-grid positions (float64) as high-res px of the output grid, float32
+    (pixel centres aligned: (p + 0.5)·r/s − 0.5)."""
+    res = (positions + 0.5) * float(ratio) - 0.5
+    if out is None:
+        return res.astype(np.float32)
+    out[...] = res
+    return out
 
 
 def trace_to_reference(
@@ -336,7 +359,8 @@ def trace_to_reference(
     consecutive flows towards the reference (``forward[t]``, ``forward[t+1]``, … before it,
     ``backward[t]``, … after it), each read bilinearly at the current position: the exact
     chain of :func:`flows_to_reference`, evaluated only at the N·h·w sample points. Used to
-    forward-register the samples (:func:`upsr.fusion.splat_points`).
+    forward-register the samples (:func:`upsr.fusion.splat_points`). The streaming engine
+    keeps each frame's chain from one window to the next (:func:`advance_positions`).
 
     Parameters
     ----------
@@ -354,12 +378,13 @@ def trace_to_reference(
     """
     h, w = lowres_shape
     n = len(forward)
-    some = next(f for f in (*forward, *backward) if f is not None) if n > 1 else None
-    hf, wf = (some.shape[:2]) if some is not None else (h * scale, w * scale)
-    zero = np.zeros((hf, wf, 2), np.float32)
-    fwd = np.stack([f if f is not None and j < ref else zero for j, f in enumerate(forward)])
-    bwd = np.stack([b if b is not None and j > ref else zero for j, b in enumerate(backward)])
+    some = next((f for f in (*forward, *backward) if f is not None), None)
+    wf = some.shape[1] if some is not None else w * scale
     s = wf // w
     out = np.empty((n, h, w, 2), np.float32)
-    _trace_kernel(int(ref), fwd, bwd, float(s), float(scale) / s, out)
+    for k in range(n):
+        pos = sample_centres((h, w), s)
+        for m in range(k, ref) if k < ref else range(k, ref, -1):
+            pos = advance_positions(pos, (forward if k < ref else backward)[m])  # type: ignore[arg-type]
+        to_output_grid(pos, scale / s, out=out[k])
     return out
