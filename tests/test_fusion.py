@@ -167,12 +167,15 @@ def test_register_and_fuse_of_one_frame_is_its_nearest_neighbour_warp():
 
 
 @pytest.mark.parametrize("n", [1, 4, 9, 11, 17])
-def test_register_and_fuse_equals_registration_then_median(n):
+@pytest.mark.parametrize("still_reference", [False, True])
+def test_register_and_fuse_equals_registration_then_median(n, still_reference):
     from upsr.fusion import register_and_fuse
 
     rng = np.random.default_rng(n)
     lowres, maps = _window(rng, n, s=4)
     ref = n // 2
+    if still_reference:  # as in the engine: the kernel's shortcut for a frame that stays
+        maps[ref] = 0.0
     guide = np.where(rng.random((40, 48)) < 0.5, np.float32(500), np.float32(np.nan))
     opts = dict(guide=guide, min_valid_fraction=0.5, edge_mm=100.0)
     fused = register_and_fuse(

@@ -215,6 +215,7 @@ def _register_fuse_kernel(
     edge_mm,
     measured,
     network,
+    still,
     out,
 ):  # pragma: no cover - numba
     n = lowres.shape[0]
@@ -247,6 +248,21 @@ def _register_fuse_kernel(
         vals = np.empty(n, np.float32)
         wts = np.empty(n, np.float32)
         for k in range(n):
+            if k == still:
+                # a frame that does not move (the reference): the sample of each pixel is
+                # its own low-res pixel, as the general case below gives for a zero flow
+                vx[k] = 0.0  # (read where the vote weights are needed)
+                vy[k] = 0.0
+                own = lowres[k, low_of[i]]
+                raw_k = raw[k]
+                srt_k = srt[k]
+                for j in range(ww):
+                    v = own[low_of[j]]
+                    raw_k[j] = v
+                    srt_k[j] = v if v > 0 else inf
+                    n_in[j] += 1
+                    nv[j] += 1 if v > 0 else 0
+                continue
             # the flow-grid row interpolated to this output row, in output px (times r/s)
             m0 = maps[k, y0]
             m1 = maps[k, y1]
@@ -599,6 +615,7 @@ def register_and_fuse(
         float(edge_mm),
         measured,
         _network(n),
+        ref if not mp[ref].any() else -1,  # the reference's map is zero: a shortcut
         out,
     )
     return out
