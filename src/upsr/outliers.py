@@ -56,14 +56,15 @@ def remove_speckles(
     if not (math.isfinite(max_diff_mm) and max_diff_mm > 0):
         raise InputError(f"max_diff_mm must be a finite number > 0, got {max_diff_mm!r}")
     valid = depth > 0  # NaN compares False: unknown
+    depth[~valid] = 0.0
     if max_size_px == 0 or not valid.any():
-        depth[~valid] = 0.0
         return depth
     # cv2.filterSpeckles works on int16: quantise to whole units of `unit` mm (1 mm up to
     # 32.7 m), 0 staying "unknown" (the filter never labels its new value)
-    unit = max(1.0, math.ceil(float(depth[valid].max()) / _INT16_MAX))
-    q = np.zeros(depth.shape, np.int16)
-    q[valid] = np.maximum(np.rint(depth[valid] / unit), 1).astype(np.int16)
+    unit = max(1.0, math.ceil(float(depth.max()) / _INT16_MAX))
+    q = np.rint(depth / np.float32(unit))
+    np.maximum(q, 1.0, out=q, where=valid)
+    q = q.astype(np.int16)
     cv2.filterSpeckles(q, 0, int(max_size_px), max(int(max_diff_mm / unit), 1))
-    depth[(q == 0) | ~valid] = 0.0
+    depth[q == 0] = 0.0
     return depth
