@@ -49,19 +49,21 @@ def _shift_table(radius: int, alpha: float, lam: float = 1.0):
 
 
 @nb.njit(cache=True, nogil=True, parallel=True)
-def _pair_masks(gp, dls, dms, pad, edge_mm, masks):  # pragma: no cover - numba
+def _pair_masks(gp, dls, dms, pad, edge_mm, shifts, masks):  # pragma: no cover - numba
     """Bit b % 31 of masks[b // 31, i, j] is set where the pair (p, p + shift b) is
-    regularised: both pixels valid in the guide and on one surface (|Δguide| ≤ edge_mm).
-    Computed once per image. ``gp`` is the guide zero-padded by ``pad`` ≥ P on every side
-    (outside the image = invalid), so that the loop over a row has no bounds test and
-    vectorises (SIMD)."""
+    regularised: both pixels valid in the guide and on one surface (|Δguide| ≤ edge_mm), for
+    the shifts b in ``shifts`` (the other bits stay 0). Computed once per image. ``gp`` is the
+    guide zero-padded by ``pad`` ≥ P on every side (outside the image = invalid), so that the
+    loop over a row has no bounds test and vectorises (SIMD)."""
     words, h, w = masks.shape
     for i in nb.prange(h):
         g = gp[i + pad, pad : pad + w]
         for word in range(words):
             m = masks[word, i]
             m[:] = 0
-            for b in range(word * 31, min(word * 31 + 31, dls.size)):
+            for b in shifts:
+                if b // 31 != word:
+                    continue
                 c0 = pad + dms[b]
                 n = gp[i + pad + dls[b], c0 : c0 + w]
                 bit = np.int32(b - word * 31)
@@ -183,10 +185,18 @@ def _valid_spans(mask: np.ndarray) -> np.ndarray:
     return np.stack([first, stop], axis=1).astype(np.int64)
 
 
-def _masks(guide: np.ndarray, dls: np.ndarray, dms: np.ndarray, edge_mm: float) -> np.ndarray:
+def _masks(
+    guide: np.ndarray,
+    dls: np.ndarray,
+    dms: np.ndarray,
+    edge_mm: float,
+    shifts: np.ndarray | None = None,
+) -> np.ndarray:
+    """The pair masks of :func:`_pair_masks` for ``shifts`` (default: all)."""
     masks = np.empty((-(-dls.size // 31), *guide.shape), np.int32)
     pad = int(max(np.abs(dls).max(initial=0), np.abs(dms).max(initial=0)))
-    _pair_masks(_padded(guide, pad), dls, dms, pad, float(edge_mm), masks)
+    which = np.arange(dls.size) if shifts is None else np.asarray(shifts, np.int64)
+    _pair_masks(_padded(guide, pad), dls, dms, pad, float(edge_mm), which, masks)
     return masks
 
 
@@ -416,9 +426,10 @@ def deblur(z: npt.ArrayLike, cfg: DeblurConfig | None = None, *, scale: int = 1)
     if op is None:
         # B = I (the default): one fused compiled pass per iteration, two padded buffers
         weights, dls, dms = _shift_table(cfg.radius_px, cfg.alpha, cfg.lam)
-        masks = _masks(z, dls, dms, edge)
-        spans = _valid_spans(mask)
+        # the descent visits each pair once, from its upper (or left) pixel: those masks only
         pos = np.flatnonzero((dls > 0) | ((dls == 0) & (dms > 0)))
+        masks = _masks(z, dls, dms, edge, pos)
+        spans = _valid_spans(mask)
         n_chunks = min(nb.get_num_threads(), z.shape[0])
         xp, nxt = _padded(z, pad), _padded(np.zeros_like(z), pad)
         for _ in range(cfg.iterations):

@@ -236,7 +236,7 @@ class UPSR:
                             self._fwd[k - 1], self._bwd[k] = both(
                                 lambda k=k: self._consecutive_flow(k - 1, k),
                                 lambda k=k: self._consecutive_flow(k, k - 1),
-                                enabled=self._parallel and self._pool is None,
+                                enabled=self._parallel,
                             )
 
     def _edge_for(self, noise_mm: float) -> float:
