@@ -128,28 +128,34 @@ def _descent_step(
         # terms[row % depth, q, pad + j] of the pair (p, p + s_pos[q]), p = (row, j); zero
         # outside the image (rows above it, the padding columns)
         terms = np.zeros((depth, n_pos, w + 2 * pad), np.float32)
+        # the columns of each ring row that hold terms (all others are 0): a pair's term is
+        # 0 unless its first pixel is valid, i.e. in the span of valid pixels of its row
+        held = np.zeros((depth, 2), np.int64)
         acc = np.empty(w, np.float32)
         for i in range(max(r0 - pad, 0), r1):
             slot = i % depth
-            xr = xp[i + pad, pad : pad + w]
+            terms[slot, :, pad + held[slot, 0] : pad + held[slot, 1]] = 0.0
+            j0 = spans[i, 0]
+            j1 = spans[i, 1]
+            held[slot, 0] = j0
+            held[slot, 1] = max(j1, j0)
+            n = j1 - j0
+            xr = xp[i + pad, pad + j0 : pad + j1]
             for q in range(n_pos):
                 b = pos[q]
                 wb = weights[b]
-                c0 = pad + dms[b]
-                xn = xp[i + pad + dls[b], c0 : c0 + w]
-                mrow = masks[b // 31, i]
+                c0 = pad + dms[b] + j0
+                xn = xp[i + pad + dls[b], c0 : c0 + n]
+                mrow = masks[b // 31, i, j0:j1]
                 bit = np.int32(b % 31)
-                trow = terms[slot, q, pad : pad + w]
-                for j in range(w):
+                trow = terms[slot, q, pad + j0 : pad + j1]
+                for j in range(n):
                     d = xr[j] - xn[j]
                     sgn = np.float32(d > 0) - np.float32(d < 0)
                     trow[j] = sgn * (wb * np.float32((mrow[j] >> bit) & np.int32(1)))
-            j0 = spans[i, 0]
-            j1 = spans[i, 1]
             if i < r0 or j1 <= j0:
                 continue
             # (every loop index below is the loop variable: no index arithmetic, SIMD)
-            n = j1 - j0
             acc[:n] = 0.0
             for q in range(n_pos):
                 b = pos[q]

@@ -237,12 +237,25 @@ def _register_fuse_kernel(
         y0 = rows[i, 0]
         y1 = rows[i, 1]
         gy = fy[i]
-        # one output row at a time, every frame's sample of every pixel: loops over the row
-        # that vectorise (SIMD)
-        raw = np.empty((n, ww), np.float32)  # the sample; NaN: outside its frame (abstains)
-        srt = np.empty((n, ww), np.float32)  # the valid samples (+inf for the others), sorted
-        n_in = np.zeros(ww, np.int64)
-        nv = np.zeros(ww, np.int64)
+        # the pixels of the row whose low-res pixel some frame of the window measured; all
+        # others are 0 (never invent depth where the camera saw nothing)
+        mrow = measured[low_of[i]]
+        on = np.empty(ww, np.int64)
+        m_on = 0
+        for j in range(ww):
+            if mrow[low_of[j]]:
+                on[m_on] = j
+                m_on += 1
+            else:
+                out[i, j] = 0.0
+        if m_on == 0:
+            continue
+        # one output row at a time, every frame's sample of each of those pixels: loops
+        # over the row (SIMD where they can)
+        raw = np.empty((n, m_on), np.float32)  # the sample; NaN: outside its frame (abstains)
+        srt = np.empty((n, m_on), np.float32)  # the valid samples (+inf for the others), sorted
+        n_in = np.zeros(m_on, np.int64)
+        nv = np.zeros(m_on, np.int64)
         vx = np.empty((n, grid_w), np.float32)
         vy = np.empty((n, grid_w), np.float32)
         vals = np.empty(n, np.float32)
@@ -256,12 +269,12 @@ def _register_fuse_kernel(
                 own = lowres[k, low_of[i]]
                 raw_k = raw[k]
                 srt_k = srt[k]
-                for j in range(ww):
-                    v = own[low_of[j]]
-                    raw_k[j] = v
-                    srt_k[j] = v if v > 0 else inf
-                    n_in[j] += 1
-                    nv[j] += 1 if v > 0 else 0
+                for q in range(m_on):
+                    v = own[low_of[on[q]]]
+                    raw_k[q] = v
+                    srt_k[q] = v if v > 0 else inf
+                    n_in[q] += 1
+                    nv[q] += 1 if v > 0 else 0
                 continue
             # the flow-grid row interpolated to this output row, in output px (times r/s)
             m0 = maps[k, y0]
@@ -274,7 +287,8 @@ def _register_fuse_kernel(
             lk = lowres[k]
             rk = raw[k]
             sk = srt[k]
-            for j in range(ww):
+            for q in range(m_on):
+                j = on[q]
                 a = col_a[j]
                 b = col_b[j]
                 gx = fx[j]
@@ -285,23 +299,21 @@ def _register_fuse_kernel(
                 yi = min(max(int(qy + 0.5), 0), hh - 1)
                 v = lk[low_of[yi], low_of[xi]]
                 valid = inside & (v > 0)
-                rk[j] = v if inside else nan
-                sk[j] = v if valid else inf
-                n_in[j] += 1 if inside else 0
-                nv[j] += 1 if valid else 0
+                rk[q] = v if inside else nan
+                sk[q] = v if valid else inf
+                n_in[q] += 1 if inside else 0
+                nv[q] += 1 if valid else 0
         _sort_columns(srt, network)
-        mrow = measured[low_of[i]]
-        for j in range(ww):
-            m = nv[j]
-            if m == 0 or not mrow[low_of[j]]:
-                # no valid sample, or no frame of the window measured this low-res pixel:
-                # never invent depth
-                out[i, j] = 0.0
+        for q in range(m_on):
+            j = on[q]
+            m = nv[q]
+            if m == 0:
+                out[i, j] = 0.0  # no valid sample
                 continue
-            one_surface = srt[m - 1, j] - srt[0, j] <= edge_mm
+            one_surface = srt[m - 1, q] - srt[0, q] <= edge_mm
             mid = m // 2
-            median = srt[mid, j] if m % 2 == 1 else 0.5 * (srt[mid - 1, j] + srt[mid, j])
-            if m == n_in[j] and one_surface:
+            median = srt[mid, q] if m % 2 == 1 else 0.5 * (srt[mid - 1, q] + srt[mid, q])
+            if m == n_in[q] and one_surface:
                 # the common case: every in-frame sample valid, one surface: the plain median
                 out[i, j] = median
                 continue
@@ -314,7 +326,7 @@ def _register_fuse_kernel(
             b = col_b[j]
             gx = fx[j]
             for k in range(n):
-                v = raw[k, j]
+                v = raw[k, q]
                 vals[k] = inf
                 wts[k] = 0.0
                 if v != v:
@@ -331,7 +343,7 @@ def _register_fuse_kernel(
                     w_valid += wk
                     vals[k] = v
                     wts[k] = wk
-            r = raw[ref, j]
+            r = raw[ref, q]
             ref_value = r if (r == r and r > 0) else 0.0
             if one_surface:
                 # what _fuse_pixel gives on one surface, without sorting again
