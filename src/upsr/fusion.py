@@ -250,6 +250,17 @@ def _register_fuse_kernel(
                 out[i, j] = 0.0
         if m_on == 0:
             continue
+        # their interpolation columns, gathered once per row (contiguous in the loops below)
+        on_a = np.empty(m_on, np.int64)
+        on_b = np.empty(m_on, np.int64)
+        on_fx = np.empty(m_on, np.float32)
+        on_low = np.empty(m_on, np.int64)
+        for q in range(m_on):
+            j = on[q]
+            on_a[q] = col_a[j]
+            on_b[q] = col_b[j]
+            on_fx[q] = fx[j]
+            on_low[q] = low_of[j]
         # one output row at a time, every frame's sample of each of those pixels: loops
         # over the row (SIMD where they can)
         raw = np.empty((n, m_on), np.float32)  # the sample; NaN: outside its frame (abstains)
@@ -270,7 +281,7 @@ def _register_fuse_kernel(
                 raw_k = raw[k]
                 srt_k = srt[k]
                 for q in range(m_on):
-                    v = own[low_of[on[q]]]
+                    v = own[on_low[q]]
                     raw_k[q] = v
                     srt_k[q] = v if v > 0 else inf
                     n_in[q] += 1
@@ -289,9 +300,9 @@ def _register_fuse_kernel(
             sk = srt[k]
             for q in range(m_on):
                 j = on[q]
-                a = col_a[j]
-                b = col_b[j]
-                gx = fx[j]
+                a = on_a[q]
+                b = on_b[q]
+                gx = on_fx[q]
                 qx = j + (vxk[a] + gx * (vxk[b] - vxk[a]))
                 qy = i + (vyk[a] + gx * (vyk[b] - vyk[a]))
                 inside = (-0.5 <= qx) & (qx < ww - 0.5) & (-0.5 <= qy) & (qy < hh - 0.5)
