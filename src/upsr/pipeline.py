@@ -446,8 +446,10 @@ class UPSR:
         return outs
 
     def process(self, frames: Iterable[npt.ArrayLike]) -> Iterator[np.ndarray]:
-        """Super-resolve a stream of frames; yields one high-res frame per input frame, each as
-        soon as its window is complete (see :meth:`feed`)."""
+        """Super-resolve a stream of frames; yields one high-res frame per input frame, in
+        order. Without workers each comes as soon as its window is complete (see
+        :meth:`feed`); with workers, once a worker has finished it (the engine reads up to
+        2·``workers`` windows ahead)."""
         if self._pool is None:
             for frame in frames:
                 yield from self.feed(frame)
