@@ -120,6 +120,7 @@ def test_run_options_reach_the_config(
         def __init__(self, *a: object, **k: object) -> None:
             super().__init__(*a, **k)
             seen["cfg"] = self.config
+            seen["workers"] = self.workers
 
     monkeypatch.setattr(pipeline, "UPSR", Spy)
     np.save(tmp_path / "in.npy", video())
@@ -154,9 +155,12 @@ def test_run_options_reach_the_config(
         "--speckle-px",
         0,
         "--no-refine",
+        "--workers",
+        0,
         "-q",
     )
     assert rc == 0, err
+    assert seen["workers"] == 0
     cfg = seen["cfg"]
     assert (cfg.flow_scale, cfg.refine_preset) == (2, "ultrafast")
     assert cfg.speckle_size_px == 0
@@ -418,6 +422,7 @@ def test_empty_frame_in_the_middle_is_fine(
         (["-r", "2", "-n", "3", "--flow-scale", "0"], "--flow-scale"),
         (["-r", "2", "-n", "3", "--refine-preset", "slow"], "--refine-preset"),
         (["-r", "2", "-n", "3", "--speckle-px", "-1"], "--speckle-px"),
+        (["-r", "2", "-n", "3", "--workers", "-1"], "--workers"),
         (["-r", "2", "-n", "3", "--depth-scale", "0"], "depth_scale"),
         (["-r", "2", "-n", "3", "--key", "depth"], "only applies to .npz"),
         (["-r", "2", "-n", "3", "--bogus"], "No such option"),
