@@ -1,6 +1,7 @@
 """upsr.parallel.both: two tasks side by side, same results as in sequence."""
 
 import multiprocessing
+import os
 import threading
 
 import numpy as np
@@ -105,7 +106,7 @@ def test_a_registered_backend_is_never_called_from_two_threads(monkeypatch):
 def test_window_pool_threads_run_numba_and_both_serially():
     import numba
 
-    from upsr.parallel import window_pool
+    from upsr.parallel import kernel_threads, window_pool
 
     assert window_pool(0) is None
     pool = window_pool(2)
@@ -121,5 +122,7 @@ def test_window_pool_threads_run_numba_and_both_serially():
 
     name, threads, order = pool.submit(inside).result()
     assert name.startswith("upsr-helper")
-    assert threads == 1
+    assert threads == kernel_threads(2)
+    if (os.cpu_count() or 1) <= 3:
+        assert threads == 1  # two cores: each kernel on its window's thread
     assert order == ["a", name]  # nested: on the same thread, in sequence

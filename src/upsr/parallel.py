@@ -12,8 +12,8 @@ those of running them one after the other.
 (:class:`upsr.UPSR` ``workers``): the windows of a video are independent once their frames'
 flows are known, so on two cores two windows at a time use both fully, where the threads of
 one window's kernels leave much of the second core idle or spinning. In those threads
-numba's kernels run on the calling thread only (``numba.set_num_threads(1)``) and
-:func:`both` runs serially.
+numba's kernels share out the cores the window threads leave (:func:`kernel_threads`: none
+on two cores, so each kernel runs on its window's thread) and :func:`both` runs serially.
 """
 
 from __future__ import annotations
@@ -26,7 +26,7 @@ from typing import TypeVar
 
 import numba as nb
 
-__all__ = ["both", "window_pool"]
+__all__ = ["both", "kernel_threads", "window_pool"]
 
 T = TypeVar("T")
 U = TypeVar("U")
@@ -78,8 +78,15 @@ def _touch(n):  # pragma: no cover - numba
     return total
 
 
-def _one_numba_thread() -> None:
-    nb.set_num_threads(1)  # per thread: this thread's parallel kernels run on it alone
+def kernel_threads(workers: int) -> int:
+    """Threads of the numba kernels run by one of ``workers`` window threads: the cores left
+    once each window thread and the caller have one (1 on a 2-core machine)."""
+    cores = os.cpu_count() or 1
+    return max(1, min(nb.config.NUMBA_NUM_THREADS, cores // (workers + 1)))
+
+
+def _set_kernel_threads(count: int) -> None:
+    nb.set_num_threads(count)  # per thread: the parallel kernels this thread launches
 
 
 def _threads_may_share_numba() -> bool:
@@ -107,6 +114,7 @@ def window_pool(workers: int) -> ThreadPoolExecutor | None:
             pool = _WINDOW_POOLS[workers] = ThreadPoolExecutor(
                 max_workers=workers,
                 thread_name_prefix=_THREAD_PREFIX,
-                initializer=_one_numba_thread,
+                initializer=_set_kernel_threads,
+                initargs=(kernel_threads(workers),),
             )
         return pool
