@@ -154,3 +154,16 @@ def test_block_prefilter_small_constant_and_factor_one_frames():
     np.testing.assert_allclose(
         out, bilateral_prefilter(upsample_nearest(low, 3), 40.0, 2.625), atol=0.01
     )
+
+
+def test_block_prefilter_treats_nan_inf_and_negative_as_invalid():
+    rng = np.random.default_rng(5)
+    low = rng.uniform(1500, 1600, (20, 24)).astype(np.float32)
+    bad = low.copy()
+    bad[3, 4], bad[10, 10], bad[15, 2], bad[0, 0] = np.nan, np.inf, -50.0, 0.0
+    clean = bad.copy()
+    clean[~(np.isfinite(clean) & (clean > 0))] = 0.0
+    out = bilateral_prefilter_nearest(bad, 3, 40.0, 2.625)
+    assert np.isfinite(out).all()
+    np.testing.assert_array_equal(out, bilateral_prefilter_nearest(clean, 3, 40.0, 2.625))
+    assert (out[upsample_nearest(clean, 3) == 0] == 0).all()

@@ -91,7 +91,7 @@ def bilateral_prefilter_nearest(
     Parameters
     ----------
     depth_mm : array_like, (h, w)
-        Low-res depth in mm, 0 = invalid.
+        Low-res depth in mm; 0, NaN, ±inf and negative values are invalid (0 in the output).
     factor : int
         Upsampling factor s ≥ 1.
     sigma_mm, sigma_px : float
@@ -101,7 +101,8 @@ def bilateral_prefilter_nearest(
     -------
     ndarray float32 (s·h, s·w)
     """
-    src = np.ascontiguousarray(depth_mm, dtype=np.float32)
+    src = np.asarray(depth_mm, dtype=np.float32)
+    src = np.where(np.isfinite(src) & (src > 0), src, np.float32(0.0))  # NaN, ±inf, ≤ 0: invalid
     factor = int(factor)
     radius = int(np.ceil(2.0 * sigma_px))
     h, w = src.shape
