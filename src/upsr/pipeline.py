@@ -94,7 +94,9 @@ class UPSR:
         0: each window is finished on the calling thread. Without effect (0) with a
         ``flow_backend`` or a registered flow backend, which may not be thread-safe.
         :meth:`push` and :meth:`process` finish up to 2·``workers`` windows ahead of the one
-        they return; :meth:`feed` returns its frames as early as without workers.
+        they return; :meth:`feed` returns its frames as early as without workers. The
+        threads are shared by the engines of a process (:func:`upsr.parallel.window_pool`):
+        engines already run side by side (several processes or threads) want ``workers=0``.
     **options
         Any :class:`~upsr.config.UPSRConfig` field (``deblur_*`` for :class:`DeblurConfig`).
 
