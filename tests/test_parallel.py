@@ -44,12 +44,21 @@ def test_nested_calls_run_serially_instead_of_deadlocking():
 
 
 def _child(queue):
-    queue.put(both(lambda: 3, lambda: 4))
+    from upsr.parallel import window_pool
+
+    pool = window_pool(2)
+    window = pool.submit(lambda: 5).result(timeout=30) if pool is not None else 5
+    queue.put((*both(lambda: 3, lambda: 4), window))
 
 
 @pytest.mark.skipif("fork" not in multiprocessing.get_all_start_methods(), reason="needs fork")
 def test_a_forked_child_gets_its_own_helper():
+    from upsr.parallel import window_pool
+
     both(lambda: None, lambda: None)  # the parent's helper thread exists
+    pool = window_pool(2)  # and its window threads
+    if pool is not None:
+        pool.submit(lambda: None).result()
     ctx = multiprocessing.get_context("fork")
     queue = ctx.Queue()
     proc = ctx.Process(target=_child, args=(queue,))
@@ -58,7 +67,7 @@ def test_a_forked_child_gets_its_own_helper():
     if proc.is_alive():  # a deadlocked helper: fail, do not hang the suite
         proc.kill()
     assert proc.exitcode == 0
-    assert queue.get(timeout=5) == (3, 4)
+    assert queue.get(timeout=5) == (3, 4, 5)
 
 
 def test_cumulative_motion_is_the_same_with_one_or_two_threads(monkeypatch):

@@ -92,8 +92,12 @@ def _set_kernel_threads(count: int) -> None:
 def _threads_may_share_numba() -> bool:
     """Whether several threads may run numba's parallel kernels at once: true for the "omp"
     and "tbb" threading layers, false for "workqueue" (which aborts the process)."""
-    _touch(2)  # starts the threading layer
-    return nb.threading_layer() in ("omp", "tbb")
+    try:
+        layer = nb.threading_layer()
+    except ValueError:  # not started yet (a forked child inherits its parent's)
+        _touch(2)
+        layer = nb.threading_layer()
+    return layer in ("omp", "tbb")
 
 
 def window_pool(workers: int) -> ThreadPoolExecutor | None:
