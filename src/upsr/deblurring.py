@@ -164,7 +164,6 @@ def _descent_step(
                 prev = terms[(i - dls[b]) % depth, q, c0 : c0 + n]
                 for j in range(n):
                     acc[j] += cur[j] - prev[j]
-            xr = xp[i + pad, pad + j0 : pad + j1]
             orow = out[i + pad, pad + j0 : pad + j1]
             zr = z[i, j0:j1]
             for j in range(n):

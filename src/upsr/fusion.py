@@ -87,6 +87,14 @@ def sorting_network(n: int) -> np.ndarray:
 
 
 @nb.njit(cache=True, nogil=True, inline="always")
+def _too_few_valid(w_valid, w_in, ref_value, min_valid_fraction):  # pragma: no cover - numba
+    """Whether a pixel is unknown: at most ``min_valid_fraction`` of the weight of its
+    in-frame samples is valid (a tie follows the reference: unknown if its sample is)."""
+    frac = w_valid / w_in
+    return frac < min_valid_fraction or (frac == min_valid_fraction and ref_value == 0.0)
+
+
+@nb.njit(cache=True, nogil=True, inline="always")
 def _fuse_pixel(
     vals, wts, nv, w_in, w_valid, ref_value, g, guide_bonus, min_valid_fraction, edge_mm, network
 ):  # pragma: no cover - numba
@@ -94,8 +102,7 @@ def _fuse_pixel(
     weights wts[k] (0 for invalid ones); nv valid samples; w_in, w_valid the weight of the
     in-frame and of the valid samples; ref_value the reference's sample (0 if none); g the
     guide (≤ 0 or NaN: none). Sorts vals/wts in place."""
-    frac = w_valid / w_in
-    if frac < min_valid_fraction or (frac == min_valid_fraction and ref_value == 0.0):
+    if _too_few_valid(w_valid, w_in, ref_value, min_valid_fraction):
         return np.float32(0.0)
     # sort the keys (invalid ones are +inf and end up last), weights alongside
     for c in range(network.shape[0]):
@@ -358,12 +365,8 @@ def _register_fuse_kernel(
             ref_value = r if (r == r and r > 0) else 0.0
             if one_surface:
                 # what _fuse_pixel gives on one surface, without sorting again
-                frac = w_valid / w_in
-                too_few = frac < min_valid_fraction
-                if too_few or (frac == min_valid_fraction and ref_value == 0.0):
-                    out[i, j] = 0.0
-                else:
-                    out[i, j] = median
+                few = _too_few_valid(w_valid, w_in, ref_value, min_valid_fraction)
+                out[i, j] = 0.0 if few else median
                 continue
             out[i, j] = _fuse_pixel(
                 vals,

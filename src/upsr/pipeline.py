@@ -17,7 +17,9 @@ For each reference frame t0 (every frame of the video):
 Windows: N frames with the reference in the middle (``(N-1)//2`` before it); near the ends of a
 video the window is shifted inwards so that it still holds N frames. Each consecutive flow (both
 directions) and each prefiltered frame is computed once per video and shared by every window
-that needs it; the engine keeps only what later windows need (about N frames of state).
+that needs it, and each frame's chain of sample positions (the forward splat) is extended by
+one flow per window; the engine keeps only what later windows need (about N frames of state).
+Complete windows are finished on ``workers`` threads side by side (same output).
 """
 
 from __future__ import annotations

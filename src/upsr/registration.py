@@ -382,8 +382,9 @@ def trace_to_reference(
     wf = some.shape[1] if some is not None else w * scale
     s = wf // w
     out = np.empty((n, h, w, 2), np.float32)
+    centres = sample_centres((h, w), s)
     for k in range(n):
-        pos = sample_centres((h, w), s)
+        pos = centres  # (advance_positions makes new arrays)
         for m in range(k, ref) if k < ref else range(k, ref, -1):
             pos = advance_positions(pos, (forward if k < ref else backward)[m])  # type: ignore[arg-type]
         to_output_grid(pos, scale / s, out=out[k])
