@@ -128,6 +128,26 @@ def _reflect101(p, n):  # pragma: no cover - numba
 
 
 @nb.njit(cache=True, nogil=True)
+def _border_classes(n, s, radius):  # pragma: no cover - numba
+    """Class of each of n rows (or columns) for the spatial block sums: the place y % s in
+    its block where the window (±radius) lies inside, else a class of its own; and one
+    representative row of each class."""
+    cls = np.empty(n, np.int64)
+    rep = np.full(s + n, -1, np.int64)  # -1: a place no row with an inner window has
+    m = s
+    for y in range(n):
+        if y - radius >= 0 and y + radius < n:
+            cls[y] = y % s
+            if rep[y % s] < 0:
+                rep[y % s] = y
+        else:
+            cls[y] = m
+            rep[m] = y
+            m += 1
+    return cls, rep[:m]
+
+
+@nb.njit(cache=True, nogil=True)
 def _block_bilateral_kernel(
     low, s, radius, sigma_mm, sigma_px, vmin, vmax, out
 ):  # pragma: no cover - numba
@@ -154,21 +174,22 @@ def _block_bilateral_kernel(
     lo = -((radius + s - 1) // s)
     hi = (s - 1 + radius) // s
     nb_ = hi - lo + 1
-    # inside the image: spatial weight sums per block, by the place (a, b) in the block
-    sums = np.zeros((s, s, nb_, nb_), np.float32)
-    for a in range(s):
-        for b in range(s):
+    # spatial weight sums per block, by the row class of a pixel's row and the column class
+    # of its column: the place in its block (a window inside the image), or, within
+    # ``radius`` px of the border, the row / column itself (a window with reflected taps)
+    row_class, row_rep = _border_classes(hh, s, radius)
+    col_class, col_rep = _border_classes(ww, s, radius)
+    sums = np.zeros((row_rep.size, col_rep.size, nb_, nb_), np.float32)
+    for cr in range(row_rep.size):
+        y = row_rep[cr]
+        for cc in range(col_rep.size):
+            x = col_rep[cc]
+            if y < 0 or x < 0:
+                continue  # an unused class
             for t in range(nt):
-                sums[a, b, (a + tap_dy[t]) // s - lo, (b + tap_dx[t]) // s - lo] += tap_w[t]
-    # near the border: the block of each reflected tap row / column
-    rows_of = np.empty((hh, side), np.int64)
-    for y in range(hh):
-        for k in range(side):
-            rows_of[y, k] = _reflect101(y + k - radius, hh) // s - y // s - lo
-    cols_of = np.empty((ww, side), np.int64)
-    for x in range(ww):
-        for k in range(side):
-            cols_of[x, k] = _reflect101(x + k - radius, ww) // s - x // s - lo
+                p = _reflect101(y + tap_dy[t], hh) // s - y // s - lo
+                q = _reflect101(x + tap_dx[t], ww) // s - x // s - lo
+                sums[cr, cc, p, q] += tap_w[t]
     # OpenCV's range weights: exp tabulated on 4096 bins of the image's span, interpolated
     scale_index = np.float32(4096.0) / np.float32(vmax - vmin)
     lut = np.empty(4098, np.float32)
@@ -177,7 +198,6 @@ def _block_bilateral_kernel(
         lut[i] = math.exp(val * val * color_coeff)
     wn = np.empty((nb_, nb_), np.float32)
     wd = np.empty((nb_, nb_), np.float32)
-    local = np.empty((nb_, nb_), np.float32)
     for bi_ in range(h):
         for bj_ in range(w):
             c = low[bi_, bj_]
@@ -196,25 +216,11 @@ def _block_bilateral_kernel(
                     wgt = lut[k] + np.float32(alpha) * (lut[k + 1] - lut[k])
                     wd[p, q] = wgt
                     wn[p, q] = wgt * v
-            inside = (
-                bi_ * s - radius >= 0
-                and (bi_ + 1) * s - 1 + radius < hh
-                and bj_ * s - radius >= 0
-                and (bj_ + 1) * s - 1 + radius < ww
-            )
             for a in range(s):
                 y = bi_ * s + a
                 for b in range(s):
                     x = bj_ * s + b
-                    if inside:
-                        spatial = sums[a, b]
-                    else:
-                        local[:, :] = 0.0
-                        ry = rows_of[y]
-                        rx = cols_of[x]
-                        for t in range(nt):
-                            local[ry[tap_dy[t] + radius], rx[tap_dx[t] + radius]] += tap_w[t]
-                        spatial = local
+                    spatial = sums[row_class[y], col_class[x]]
                     num = np.float32(0.0)
                     den = np.float32(0.0)
                     for p in range(nb_):
