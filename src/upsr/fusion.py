@@ -238,6 +238,9 @@ def _register_fuse_kernel(
     for x in range(big):
         low_of[x] = x // scale
         centre_of[x] = (x // scale + 0.5) * scale - 0.5
+    half = np.float32(0.5)
+    inv_r = np.float32(1.0 / scale)
+    w_low = lowres.shape[2]
     col_a = cols[:, 0].copy()
     col_b = cols[:, 1].copy()
     for i in nb.prange(hh):
@@ -262,8 +265,11 @@ def _register_fuse_kernel(
         on_b = np.empty(m_on, np.int64)
         on_fx = np.empty(m_on, np.float32)
         on_low = np.empty(m_on, np.int64)
+        on_jd = np.empty(m_on, np.float64)
+        fi = np.float64(i)
         for q in range(m_on):
             j = on[q]
+            on_jd[q] = np.float64(j)
             on_a[q] = col_a[j]
             on_b[q] = col_b[j]
             on_fx[q] = fx[j]
@@ -274,6 +280,9 @@ def _register_fuse_kernel(
         srt = np.empty((n, m_on), np.float32)  # the valid samples (+inf for the others), sorted
         n_in = np.zeros(m_on, np.int64)
         nv = np.zeros(m_on, np.int64)
+        px = np.empty(m_on, np.float64)  # where the sample lies (output px)
+        py = np.empty(m_on, np.float64)
+        at = np.empty(m_on, np.int64)  # its low-res pixel (flat index; -1: outside)
         vx = np.empty((n, grid_w), np.float32)
         vy = np.empty((n, grid_w), np.float32)
         vals = np.empty(n, np.float32)
@@ -302,28 +311,53 @@ def _register_fuse_kernel(
             for c in range(grid_w):
                 vxk[c] = ((1 - gy) * m0[c, 0] + gy * m1[c, 0]) * ratio
                 vyk[c] = ((1 - gy) * m0[c, 1] + gy * m1[c, 1]) * ratio
-            lk = lowres[k]
+            lk = lowres[k].ravel()
             rk = raw[k]
             sk = srt[k]
+            # where each pixel's sample lies, which low-res pixel that is, its value: three
+            # loops over few arrays each (so that they vectorise)
             for q in range(m_on):
-                j = on[q]
                 a = on_a[q]
                 b = on_b[q]
                 gx = on_fx[q]
-                qx = j + (vxk[a] + gx * (vxk[b] - vxk[a]))
-                qy = i + (vyk[a] + gx * (vyk[b] - vyk[a]))
+                px[q] = on_jd[q] + (vxk[a] + gx * (vxk[b] - vxk[a]))
+                py[q] = fi + (vyk[a] + gx * (vyk[b] - vyk[a]))
+            for q in range(m_on):
+                qx = px[q]
+                qy = py[q]
                 inside = (-0.5 <= qx) & (qx < ww - 0.5) & (-0.5 <= qy) & (qy < hh - 0.5)
-                xi = min(max(int(qx + 0.5), 0), ww - 1)  # qx + 0.5 >= 0 inside: the floor
-                yi = min(max(int(qy + 0.5), 0), hh - 1)
-                v = lk[low_of[yi], low_of[xi]]
+                xi = min(max(np.int64(qx + 0.5), 0), ww - 1)  # qx + 0.5 >= 0 inside: the floor
+                yi = min(max(np.int64(qy + 0.5), 0), hh - 1)
+                # x // r exactly, without a division: (x + 0.5)/r is ≥ 0.5/r from an integer
+                xl = np.int64((np.float32(xi) + half) * inv_r)
+                yl = np.int64((np.float32(yi) + half) * inv_r)
+                at[q] = (yl * w_low + xl) if inside else np.int64(-1)
+            for q in range(m_on):
+                t = at[q]
+                v = lk[max(t, 0)]
+                inside = t >= 0
                 valid = inside & (v > 0)
                 rk[q] = v if inside else nan
                 sk[q] = v if valid else inf
                 n_in[q] += 1 if inside else 0
                 nv[q] += 1 if valid else 0
         _sort_columns(srt, network)
+        # the common case, branch-free (SIMD): every sample valid and one surface (a span
+        # of at most edge_mm): the plain median; the other pixels go through the loop below
+        plain = np.empty(m_on, np.float32)
+        other = np.empty(m_on, np.bool_)
+        lo_row = srt[0]
+        hi_row = srt[n - 1]
+        mid_a = srt[(n - 1) // 2]
+        mid_b = srt[n // 2]
+        for q in range(m_on):
+            plain[q] = np.float32(0.5) * (mid_a[q] + mid_b[q]) if n % 2 == 0 else mid_b[q]
+            other[q] = (nv[q] < n) | (hi_row[q] - lo_row[q] > edge_mm)
         for q in range(m_on):
             j = on[q]
+            if not other[q]:
+                out[i, j] = plain[q]
+                continue
             m = nv[q]
             if m == 0:
                 out[i, j] = 0.0  # no valid sample
