@@ -89,6 +89,24 @@ def test_spurious_motion_is_suppressed_but_real_motion_and_invalid_pixels_are_ke
     assert (kept[40:50, 78:82, 0] == 4.0).all()  # at the blob's moving edge
 
 
+def test_spurious_motion_on_8bit_images_equals_their_float_values():
+    from upsr.motion import suppress_spurious_motion
+
+    rng = np.random.default_rng(4)
+    a = depth_to_u8(_blob() + rng.normal(0, 6, (96, 128)).astype(np.float32), 2000.0, 3200.0)
+    b = depth_to_u8(
+        _blob(shift_x=3.0) + rng.normal(0, 6, (96, 128)).astype(np.float32), 2000.0, 3200.0
+    )
+    a[:, :8] = 0
+    flow = rng.normal(0, 2.0, (96, 128, 2)).astype(np.float32)
+    flow[30:60, 40:80, 0] += 3.0
+    kw = {"window_px": 7, "noise_mm": 2.0, "edge_mm": 12.0, "edge_window_px": 13}
+    as_u8 = suppress_spurious_motion(a, b, flow, **kw)
+    as_float = suppress_spurious_motion(a.astype(np.float32), b.astype(np.float32), flow, **kw)
+    assert (as_u8 == 0).any() and (as_u8 != 0).any()  # both outcomes occur
+    np.testing.assert_array_equal(as_u8, as_float)
+
+
 @pytest.mark.parametrize("name", ["dis", "farneback"])
 def test_flow_does_not_depend_on_earlier_calls(name):
     # a chunk of a video must give what the whole run gives: no state between calls

@@ -284,7 +284,9 @@ def suppress_spurious_motion(
     Parameters
     ----------
     first_mm, second_mm : ndarray (H, W)
-        The (prefiltered, upsampled) depth frames the flow was estimated on, in mm.
+        The (prefiltered, upsampled) depth frames the flow was estimated on, in mm; or two
+        8-bit images of depth (uint8, e.g. :func:`depth_to_u8`: kept 8-bit, same result as
+        their float32 values).
     flow : ndarray (H, W, 2)
         Flow from ``first`` to ``second``.
     window_px : int
@@ -304,8 +306,10 @@ def suppress_spurious_motion(
     -------
     ndarray (H, W, 2) float32, a copy of ``flow`` with the unsupported motion zeroed.
     """
-    first = np.ascontiguousarray(first_mm, np.float32)
-    second = np.ascontiguousarray(second_mm, np.float32)
+    # 8-bit images (the guides of eq. 19) stay 8-bit: the same values, faster filters
+    dtype = np.uint8 if np.result_type(first_mm, second_mm) == np.uint8 else np.float32
+    first = np.ascontiguousarray(first_mm, dtype)
+    second = np.ascontiguousarray(second_mm, dtype)
     warped = remap_by_flow(second, flow, cv2.INTER_NEAREST, cv2.BORDER_REPLICATE)
     # both squared residuals in one 2-channel image, box-filtered in one call
     squared = np.empty((*first.shape, 2), np.float32)
@@ -348,8 +352,10 @@ def _squared_residuals(first, second, warped, out):  # pragma: no cover - numba
             b = sr[j]
             c = wr[j]
             ok = (a > 0) & (b > 0) & (c > 0)
-            orow[j, 0] = (a - c) * (a - c) if ok else np.float32(0.0)
-            orow[j, 1] = (a - b) * (a - b) if ok else np.float32(0.0)
+            d1 = np.float32(a) - np.float32(c)
+            d2 = np.float32(a) - np.float32(b)
+            orow[j, 0] = d1 * d1 if ok else np.float32(0.0)
+            orow[j, 1] = d2 * d2 if ok else np.float32(0.0)
 
 
 @nb.njit(cache=True, nogil=True)

@@ -257,10 +257,7 @@ class UPSR:
         near, far = self._range  # type: ignore[misc]
         flow = self._residual_flow(first, second)  # type: ignore[misc]
         return self._supported_flow(
-            first.astype(np.float32),
-            second.astype(np.float32),
-            flow,
-            units_per_mm=254.0 / max(far - near, 1e-6),
+            first, second, flow, units_per_mm=254.0 / max(far - near, 1e-6)
         )
 
     def _supported_flow(
