@@ -50,32 +50,27 @@ def _shift_table(radius: int, alpha: float, lam: float = 1.0):
 
 @nb.njit(cache=True, nogil=True, parallel=True)
 def _pair_masks(gp, dls, dms, pad, edge_mm, shifts, masks):  # pragma: no cover - numba
-    """Bit b % 31 of masks[b // 31, i, j] is set where the pair (p, p + shift b) is
-    regularised: both pixels valid in the guide and on one surface (|Δguide| ≤ edge_mm), for
-    the shifts b in ``shifts`` (the other bits stay 0). Computed once per image. ``gp`` is the
-    guide zero-padded by ``pad`` ≥ P on every side (outside the image = invalid), so that the
-    loop over a row has no bounds test and vectorises (SIMD)."""
-    words, h, w = masks.shape
+    """masks[q, i, j] = 1 where the pair (p, p + shift b), b = shifts[q], is regularised:
+    both pixels valid in the guide and on one surface (|Δguide| ≤ edge_mm); else 0. Computed
+    once per image. ``gp`` is the guide zero-padded by ``pad`` ≥ P on every side (outside the
+    image = invalid), so that the loop over a row has no bounds test and vectorises (SIMD).
+    One byte per pair: the descent reads it with one load and one conversion."""
+    n_shifts, h, w = masks.shape
     for i in nb.prange(h):
         g = gp[i + pad, pad : pad + w]
-        for word in range(words):
-            m = masks[word, i]
-            m[:] = 0
-            for b in shifts:
-                if b // 31 != word:
-                    continue
-                c0 = pad + dms[b]
-                n = gp[i + pad + dls[b], c0 : c0 + w]
-                bit = np.int32(b - word * 31)
-                for j in range(w):
-                    ok = (g[j] > 0) & (n[j] > 0) & (abs(n[j] - g[j]) <= edge_mm)
-                    m[j] |= np.int32(ok) << bit
+        for q in range(n_shifts):
+            b = shifts[q]
+            c0 = pad + dms[b]
+            n = gp[i + pad + dls[b], c0 : c0 + w]
+            m = masks[q, i]
+            for j in range(w):
+                m[j] = np.uint8((g[j] > 0) & (n[j] > 0) & (abs(n[j] - g[j]) <= edge_mm))
 
 
 @nb.njit(cache=True, nogil=True, inline="always", fastmath=True)
 def _btv_row(xp, masks, weights, dls, dms, pad, i, j0, j1, acc):  # pragma: no cover - numba
-    """acc[j] = Σ_b weights[b]·sign(x[i, j] − x[(i, j) + shift b]) over the pairs of masks[i],
-    for j0 ≤ j < j1 (acc[j − j0]).
+    """acc[j] = Σ_b weights[b]·sign(x[i, j] − x[(i, j) + shift b]) over the pairs of
+    masks[b, i] (the masks of every shift), for j0 ≤ j < j1 (acc[j − j0]).
 
     ``xp`` is x zero-padded by ``pad`` ≥ P on every side, so that the loop over j reads
     every shifted row without a bounds test and vectorises (SIMD)."""
@@ -86,12 +81,11 @@ def _btv_row(xp, masks, weights, dls, dms, pad, i, j0, j1, acc):  # pragma: no c
         wb = weights[b]
         c0 = pad + dms[b] + j0
         xn = xp[i + pad + dls[b], c0 : c0 + w]
-        mrow = masks[b // 31, i, j0:j1]
-        bit = np.int32(b % 31)
+        mrow = masks[b, i, j0:j1]
         for j in range(w):
             d = xr[j] - xn[j]
             s = np.float32(d > 0) - np.float32(d < 0)
-            acc[j] += s * (wb * np.float32((mrow[j] >> bit) & np.int32(1)))
+            acc[j] += s * (wb * np.float32(mrow[j]))
 
 
 @nb.njit(cache=True, nogil=True, parallel=True)
@@ -115,7 +109,8 @@ def _descent_step(
     Each pair of pixels is visited once: the term T_b(p) = w_b·sign(x_p − x_{p+s_b}) of a
     shift s_b in ``pos`` (the half of the shifts that point down or right) enters the
     gradient at p with + and at p + s_b with − (the pair and its rule are symmetric), so
-    the gradient at p is Σ_b T_b(p) − T_b(p − s_b). The terms of the last ``pad`` + 1 rows
+    the gradient at p is Σ_b T_b(p) − T_b(p − s_b) (masks[q]: the mask of shift pos[q]).
+    The terms of the last ``pad`` + 1 rows
     are kept in a ring; the rows are cut into ``n_chunks`` bands (one per thread), each
     starting ``pad`` rows early. The result does not depend on ``n_chunks``."""
     h, w = z.shape
@@ -146,13 +141,12 @@ def _descent_step(
                 wb = weights[b]
                 c0 = pad + dms[b] + j0
                 xn = xp[i + pad + dls[b], c0 : c0 + n]
-                mrow = masks[b // 31, i, j0:j1]
-                bit = np.int32(b % 31)
+                mrow = masks[q, i, j0:j1]
                 trow = terms[slot, q, pad + j0 : pad + j1]
                 for j in range(n):
                     d = xr[j] - xn[j]
                     sgn = np.float32(d > 0) - np.float32(d < 0)
-                    trow[j] = sgn * (wb * np.float32((mrow[j] >> bit) & np.int32(1)))
+                    trow[j] = sgn * (wb * np.float32(mrow[j]))
             if i < r0 or j1 <= j0:
                 continue
             # (every loop index below is the loop variable: no index arithmetic, SIMD)
@@ -197,10 +191,10 @@ def _masks(
     edge_mm: float,
     shifts: np.ndarray | None = None,
 ) -> np.ndarray:
-    """The pair masks of :func:`_pair_masks` for ``shifts`` (default: all)."""
-    masks = np.empty((-(-dls.size // 31), *guide.shape), np.int32)
-    pad = int(max(np.abs(dls).max(initial=0), np.abs(dms).max(initial=0)))
+    """The pair masks of :func:`_pair_masks` for ``shifts`` (default: all, in order)."""
     which = np.arange(dls.size) if shifts is None else np.asarray(shifts, np.int64)
+    masks = np.empty((which.size, *guide.shape), np.uint8)
+    pad = int(max(np.abs(dls).max(initial=0), np.abs(dms).max(initial=0)))
     _pair_masks(_padded(guide, pad), dls, dms, pad, float(edge_mm), which, masks)
     return masks
 

@@ -256,9 +256,7 @@ class UPSR:
         """Residual flow between registered guide images (eq. 19), spurious motion removed."""
         near, far = self._range  # type: ignore[misc]
         flow = self._residual_flow(first, second)  # type: ignore[misc]
-        return self._supported_flow(
-            first, second, flow, units_per_mm=254.0 / max(far - near, 1e-6)
-        )
+        return self._supported_flow(first, second, flow, units_per_mm=254.0 / max(far - near, 1e-6))
 
     def _supported_flow(
         self, first: np.ndarray, second: np.ndarray, flow: np.ndarray, units_per_mm: float

@@ -232,6 +232,8 @@ def cumulative_flows(
                 cum = compose_flows(maps[prev], step)
                 residual = refine(registered[prev], warp_guide(guides[j], cum))  # type: ignore
                 compose_flows(residual, cum, out=out[j])
+            elif prev == ref:
+                out[j] = step  # composed with the reference's zero motion: the step itself
             else:
                 compose_flows(maps[prev], step, out=out[j])
             maps[j] = out[j]
