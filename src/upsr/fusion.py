@@ -104,17 +104,20 @@ def _fuse_pixel(
     guide (≤ 0 or NaN: none). Sorts vals/wts in place."""
     if _too_few_valid(w_valid, w_in, ref_value, min_valid_fraction):
         return np.float32(0.0)
-    # sort the keys (invalid ones are +inf and end up last), weights alongside
+    # sort the keys (invalid ones are +inf and end up last), weights alongside; branch-free
+    # (the order of the samples of an edge pixel is random: a branch would mispredict)
     for c in range(network.shape[0]):
         a = network[c, 0]
         b = network[c, 1]
-        if vals[a] > vals[b]:
-            tv = vals[a]
-            vals[a] = vals[b]
-            vals[b] = tv
-            tw = wts[a]
-            wts[a] = wts[b]
-            wts[b] = tw
+        va = vals[a]
+        vb = vals[b]
+        wa = wts[a]
+        wb = wts[b]
+        swap = va > vb
+        vals[a] = vb if swap else va
+        vals[b] = va if swap else vb
+        wts[a] = wb if swap else wa
+        wts[b] = wa if swap else wb
     if vals[nv - 1] - vals[0] <= edge_mm:
         return _median_sorted(vals, 0, nv)
     # samples from several surfaces (a depth edge): the surface with the largest vote
