@@ -321,7 +321,7 @@ def _select_pair(d, k, lo, hi):  # pragma: no cover - numba
     n = d.size
     bins = np.empty(n, np.int32)
     for i in range(n):
-        bins[i] = min(max(np.int32((d[i] - lo) * scale), 0), n_bins - 1)
+        bins[i] = min(max(np.int64((d[i] - lo) * scale), 0), n_bins - 1)
     partial = np.zeros((4, n_bins), np.int32)
     n4 = n - n % 4
     for i in range(0, n4, 4):
