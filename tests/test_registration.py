@@ -124,3 +124,21 @@ def test_trace_to_reference_follows_the_chain_of_flows():
         mx, my = cv2.split(cv2.remap(maps[k], gx, gy, cv2.INTER_LINEAR))
         np.testing.assert_allclose(pos[k, ..., 0], cx[None, :] + mx, atol=2e-3)
         np.testing.assert_allclose(pos[k, ..., 1], cy[:, None] + my, atol=2e-3)
+
+
+def test_cumulative_flows_are_the_chain_of_compositions():
+    # every map is the composition of the consecutive flows from the reference (the
+    # reference's neighbours take their flow as it is: composing with the zero motion)
+    xs, ys = identity_grid(H, W)
+    n, ref = 5, 2
+    forward = [(_field("swirl", xs + 3 * k, ys) * 0.7).astype(np.float32) for k in range(n)]
+    backward = [(-_field("wave", xs, ys + 2 * k) * 0.6).astype(np.float32) for k in range(n)]
+    maps = cumulative_flows(ref, backward, forward, (H, W))
+    zero = np.zeros((H, W, 2), np.float32)
+    expected = {ref: zero}
+    for j in range(ref + 1, n):
+        expected[j] = compose_flows(expected[j - 1], forward[j - 1])
+    for j in range(ref - 1, -1, -1):
+        expected[j] = compose_flows(expected[j + 1], backward[j + 1])
+    for j in range(n):
+        np.testing.assert_array_equal(maps[j], expected[j])
