@@ -244,8 +244,6 @@ def _register_fuse_kernel(
     half = np.float32(0.5)
     inv_r = np.float32(1.0 / scale)
     w_low = lowres.shape[2]
-    col_a = cols[:, 0].copy()
-    col_b = cols[:, 1].copy()
     for i in nb.prange(hh):
         y0 = rows[i, 0]
         y1 = rows[i, 1]
@@ -273,8 +271,8 @@ def _register_fuse_kernel(
         for q in range(m_on):
             j = on[q]
             on_jd[q] = np.float64(j)
-            on_a[q] = col_a[j]
-            on_b[q] = col_b[j]
+            on_a[q] = cols[j, 0]
+            on_b[q] = cols[j, 1]
             on_fx[q] = fx[j]
             on_low[q] = low_of[j]
         # one output row at a time, every frame's sample of each of those pixels: loops
@@ -283,19 +281,19 @@ def _register_fuse_kernel(
         srt = np.empty((n, m_on), np.float32)  # the valid samples (+inf for the others), sorted
         n_in = np.zeros(m_on, np.int64)
         nv = np.zeros(m_on, np.int64)
-        px = np.empty(m_on, np.float64)  # where the sample lies (output px)
-        py = np.empty(m_on, np.float64)
+        px = np.empty((n, m_on), np.float64)  # where each sample lies (output px)
+        py = np.empty((n, m_on), np.float64)
         at = np.empty(m_on, np.int64)  # its low-res pixel (flat index; -1: outside)
-        vx = np.empty((n, grid_w), np.float32)
-        vy = np.empty((n, grid_w), np.float32)
+        vxk = np.empty(grid_w, np.float32)
+        vyk = np.empty(grid_w, np.float32)
         vals = np.empty(n, np.float32)
         wts = np.empty(n, np.float32)
         for k in range(n):
             if k == still:
                 # a frame that does not move (the reference): the sample of each pixel is
                 # its own low-res pixel, as the general case below gives for a zero flow
-                vx[k] = 0.0  # (read where the vote weights are needed)
-                vy[k] = 0.0
+                px[k] = on_jd  # (read where the vote weights are needed)
+                py[k] = fi
                 own = lowres[k, low_of[i]]
                 raw_k = raw[k]
                 srt_k = srt[k]
@@ -309,25 +307,25 @@ def _register_fuse_kernel(
             # the flow-grid row interpolated to this output row, in output px (times r/s)
             m0 = maps[k, y0]
             m1 = maps[k, y1]
-            vxk = vx[k]
-            vyk = vy[k]
             for c in range(grid_w):
                 vxk[c] = ((1 - gy) * m0[c, 0] + gy * m1[c, 0]) * ratio
                 vyk[c] = ((1 - gy) * m0[c, 1] + gy * m1[c, 1]) * ratio
             lk = lowres[k].ravel()
             rk = raw[k]
             sk = srt[k]
+            pxk = px[k]
+            pyk = py[k]
             # where each pixel's sample lies, which low-res pixel that is, its value: three
             # loops over few arrays each (so that they vectorise)
             for q in range(m_on):
                 a = on_a[q]
                 b = on_b[q]
                 gx = on_fx[q]
-                px[q] = on_jd[q] + (vxk[a] + gx * (vxk[b] - vxk[a]))
-                py[q] = fi + (vyk[a] + gx * (vyk[b] - vyk[a]))
+                pxk[q] = on_jd[q] + (vxk[a] + gx * (vxk[b] - vxk[a]))
+                pyk[q] = fi + (vyk[a] + gx * (vyk[b] - vyk[a]))
             for q in range(m_on):
-                qx = px[q]
-                qy = py[q]
+                qx = pxk[q]
+                qy = pyk[q]
                 inside = (-0.5 <= qx) & (qx < ww - 0.5) & (-0.5 <= qy) & (qy < hh - 0.5)
                 xi = min(max(np.int64(qx + 0.5), 0), ww - 1)  # qx + 0.5 >= 0 inside: the floor
                 yi = min(max(np.int64(qy + 0.5), 0), hh - 1)
@@ -377,17 +375,14 @@ def _register_fuse_kernel(
             # position to the centre of the low-res pixel sampled there
             w_in = 0.0
             w_valid = 0.0
-            a = col_a[j]
-            b = col_b[j]
-            gx = fx[j]
             for k in range(n):
                 v = raw[k, q]
                 vals[k] = inf
                 wts[k] = 0.0
                 if v != v:
                     continue
-                qx = j + (vx[k, a] + gx * (vx[k, b] - vx[k, a]))
-                qy = i + (vy[k, a] + gx * (vy[k, b] - vy[k, a]))
+                qx = px[k, q]
+                qy = py[k, q]
                 ex = abs(qx - centre_of[int(qx + 0.5)])
                 ey = abs(qy - centre_of[int(qy + 0.5)])
                 gx_k = table[min(int(ex * step + 0.5), last)]
