@@ -3,10 +3,10 @@
 For each scene, UP-SR's fused frames (``deblur=False``, no speckle removal) are computed once;
 then
 
-* the deblurring (:func:`upsr.deblurring.deblur`, defaults but ``iterations``) is run with
+* the deblurring (:func:`upsr.method.deblurring.deblur`, defaults but ``iterations``) is run with
   10, 15 (the default), 20 and 30 subgradient steps: the objective of eq. 30 (mean over every
   4th frame, without the final surface smoothing) and the SPEC §6 metrics of the output;
-* the speckle removal (:func:`upsr.outliers.remove_speckles`, r² px, 100 mm) is switched off
+* the speckle removal (:func:`upsr.method.outliers.remove_speckles`, r² px, 100 mm) is switched off
   and on after the default deblurring: pixels removed and SPEC §6 metrics.
 
 Scenes: Samba meshes 0–12 (256×147 → 1024×588, r = 4, N = 9) at σ = 10, 30, 60, 100 mm (needs
@@ -27,11 +27,11 @@ from typing import Any
 import numpy as np
 
 import upsr
-from upsr.config import DeblurConfig, UPSRConfig
-from upsr.deblurring import deblur, deblur_energy
-from upsr.metrics import evaluate
-from upsr.outliers import remove_speckles
-from upsr.synth import add_laplacian_noise, dynamic_scene
+from upsr.method.config import DeblurConfig, UPSRConfig
+from upsr.method.deblurring import deblur, deblur_energy
+from upsr.method.outliers import remove_speckles
+from upsr.research.metrics import evaluate
+from upsr.research.synth import add_laplacian_noise, dynamic_scene
 
 ITERATIONS = (10, 15, 20, 30)
 SAMBA_SIGMAS = (10.0, 30.0, 60.0, 100.0)
@@ -79,7 +79,7 @@ def main(argv: list[str] | None = None) -> int:
     tof = dynamic_scene(n_frames=30, lowres_shape=(56, 64), scale=4, noise_sigma_mm=20.0, seed=0)
     rows += scene_rows("ToF 64x56 sigma=20", tof.lowres, tof.truth, 4)
     if (Path(args.data) / "samba" / "mesh_0000.obj").is_file():
-        from upsr.experiments.data import render_samba, samba_mesh_paths
+        from upsr.research.experiments.data import render_samba, samba_mesh_paths
 
         rendered = render_samba(
             samba_mesh_paths(Path(args.data), 0, 13), width=1024, height=588, scales=(1, 4)

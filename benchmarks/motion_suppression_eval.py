@@ -4,7 +4,7 @@ Two scenes, each super-resolved with the suppression on (default) and off:
 
 * a smooth body drifting sideways: the Samba dancer (meshes 0–10) moved 40 mm per frame,
   truth 512², input 512²/r, Laplacian noise σ = 30 mm (needs ``--data``);
-* a static slanted wall behind a moving object: :func:`upsr.synth.dynamic_scene`, r = 4,
+* a static slanted wall behind a moving object: :func:`upsr.research.synth.dynamic_scene`, r = 4,
   σ = 30 mm.
 
 Prints the SPEC §6 metrics (frames 3–7 pooled) of each run::
@@ -20,8 +20,8 @@ from pathlib import Path
 import numpy as np
 
 import upsr
-from upsr.metrics import evaluate
-from upsr.synth import add_laplacian_noise, dynamic_scene
+from upsr.research.metrics import evaluate
+from upsr.research.synth import add_laplacian_noise, dynamic_scene
 
 SETTINGS = {"suppression on": {}, "suppression off": {"zero_motion_tolerance": None}}
 KEYS = ("rmse", "surface_rmse", "edge_accuracy", "flying_pixels", "invented")
@@ -39,7 +39,7 @@ def main() -> int:
     p.add_argument("--data", default=str(Path(__file__).resolve().parents[2] / "shared" / "data"))
     args = p.parse_args()
     if (Path(args.data) / "samba").is_dir():
-        from upsr.experiments.data import render_samba, samba_mesh_paths
+        from upsr.research.experiments.data import render_samba, samba_mesh_paths
 
         paths = samba_mesh_paths(args.data, 0, 11)
         rend = render_samba(paths, width=512, height=512, scales=(1, 4), lateral_mm_per_frame=40)

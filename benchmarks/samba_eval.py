@@ -12,7 +12,7 @@ silhouettes"; triangle meshes in metres, Y up) is rendered with one fixed pinhol
 Each noisy low-res video is saved as ``lowres_sigma{σ}.npy`` and super-resolved by the command
 line exactly as a user would run it (``upsr run lowres.npy -o upsr.npy --scale r --frames N``),
 with and without deblurring; nearest and bicubic upsampling are the baselines. All methods are
-scored with :func:`upsr.metrics.evaluate` on all frames (pooled). Renders are cached in
+scored with :func:`upsr.research.metrics.evaluate` on all frames (pooled). Renders are cached in
 ``--out`` so that reruns with the same geometry only redo the super-resolution.
 
 Examples
@@ -41,12 +41,12 @@ from typing import Any
 
 import numpy as np
 
-from upsr import baselines
 from upsr.errors import InputError
-from upsr.experiments.data import render_samba
-from upsr.metrics import evaluate
-from upsr.synth.degradation import add_laplacian_noise
-from upsr.synth.render import SAMBA_BOUNDS_M, SAMBA_VIEW_DIR, PinholeCamera, mesh_bounds
+from upsr.research import baselines
+from upsr.research.experiments.data import render_samba
+from upsr.research.metrics import evaluate
+from upsr.research.synth.degradation import add_laplacian_noise
+from upsr.research.synth.render import SAMBA_BOUNDS_M, SAMBA_VIEW_DIR, PinholeCamera, mesh_bounds
 
 __all__ = ["main"]
 
@@ -71,7 +71,7 @@ def upsr_command() -> list[str]:
     found = shutil.which("upsr")
     if found:
         return [found]
-    return [sys.executable, "-m", "upsr.cli"]
+    return [sys.executable, "-m", "upsr.apps.cli.main"]
 
 
 def run_upsr_cli(

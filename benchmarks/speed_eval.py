@@ -14,7 +14,7 @@ Four measurements, one table each, all written to ``--out/results.json``:
   (defaults, and one window at a time) and the per-stage breakdown of the latter (I/O,
   prefilter, flow, registration, fusion, deblurring).
 * **Straightforward path**: the same Samba frames through
-  :func:`upsr.reference.super_resolve_straightforward` (every window recomputes its upsampled
+  :func:`upsr.research.oracle.super_resolve_straightforward` (every window recomputes its upsampled
   frames, prefilter and flows at the full r; NumPy median and NumPy BTV), measured in the same
   run; speed-up, and SPEC §6 accuracy of both against the rendered truth.
 * **Memory**: ``upsr run`` on a 1000-frame 256×147 PNG folder (the Samba renders played back
@@ -47,12 +47,12 @@ from typing import Any
 import numpy as np
 
 import upsr
-from upsr import io
-from upsr.config import UPSRConfig
-from upsr.metrics import evaluate
-from upsr.pipeline import STAGES
-from upsr.synth import dynamic_scene
-from upsr.synth.degradation import add_laplacian_noise
+from upsr.io import _core as io
+from upsr.method.config import UPSRConfig
+from upsr.method.windowed import STAGES
+from upsr.research.metrics import evaluate
+from upsr.research.synth import dynamic_scene
+from upsr.research.synth.degradation import add_laplacian_noise
 
 __all__ = ["main"]
 
@@ -144,7 +144,7 @@ def tof_benchmark(n_frames: int, options: dict[str, Any], runs: int = 3) -> dict
 # --------------------------------------------------------------------------------------------
 def samba_frames(data: Path, count: int, sigma: float, cache: Path) -> tuple[np.ndarray, ...]:
     """(truth 1024×588, noisy low-res 256×147) for the first ``count`` Samba meshes."""
-    from upsr.experiments.data import render_samba, samba_mesh_paths
+    from upsr.research.experiments.data import render_samba, samba_mesh_paths
 
     rendered = render_samba(
         samba_mesh_paths(data, 0, count), width=1024, height=588, scales=(1, 4), cache_dir=cache
@@ -208,7 +208,7 @@ def samba_benchmark(
 
 def straightforward_benchmark(truth: np.ndarray, lowres: np.ndarray) -> dict[str, Any]:
     """The same frames through the straightforward path (in memory, no I/O)."""
-    from upsr.reference import super_resolve_straightforward
+    from upsr.research.oracle import super_resolve_straightforward
 
     cfg = UPSRConfig(scale=4, n_frames=9)
     start = time.perf_counter()

@@ -1,10 +1,10 @@
 """Accuracy benchmark on the built-in synthetic dynamic scenes (no external data needed).
 
 A slanted wall (or no background: depth 0, "no return") with a moving, breathing blob and a
-rotating arm (:func:`upsr.synth.dynamic_scene`) is point-sampled at low resolution with
+rotating arm (:func:`upsr.research.synth.dynamic_scene`) is point-sampled at low resolution with
 Laplacian noise of std σ and super-resolved by the command line exactly as a user would run
 it (``upsr run lowres.npy -o out.npy --scale r``). Nearest and bicubic upsampling are the
-baselines; every method is scored with the SPEC §6 metrics (:func:`upsr.metrics.evaluate`),
+baselines; every method is scored with the SPEC §6 metrics (:func:`upsr.research.metrics.evaluate`),
 pooled over all frames. The acceptance criteria of issue #2 are checked and printed per case:
 
 * surface RMSE ≤ 0.3·σ (σ > 0),
@@ -31,9 +31,9 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from samba_eval import print_table, run_upsr_cli, write_results
-from upsr import baselines
-from upsr.metrics import evaluate
-from upsr.synth import dynamic_scene
+from upsr.research import baselines
+from upsr.research.metrics import evaluate
+from upsr.research.synth import dynamic_scene
 
 __all__ = ["check_criteria", "main"]
 

@@ -5,34 +5,43 @@ Quick use::
     import upsr
     hi = upsr.super_resolve(frames_mm, scale=4, n_frames=9)   # (T, 4h, 4w) float32 mm
 
-The steps of the paper's Table 1 live in their own modules: :mod:`upsr.upsampling`,
-:mod:`upsr.motion`, :mod:`upsr.registration`, :mod:`upsr.fusion`, :mod:`upsr.deblurring`,
-assembled by :mod:`upsr.pipeline`. Metrics (SPEC §6) are in :mod:`upsr.metrics`, baselines in
-:mod:`upsr.baselines`, synthetic data in :mod:`upsr.synth`, file formats in :mod:`upsr.io`.
+The package has five layers, each a subpackage (an arrow means "may import"; see the README's
+architecture section):
+
+* :mod:`upsr.method` — the paper's Table 1, one module per step, and the engines;
+* :mod:`upsr.geometry` — pinhole camera, intrinsics, mesh rendering;
+* :mod:`upsr.io` — depth video formats; :mod:`upsr.viz` — pictures;
+* :mod:`upsr.research` — metrics, baselines, synthetic data, experiments, analysis;
+* :mod:`upsr.apps` — the command line, demo and batch.
+
+Everything here is loaded on first use (PEP 562).
 """
 
-from . import baselines, metrics, synth
-from .config import DeblurConfig, UPSRConfig
-from .deblurring import deblur
-from .errors import InputError
-from .fusion import temporal_median
-from .outliers import remove_speckles
-from .pipeline import UPSR, super_resolve
-from .upsampling import decimate, upsample_nearest
+from importlib.metadata import PackageNotFoundError, version
 
-__all__ = [
-    "UPSR",
-    "DeblurConfig",
-    "InputError",
-    "UPSRConfig",
-    "baselines",
-    "deblur",
-    "decimate",
-    "metrics",
-    "remove_speckles",
-    "super_resolve",
-    "synth",
-    "temporal_median",
-    "upsample_nearest",
-]
-__version__ = "0.1.0"
+from upsr._lazy import attach
+
+try:
+    __version__ = version("upsr")
+except PackageNotFoundError:  # pragma: no cover - running from a source tree
+    __version__ = "0+unknown"
+
+__getattr__, __dir__, __all__ = attach(
+    __name__,
+    submodules=["apps", "errors", "geometry", "io", "method", "research", "viz"],
+    names={
+        "UPSR": "method.windowed",
+        "super_resolve": "method.windowed",
+        "UPSRConfig": "method.config",
+        "DeblurConfig": "method.config",
+        "InputError": "errors",
+        "deblur": "method.deblurring",
+        "temporal_median": "method.fusion",
+        "remove_speckles": "method.outliers",
+        "upsample_nearest": "method.upsampling",
+        "decimate": "method.upsampling",
+        "metrics": "research",
+        "baselines": "research",
+        "synth": "research",
+    },
+)

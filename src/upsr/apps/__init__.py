@@ -1,0 +1,1 @@
+"""Applications: the command line, the demo and batch processing. Nothing imports this layer."""

@@ -1,0 +1,619 @@
+"""Super-resolve many recordings: on this machine's cores or on a Dask distributed cluster.
+
+Each recording is split into chunks of consecutive output frames; a chunk reads the input
+frames its windows need (UP-SR's window for output t is the frames [s, s + N) with
+s = clip(t − (N−1)//2, 0, T − N), :func:`upsr.method.windowed.window_start`), so neighbouring chunks
+overlap by N − 1 input frames. The per-video statistics that the engine would fix from the
+first N frames of the video — the 8-bit depth mapping of the flow images
+(:func:`upsr.method.motion.depth_range`) and the noise estimate (median over those frames of
+:func:`upsr.method.deblurring.estimate_noise_mm`) — are computed once per recording and given to every
+chunk: the result is identical, frame for frame, to a single run over the whole recording.
+
+Chunks run in worker processes (``workers``) or as tasks on an existing Dask scheduler
+(``scheduler="tcp://host:port"``, the ``[dask]`` extra; inputs and the output folder must be
+reachable under the same paths by the workers, e.g. a shared file system). Every chunk is
+written atomically into a hidden work folder (``OUT/.upsr-batch/``), the recording's output
+is assembled from its chunks and renamed into place when complete; then its chunks are
+removed. Run again after an interruption: finished outputs are skipped and finished chunks of
+unfinished recordings are reused (when the input and every option are unchanged). A recording
+that fails is reported, its partial chunks are removed, and the others go on.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import dataclasses
+import hashlib
+import json
+import math
+import os
+import shutil
+import sys
+import time
+import traceback
+from collections.abc import Callable, Iterator, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from upsr.errors import InputError
+from upsr.method.config import UPSRConfig
+
+__all__ = [
+    "BatchResult",
+    "Recording",
+    "chunk_plan",
+    "output_name",
+    "run_batch",
+    "run_chunk",
+    "video_statistics",
+]
+
+WORK_DIR = ".upsr-batch"
+_OUT_SUFFIX = {"npy": ".npy", "npz": ".npz", "tiff": ".tif", "png": "", "exr": ""}
+
+
+# ---------------------------------------------------------------------------------------------
+# planning
+# ---------------------------------------------------------------------------------------------
+def chunk_plan(n_total: int, n_frames: int, chunk_frames: int) -> list[tuple[int, int, int, int]]:
+    """Split a video into chunks that give exactly the outputs of a single run.
+
+    Parameters
+    ----------
+    n_total : int
+        T, frames of the video.
+    n_frames : int
+        N, window length (1 ≤ N ≤ T).
+    chunk_frames : int
+        Output frames per chunk (≥ 1; the last chunk may be shorter).
+
+    Returns
+    -------
+    list of (out_start, out_stop, in_start, in_stop)
+        Chunk k produces the outputs [out_start, out_stop) from the input frames
+        [in_start, in_stop) = [s(out_start), s(out_stop − 1) + N), where s is the window start
+        of a single run; every window of the chunk then lies inside its input frames and is
+        placed where the single run places it.
+    """
+    if n_frames < 1 or n_total < n_frames:
+        raise InputError(f"N={n_frames} frames per window but the video has {n_total} frame(s)")
+    if chunk_frames < 1:
+        raise InputError(f"chunk_frames must be >= 1, got {chunk_frames}")
+    half = (n_frames - 1) // 2
+
+    def start(t: int) -> int:
+        return min(max(t - half, 0), n_total - n_frames)
+
+    plan = []
+    for a in range(0, n_total, chunk_frames):
+        b = min(a + chunk_frames, n_total)
+        plan.append((a, b, start(a), start(b - 1) + n_frames))
+    return plan
+
+
+def video_statistics(first_frames: np.ndarray) -> tuple[tuple[float, float], float]:
+    """The per-video statistics UP-SR fixes from the first N frames (mm).
+
+    Returns
+    -------
+    depth_range_mm : (float, float)
+        :func:`upsr.method.motion.depth_range` of the frames (the flow images' 8-bit mapping).
+    noise_mm : float
+        Median over the frames of :func:`upsr.method.deblurring.estimate_noise_mm`.
+    """
+    from upsr.method.deblurring import estimate_noise_mm
+    from upsr.method.motion import depth_range
+
+    # kept exactly as the engine computes them (NumPy scalars): the 8-bit mapping's rounding
+    # depends on their type (NumPy 2 promotion rules)
+    near, far = depth_range(first_frames)
+    noise = float(np.median([estimate_noise_mm(f) for f in first_frames]))
+    return (near, far), noise
+
+
+# ---------------------------------------------------------------------------------------------
+# the task (runs in a worker process)
+# ---------------------------------------------------------------------------------------------
+def run_chunk(spec: dict[str, Any]) -> dict[str, Any]:
+    """Compute one chunk and write it (atomically) to ``spec["part"]`` as ``.npy``.
+
+    ``spec`` is a plain dict (it crosses process and network boundaries): ``input``, read
+    options ``key``/``topic``/``fmt``/``depth_scale``, ``config`` (:class:`UPSRConfig` fields),
+    ``out_start``, ``out_stop``, ``in_start``, ``in_stop``, ``part``.
+
+    Returns
+    -------
+    dict
+        ``{"part", "frames", "seconds", "reused"}``, or ``{"error", "kind"}`` (kind "input"
+        for bad input, "internal" otherwise) — a task never raises.
+    """
+    try:
+        return _run_chunk(spec)
+    except InputError as e:
+        return {"error": str(e), "kind": "input"}
+    except Exception as e:
+        detail = "".join(traceback.format_exception_only(type(e), e)).strip()
+        return {"error": detail, "kind": "internal"}
+
+
+def _config_from_dict(d: dict[str, Any]) -> UPSRConfig:
+    from upsr.method.config import DeblurConfig
+
+    d = dict(d)
+    deblur = DeblurConfig(**d.pop("deblur"))
+    if d.get("depth_range_mm") is not None:
+        d["depth_range_mm"] = tuple(d["depth_range_mm"])
+    return UPSRConfig(deblur=deblur, **d)
+
+
+def _part_ok(part: Path, n: int, shape: tuple[int, int]) -> bool:
+    if not part.is_file():
+        return False
+    try:
+        arr = np.load(part, mmap_mode="r", allow_pickle=False)
+        return tuple(arr.shape) == (n, *shape) and arr.dtype == np.float32
+    except Exception:
+        return False
+
+
+def _run_chunk(spec: dict[str, Any]) -> dict[str, Any]:
+    from upsr.io import _core as io
+    from upsr.method.windowed import UPSR
+
+    start = time.perf_counter()
+    cfg = _config_from_dict(spec["config"])
+    a, b, lo, hi = spec["out_start"], spec["out_stop"], spec["in_start"], spec["in_stop"]
+    part = Path(spec["part"])
+    out_shape = (spec["height"] * cfg.scale, spec["width"] * cfg.scale)
+    if _part_ok(part, b - a, out_shape):
+        return {"part": str(part), "frames": b - a, "seconds": 0.0, "reused": True}
+    frames = io.iter_frames(
+        spec["input"],
+        key=spec["key"],
+        topic=spec["topic"],
+        fmt=spec["fmt"],
+        depth_scale=spec["depth_scale"],
+    )
+
+    def window() -> Iterator[np.ndarray]:
+        with contextlib.closing(frames):
+            for t, frame in enumerate(frames):
+                if t >= hi:
+                    return
+                if t >= lo:
+                    yield frame
+
+    # the cluster runs chunks side by side: one thread per chunk, no window threads
+    engine = UPSR(config=cfg, workers=0)
+    part.parent.mkdir(parents=True, exist_ok=True)
+    with io.VideoWriter(part, n_frames=b - a, fmt="npy", overwrite=True) as writer:
+        for t, out in enumerate(engine.process(window()), start=lo):
+            if a <= t < b:
+                writer.write(out)
+    return {
+        "part": str(part),
+        "frames": b - a,
+        "seconds": time.perf_counter() - start,
+        "reused": False,
+    }
+
+
+# ---------------------------------------------------------------------------------------------
+# recordings
+# ---------------------------------------------------------------------------------------------
+@dataclass
+class Recording:
+    """One input of a batch and what became of it.
+
+    Attributes
+    ----------
+    input : pathlib.Path
+    output : pathlib.Path
+    status : str
+        "pending", "done", "skipped" (output already there) or "failed".
+    error : str
+        Why it failed.
+    error_kind : str
+        "input" (bad input, exit status 2) or "internal" (status 1).
+    n_frames, seconds : int, float
+    """
+
+    input: Path
+    output: Path
+    status: str = "pending"
+    error: str = ""
+    error_kind: str = ""
+    n_frames: int = 0
+    seconds: float = 0.0
+    chunks: list[dict[str, Any]] = field(default_factory=list)
+    done_chunks: int = 0
+    camera: Any = None
+    work: Path | None = None
+    config: UPSRConfig | None = None
+
+
+@dataclass
+class BatchResult:
+    """Outcome of :func:`run_batch`: the recordings and an exit status (0, 1 or 2)."""
+
+    recordings: list[Recording]
+
+    @property
+    def failed(self) -> list[Recording]:
+        """Recordings that failed."""
+        return [r for r in self.recordings if r.status == "failed"]
+
+    @property
+    def exit_code(self) -> int:
+        """0 all fine; 2 some failed on bad input; 1 some failed internally."""
+        if any(r.error_kind == "internal" for r in self.failed):
+            return 1
+        return 2 if self.failed else 0
+
+
+def output_name(path: Path) -> str:
+    """Base name of a recording's output: the file's stem or the folder's name."""
+    p = Path(os.path.abspath(path))
+    if p.suffix.lower() in (".db3", ".mcap") and (p.parent / "metadata.yaml").is_file():
+        p = p.parent
+    return p.stem if p.is_file() else p.name
+
+
+def _fingerprint(inp: Path, spec: dict[str, Any]) -> str:
+    st = []
+    p = Path(inp)
+    files = [p] if p.is_file() else sorted(q for q in p.iterdir() if q.is_file())
+    for q in files:
+        s = q.stat()
+        st.append((q.name, s.st_size, s.st_mtime_ns))
+    blob = json.dumps([str(p.resolve()), st, spec], sort_keys=True, default=str)
+    return hashlib.sha1(blob.encode()).hexdigest()[:12]
+
+
+# ---------------------------------------------------------------------------------------------
+# executors
+# ---------------------------------------------------------------------------------------------
+class _LocalExecutor:
+    """Chunks in this process (1 worker) or in a pool of spawned processes."""
+
+    def __init__(self, workers: int) -> None:
+        self.workers = workers
+        self._pool: Any = None
+        if workers > 1:
+            import multiprocessing
+            from concurrent.futures import ProcessPoolExecutor
+
+            self._pool = ProcessPoolExecutor(
+                max_workers=workers, mp_context=multiprocessing.get_context("spawn")
+            )
+
+    def submit(self, spec: dict[str, Any]) -> Any:
+        if self._pool is None:
+            from concurrent.futures import Future
+
+            fut: Future[dict[str, Any]] = Future()
+            fut.set_result(run_chunk(spec))
+            return fut
+        return self._pool.submit(run_chunk, spec)
+
+    def as_completed(self, futures: Sequence[Any]) -> Iterator[Any]:
+        from concurrent.futures import as_completed
+
+        return as_completed(futures)
+
+    def shutdown(self) -> None:
+        if self._pool is not None:
+            self._pool.shutdown(wait=True, cancel_futures=True)
+
+
+class _DaskExecutor:
+    """Chunks as tasks on an existing Dask distributed scheduler."""
+
+    def __init__(self, address: str) -> None:
+        try:
+            from dask.distributed import Client
+        except ImportError:
+            raise InputError(
+                "--scheduler needs the optional package 'dask[distributed]': "
+                "pip install 'upsr[dask]'"
+            ) from None
+        try:
+            self.client = Client(address, timeout="15s")
+        except (OSError, TimeoutError) as e:
+            raise InputError(f"cannot connect to the Dask scheduler {address}: {e}") from None
+        self.workers = max(1, len(self.client.scheduler_info().get("workers", {})))
+
+    def submit(self, spec: dict[str, Any]) -> Any:
+        return self.client.submit(run_chunk, spec, pure=False)
+
+    def as_completed(self, futures: Sequence[Any]) -> Iterator[Any]:
+        from dask.distributed import as_completed
+
+        return iter(as_completed(futures))
+
+    def shutdown(self) -> None:
+        with contextlib.suppress(Exception):
+            self.client.close()
+
+
+# ---------------------------------------------------------------------------------------------
+# the driver
+# ---------------------------------------------------------------------------------------------
+def _prepare(
+    rec: Recording,
+    cfg: UPSRConfig,
+    read: dict[str, Any],
+    chunk_frames: int,
+    workers: int,
+    intrinsics: str | None,
+    shrink_frames: bool = False,
+) -> list[dict[str, Any]]:
+    """Probe, compute the video statistics and plan the chunks of one recording."""
+    from upsr.io import _core as io
+
+    info = io.probe(rec.input, key=read["key"], fmt=read["fmt"], topic=read["topic"])
+    if shrink_frames and cfg.n_frames > info.n_frames:
+        cfg = dataclasses.replace(cfg, n_frames=info.n_frames)
+    rec.config = cfg
+    if cfg.n_frames > info.n_frames:
+        raise InputError(
+            f"N={cfg.n_frames} > {info.n_frames} frames in {rec.input}: use --frames "
+            f"{info.n_frames} or less"
+        )
+    rec.n_frames = info.n_frames
+    rec.camera = _camera(rec.input, info, read, intrinsics)
+    first = []
+    with contextlib.closing(io.iter_frames(rec.input, **read)) as frames:
+        for frame in frames:
+            first.append(frame)
+            if len(first) == cfg.n_frames:
+                break
+    rng, noise = video_statistics(np.stack(first))
+    pinned = dataclasses.replace(
+        cfg,
+        depth_range_mm=cfg.depth_range_mm if cfg.depth_range_mm is not None else rng,
+        noise_mm=cfg.noise_mm if cfg.noise_mm is not None else noise,
+    )
+    m = chunk_frames or max(4 * cfg.n_frames, math.ceil(info.n_frames / max(workers, 1)))
+    config = dataclasses.asdict(pinned)
+    base = {
+        "input": str(rec.input),
+        **read,
+        "config": config,
+        "height": info.height,
+        "width": info.width,
+    }
+    fp = _fingerprint(rec.input, {**base, "chunk_frames": m})
+    work = rec.output.parent / WORK_DIR / f"{rec.output.name}.{fp}"
+    # chunks of an earlier run with other inputs/options are stale
+    with contextlib.suppress(OSError):
+        for old in (rec.output.parent / WORK_DIR).glob(f"{rec.output.name}.*"):
+            if old != work and old.name.rsplit(".", 1)[0] == rec.output.name:
+                shutil.rmtree(old, ignore_errors=True)
+    rec.work = work
+    specs = []
+    for a, b, lo, hi in chunk_plan(info.n_frames, cfg.n_frames, m):
+        part = work / f"chunk_{a:09d}_{b:09d}.npy"
+        specs.append(
+            {
+                **base,
+                "out_start": a,
+                "out_stop": b,
+                "in_start": lo,
+                "in_stop": hi,
+                "part": str(part),
+            }
+        )
+    return specs
+
+
+def _camera(inp: Path, info: Any, read: dict[str, Any], intrinsics: str | None) -> Any:
+    from upsr.geometry.intrinsics import parse_intrinsics
+    from upsr.io import _core as io
+
+    if intrinsics is not None:
+        return parse_intrinsics(intrinsics, info.width, info.height)
+    cam = io.read_intrinsics(inp, fmt=read["fmt"], topic=read["topic"])
+    if cam is not None and cam.shape != (info.height, info.width):
+        return None
+    return cam
+
+
+def _assemble(rec: Recording, cfg: UPSRConfig, out_fmt: str | None, depth_scale: float) -> None:
+    from upsr.geometry.intrinsics import write_intrinsics
+    from upsr.io import _core as io
+
+    with io.VideoWriter(
+        rec.output, n_frames=rec.n_frames, fmt=out_fmt, depth_scale=depth_scale, overwrite=True
+    ) as writer:
+        for spec in rec.chunks:
+            part = np.load(spec["part"], mmap_mode="r", allow_pickle=False)
+            for frame in part:
+                writer.write(np.asarray(frame))
+            del part
+    if rec.camera is not None:
+        write_intrinsics(
+            io.intrinsics_path(rec.output),
+            rec.camera.scaled(cfg.scale),
+            source=rec.camera,
+            scale=cfg.scale,
+        )
+    _drop_work(rec)
+
+
+def _drop_work(rec: Recording) -> None:
+    if rec.work is not None:
+        shutil.rmtree(rec.work, ignore_errors=True)
+        with contextlib.suppress(OSError):
+            rec.work.parent.rmdir()  # only if empty
+
+
+def run_batch(
+    inputs: Sequence[str | os.PathLike[str]],
+    out_dir: str | os.PathLike[str],
+    config: UPSRConfig,
+    *,
+    key: str | None = None,
+    topic: str | None = None,
+    input_format: str | None = None,
+    depth_scale: float = 1000.0,
+    output_format: str | None = None,
+    intrinsics: str | None = None,
+    scheduler: str | None = None,
+    workers: int | None = None,
+    chunk_frames: int = 0,
+    overwrite: bool = False,
+    progress: bool = True,
+    log: Callable[[str], None] | None = None,
+    shrink_frames: bool = False,
+) -> BatchResult:
+    """Super-resolve every recording of ``inputs`` into ``out_dir``.
+
+    Parameters
+    ----------
+    inputs : sequence of path-like
+        Recordings (any input format of :mod:`upsr.io`).
+    out_dir : path-like
+        Output folder (created). Output ``<name>.npy`` per recording (``output_format``
+        chooses npz, tiff, png or exr), plus ``<output>.intrinsics.json`` when the intrinsics
+        are known.
+    config : UPSRConfig
+        Method parameters (as ``upsr run``).
+    key, topic, input_format, depth_scale
+        Read options, as for :func:`upsr.io.iter_frames`; ``depth_scale`` also applies to
+        PNG output.
+    intrinsics : str, optional
+        ``"fx,fy,cx,cy"`` of the inputs (else read from the format when it carries them).
+    scheduler : str, optional
+        Address of a Dask distributed scheduler (``tcp://host:port``); default: local
+        processes.
+    workers : int, optional
+        Local worker processes (default: the number of CPU cores; 1 = in this process).
+    chunk_frames : int
+        Output frames per chunk; 0 = automatic (about T / workers, at least 4·N).
+    overwrite : bool
+        Recompute outputs that exist (default: skip them: resuming).
+    progress : bool
+        A progress bar over the recordings on stderr.
+    log : callable, optional
+        Receives one line per finished, skipped or failed recording.
+    shrink_frames : bool
+        A recording shorter than N frames uses all its frames (N = T) instead of failing.
+
+    Returns
+    -------
+    BatchResult
+    """
+    from tqdm import tqdm
+
+    from upsr.io import _core as io
+
+    out = Path(out_dir)
+    if not inputs:
+        raise InputError("no input recordings given")
+    if workers is not None and workers < 1:
+        raise InputError(f"--workers must be >= 1, got {workers}")
+    if chunk_frames < 0:
+        raise InputError(f"--chunk-frames must be >= 0, got {chunk_frames}")
+    if out.exists() and not out.is_dir():
+        raise InputError(f"--out {out} exists and is not a folder")
+    out_fmt = (output_format or "npy").lower()
+    if out_fmt not in _OUT_SUFFIX:
+        raise InputError(
+            f"cannot write {output_format!r} (output formats: {', '.join(_OUT_SUFFIX)})"
+        )
+    suffix = _OUT_SUFFIX[out_fmt]
+    recs: list[Recording] = []
+    by_output: dict[Path, Path] = {}
+    for inp in inputs:
+        p = Path(inp)
+        dest = out / (output_name(p) + suffix)
+        if dest in by_output:
+            raise InputError(
+                f"{by_output[dest]} and {p} would both be written to {dest}: "
+                f"give the recordings different names or run them separately"
+            )
+        by_output[dest] = p
+        recs.append(Recording(p, dest))
+    read = {"key": key, "topic": topic, "fmt": input_format, "depth_scale": depth_scale}
+    say = log or (lambda line: None)
+
+    def fail(rec: Recording, message: str, kind: str) -> None:
+        rec.status, rec.error, rec.error_kind = "failed", message, kind
+        _drop_work(rec)
+        say(f"failed: {rec.input}: {message}")
+
+    executor: Any = None
+    bar = tqdm(
+        total=len(recs),
+        desc="upsr batch",
+        unit="rec",
+        file=sys.stderr,
+        disable=not progress,
+        dynamic_ncols=True,
+    )
+    try:
+        executor = (
+            _DaskExecutor(scheduler)
+            if scheduler
+            else _LocalExecutor(workers or os.cpu_count() or 1)
+        )
+        n_workers = executor.workers
+        pending: dict[Any, tuple[Recording, int]] = {}
+        for rec in recs:
+            if os.path.lexists(rec.output) and not overwrite:
+                rec.status = "skipped"
+                say(f"skipped (output exists): {rec.output}")
+                bar.update(1)
+                continue
+            try:
+                io.check_output_path([rec.input], rec.output, True, fmt=out_fmt)
+                rec.chunks = _prepare(
+                    rec, config, read, chunk_frames, n_workers, intrinsics, shrink_frames
+                )
+            except InputError as e:
+                fail(rec, str(e), "input")
+                bar.update(1)
+                continue
+            for i, spec in enumerate(rec.chunks):
+                pending[executor.submit(spec)] = (rec, i)
+        for fut in executor.as_completed(list(pending)):
+            rec, i = pending.pop(fut)
+            if rec.status != "pending":
+                continue  # the recording failed already
+            try:
+                res = fut.result()
+            except Exception as e:  # a worker died, the cluster went away
+                res = {"error": f"{type(e).__name__}: {e}", "kind": "internal"}
+            if "error" in res:
+                fail(rec, res["error"], res["kind"])
+                for other, (r2, _) in pending.items():
+                    if r2 is rec:
+                        other.cancel()
+                bar.update(1)
+                continue
+            rec.done_chunks += 1
+            rec.seconds += float(res["seconds"])
+            if rec.done_chunks < len(rec.chunks):
+                continue
+            try:
+                _assemble(rec, rec.config or config, out_fmt, depth_scale)
+            except InputError as e:
+                fail(rec, str(e), "input")
+            except OSError as e:
+                fail(rec, f"cannot write {rec.output}: {e}", "input")
+            else:
+                rec.status = "done"
+                say(f"done: {rec.input} -> {rec.output} ({rec.n_frames} frames)")
+            bar.update(1)
+    finally:
+        bar.close()
+        if executor is not None:
+            executor.shutdown()
+    for rec in recs:
+        if rec.status == "failed":
+            _drop_work(rec)  # chunks that were still running when it failed
+    return BatchResult(recs)

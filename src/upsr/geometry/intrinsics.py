@@ -1,0 +1,129 @@
+"""Camera intrinsics of depth videos: parse, scale to the output resolution, read and write.
+
+A camera is an :class:`upsr.geometry.camera.PinholeCamera` (fx, fy, cx, cy in px, width, height),
+with the pixel geometry of ``SPEC.md`` §1: pixel (i, j) is centred at image coordinates
+(u, v) = (j, i), the convention of OpenCV and of ROS ``CameraInfo``. Super-resolving by r keeps
+the field of view: f' = r·f and c' = r·(c + 0.5) − 0.5 (:meth:`PinholeCamera.scaled`).
+
+The intrinsics of an output video are written next to it as ``<output>.intrinsics.json``::
+
+    {"width": 1280, "height": 960, "fx": 1050.0, "fy": 1050.0, "cx": 639.5, "cy": 479.5,
+     "K": [[...], [...], [...]], "scale": 2,
+     "input": {"width": 640, "height": 480, "fx": 525.0, ...}, "convention": "..."}
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+from pathlib import Path
+from typing import Any
+
+from upsr.errors import InputError
+from upsr.geometry.camera import PinholeCamera
+
+__all__ = [
+    "CONVENTION",
+    "PinholeCamera",
+    "camera_from_dict",
+    "camera_to_dict",
+    "load_intrinsics",
+    "parse_intrinsics",
+    "scale_intrinsics",
+    "write_intrinsics",
+]
+
+#: The pixel convention stated in every intrinsics file.
+CONVENTION = (
+    "pinhole, no distortion; pixel (row i, column j) centred at (u, v) = (j, i) px; "
+    "scaled by r (SPEC 1): f' = r f, c' = r (c + 0.5) - 0.5"
+)
+
+
+def parse_intrinsics(text: str, width: int, height: int) -> PinholeCamera:
+    """Parse ``"fx,fy,cx,cy"`` (px) for images of ``width`` × ``height`` px.
+
+    Raises
+    ------
+    InputError
+        Not four finite numbers, or fx/fy ≤ 0.
+    """
+    parts = [p.strip() for p in str(text).replace(";", ",").split(",")]
+    try:
+        values = [float(p) for p in parts]
+    except ValueError:
+        values = []
+    if len(values) != 4 or not all(math.isfinite(v) for v in values):
+        raise InputError(
+            f"--intrinsics must be four numbers fx,fy,cx,cy (px), e.g. 525,525,319.5,239.5; "
+            f"got {text!r}"
+        )
+    fx, fy, cx, cy = values
+    return PinholeCamera(fx, fy, cx, cy, int(width), int(height))
+
+
+def scale_intrinsics(camera: PinholeCamera, scale: int | float) -> PinholeCamera:
+    """The camera of the output of super-resolution by ``scale`` (SPEC §1 geometry)."""
+    return camera.scaled(scale)
+
+
+def camera_to_dict(camera: PinholeCamera) -> dict[str, Any]:
+    """JSON-ready description: width, height, fx, fy, cx, cy and K."""
+    return {
+        "width": int(camera.width),
+        "height": int(camera.height),
+        "fx": float(camera.fx),
+        "fy": float(camera.fy),
+        "cx": float(camera.cx),
+        "cy": float(camera.cy),
+        "K": [[float(v) for v in row] for row in camera.K],
+    }
+
+
+def camera_from_dict(d: Any, name: str = "intrinsics") -> PinholeCamera:
+    """Inverse of :func:`camera_to_dict` (``K`` is ignored; fx, fy, cx, cy are used)."""
+    if not isinstance(d, dict):
+        raise InputError(f"{name}: expected a JSON object")
+    try:
+        w, h = d["width"], d["height"]
+        if isinstance(w, bool) or isinstance(h, bool) or int(w) != w or int(h) != h:
+            raise ValueError("width and height must be integers")
+        return PinholeCamera(
+            float(d["fx"]), float(d["fy"]), float(d["cx"]), float(d["cy"]), int(w), int(h)
+        )
+    except InputError as e:
+        raise InputError(f"{name}: {e}") from None
+    except (KeyError, TypeError, ValueError) as e:
+        raise InputError(f"{name}: not an intrinsics file ({type(e).__name__}: {e})") from None
+
+
+def load_intrinsics(path: str | os.PathLike[str]) -> PinholeCamera:
+    """Read an ``*.intrinsics.json`` file (as written by :func:`write_intrinsics`)."""
+    p = Path(path)
+    try:
+        d = json.loads(p.read_text(encoding="utf-8"))
+    except OSError as e:
+        raise InputError(f"{p}: cannot read ({e.strerror or e})") from None
+    except ValueError as e:
+        raise InputError(f"{p}: not a JSON file ({e})") from None
+    return camera_from_dict(d, str(p))
+
+
+def write_intrinsics(
+    path: str | os.PathLike[str],
+    camera: PinholeCamera,
+    *,
+    source: PinholeCamera | None = None,
+    scale: int | float | None = None,
+) -> Path:
+    """Write ``camera`` as JSON atomically (with the input camera and scale, if given)."""
+    from upsr.io._core import write_text_atomic
+
+    d = camera_to_dict(camera)
+    if scale is not None:
+        d["scale"] = scale
+    if source is not None:
+        d["input"] = camera_to_dict(source)
+    d["convention"] = CONVENTION
+    return write_text_atomic(path, json.dumps(d, indent=2) + "\n")

@@ -1,0 +1,44 @@
+"""The UP-SR method: one module per step of the paper's Table 1, and the engines.
+
+========================  =====================  ==========================================
+step                      paper                  module
+========================  =====================  ==========================================
+dense upsampling U        eq. 13–15              :mod:`upsr.method.upsampling`
+prefilter, flow           §4, §5.2, eq. 16–17    :mod:`upsr.method.motion`
+cumulative registration   eq. 18–21              :mod:`upsr.method.registration`
+temporal median           eq. 26–28              :mod:`upsr.method.fusion`
+L1 + BTV deblurring       eq. 29–30              :mod:`upsr.method.deblurring`
+speckle removal           —                      :mod:`upsr.method.outliers`
+sliding-window engine     Table 1                :mod:`upsr.method.windowed`
+========================  =====================  ==========================================
+
+The method imports nothing from the layers above it (I/O, pictures, research, apps).
+"""
+
+from upsr._lazy import attach
+
+__getattr__, __dir__, __all__ = attach(
+    __name__,
+    submodules=[
+        "config",
+        "deblurring",
+        "fusion",
+        "motion",
+        "outliers",
+        "registration",
+        "upsampling",
+        "validation",
+        "windowed",
+    ],
+    names={
+        "UPSR": "windowed",
+        "super_resolve": "windowed",
+        "UPSRConfig": "config",
+        "DeblurConfig": "config",
+        "deblur": "deblurring",
+        "temporal_median": "fusion",
+        "remove_speckles": "outliers",
+        "upsample_nearest": "upsampling",
+        "decimate": "upsampling",
+    },
+)

@@ -1,0 +1,336 @@
+"""All parameters of the UP-SR pipeline in one typed, documented, validated object.
+
+Every length is in high-resolution pixels (px) unless the name says otherwise, every depth in
+millimetres (mm). The defaults are tuned for depth in mm from ToF / structured-light cameras and
+were chosen by measurement (see ``benchmarks/`` and the README).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import dataclass, field
+from typing import Any, Literal
+
+import numpy as np
+
+from upsr.errors import InputError
+
+__all__ = ["FLOW_GRID_MIN_WIDTH_PX", "DeblurConfig", "UPSRConfig"]
+
+#: Width (px) from which a flow grid is fine enough for DIS's fixed-size (8 px) patches, also
+#: at the 4× coarser finest level of the "ultrafast" preset (``UPSRConfig.flow_scale``,
+#: ``UPSRConfig.refine_preset``). Measured: 64-px-wide ToF frames at r = 4 register better on
+#: a 192 px grid (s = 3) than on 128 px (s = 2) or 256 px (s = 4).
+FLOW_GRID_MIN_WIDTH_PX = 192
+
+BlurModel = Literal["none", "box", "gaussian"]
+FlowBackendName = Literal["dis", "farneback"]
+
+
+@dataclass(frozen=True)
+class DeblurConfig:
+    r"""Parameters of the L1 + bilateral-TV deblurring step (paper eq. 29–30).
+
+    Solves :math:`\hat x = \arg\min_x \|B x - z\|_1 + \lambda \Gamma_{BTV}(x)` with
+    :math:`\Gamma_{BTV}(x) = \sum_{l,m=-P}^{P} \alpha^{|l|+|m|} \|x - S_x^l S_y^m x\|_1`
+    by steepest descent on the subgradient (the paper's solver) with a geometric step schedule.
+
+    Attributes
+    ----------
+    enabled : bool
+        Run the deblurring step at all (``False`` returns the fused median, ``upsr_fused``).
+    lam : float
+        Regularisation weight λ of eq. 30 (unitless: both terms are L1 in mm).
+    alpha : float
+        Decay α ∈ (0, 1] of the BTV kernel, eq. 29.
+    radius_px : int
+        BTV half-window P (px); shifts l, m = −P … P.
+    blur : {"none", "box", "gaussian"}
+        Blur model B = A·H. ``"none"`` (B = I): pure BTV-L1 denoising of the fused image.
+        ``"box"``: an r×r box (the upsampling blur A). ``"gaussian"``: a Gaussian of std
+        ``blur_sigma_px``. Blurs are masked to valid pixels (they never mix in invalid ones).
+    blur_sigma_px : float
+        Standard deviation of the Gaussian blur model (px, high-res grid).
+    iterations : int
+        Number of subgradient steps. 15 by default: on Samba (σ = 10/30/60 mm) and the
+        synthetic ToF scene, 15 steps give the same or a lower MSE and surface RMSE than 30
+        (the step schedule has moved 83 % of its total length by then; the objective is
+        1–9 % higher, but the extra steps fit the noise, not the surfaces).
+    step_mm : float or None
+        First step length β₀ (mm). ``None``: a robust estimate of the noise left in the fused
+        image (:func:`upsr.method.deblurring.estimate_noise_mm` at a lag of r px), at least 0.5 mm.
+    step_decay : float
+        Geometric decay of the step: β_k = β₀ · step_decay^k.
+    edge_mm : float or None
+        Depth is not an image: BTV pairs whose fused depths differ by more than ``edge_mm`` are
+        not regularised (no smoothing across depth discontinuities). ``None`` is the paper's
+        plain BTV.
+    smooth_sigma_mm : float or None
+        Beyond the paper: a final edge-preserving smoothing of each surface
+        (:func:`upsr.method.deblurring.smooth_surfaces`) with this range std (mm), which turns the
+        staircase of dense upsampling on slanted surfaces into ramps. ``None`` disables it.
+    smooth_sigma_px : float or None
+        Its spatial std in high-res px; ``None``: r/2.
+    """
+
+    enabled: bool = True
+    lam: float = 0.5
+    alpha: float = 0.7
+    radius_px: int = 2
+    blur: BlurModel = "none"
+    blur_sigma_px: float = 1.0
+    iterations: int = 15
+    step_mm: float | None = None
+    step_decay: float = 0.9
+    edge_mm: float | None = 100.0
+    smooth_sigma_mm: float | None = 30.0
+    smooth_sigma_px: float | None = None
+
+    def __post_init__(self) -> None:
+        _check(
+            self.smooth_sigma_mm is None or self.smooth_sigma_mm > 0,
+            "deblur smooth_sigma_mm must be > 0 or None",
+        )
+        _check(
+            self.smooth_sigma_px is None or self.smooth_sigma_px > 0,
+            "deblur smooth_sigma_px must be > 0 or None",
+        )
+        _check(self.lam >= 0 and math.isfinite(self.lam), "deblur lam must be a finite number >= 0")
+        _check(0 < self.alpha <= 1, "deblur alpha must be in (0, 1]")
+        _check(
+            isinstance(self.radius_px, int) and self.radius_px >= 1,
+            "deblur radius_px (P) must be an integer >= 1",
+        )
+        _check(
+            self.blur in ("none", "box", "gaussian"),
+            f"deblur blur must be 'none', 'box' or 'gaussian', not {self.blur!r}",
+        )
+        _check(self.blur_sigma_px > 0, "deblur blur_sigma_px must be > 0")
+        _check(
+            isinstance(self.iterations, int) and self.iterations >= 0,
+            "deblur iterations must be an integer >= 0",
+        )
+        _check(
+            self.step_mm is None or (self.step_mm > 0 and math.isfinite(self.step_mm)),
+            "deblur step_mm must be > 0 (or None for automatic)",
+        )
+        _check(0 < self.step_decay <= 1, "deblur step_decay must be in (0, 1]")
+        _check(self.edge_mm is None or self.edge_mm > 0, "deblur edge_mm must be > 0 or None")
+
+
+@dataclass(frozen=True)
+class UPSRConfig:
+    """Parameters of UP-SR (paper Table 1).
+
+    Attributes
+    ----------
+    scale : int
+        Super-resolution factor r ≥ 1 (output is r·h × r·w).
+    n_frames : int
+        Window length N ≥ 1. The reference frame sits in the middle of its window
+        (``(N-1)//2`` frames before it); windows are shifted inwards near the ends of a video so
+        that every window holds N frames.
+    prefilter_sigma_mm : float
+        Range std of the bilateral prefilter (mm), §5.2. Used for motion estimation only.
+    prefilter_sigma_px : float or None
+        Spatial std of the bilateral prefilter (high-res px). ``None``: 0.75·r + 0.5.
+    flow : {"dis", "farneback"}
+        Dense optical-flow backend between consecutive upsampled frames (§4). Other backends can
+        be registered with :func:`upsr.method.motion.register_flow_backend`.
+    flow_preset : {"ultrafast", "fast", "medium"}
+        DIS preset (ignored by other backends).
+    refine_preset : {"ultrafast", "fast", "medium"} or None
+        DIS preset of the eq. 19 residual flows between registered frames, which are small
+        (the consecutive flows already moved the frame most of the way). ``None``:
+        ``"ultrafast"`` where the flow grid is at least 192 px wide (much cheaper, and as
+        accurate on Samba and the synthetic scenes: ``benchmarks/flow_grid_eval.py``), else
+        ``flow_preset`` (ultrafast matches on a 4× coarser grid, too coarse for tiny frames).
+        See :meth:`residual_flow_preset`.
+    flow_scale : int or None
+        Upsampling factor s of the frames the motion is estimated on (1 ≤ s ≤ r): the flow
+        grid is s·h × s·w and the motion is interpolated bilinearly to the r·h × r·w output
+        grid where the frames are registered. The paper upsamples by r (§4, eq. 9–12).
+        ``None``: the smallest s ≥ 2 that makes the flow grid at least 192 px wide, at most r
+        (:meth:`flow_grid_scale`): DIS matches fixed-size patches, so small frames need a
+        finer grid (64×56 at r = 4: s = 3), while large ones lose little on a coarser grid
+        and gain a lot of speed (256×147 at r = 4: s = 2, 4.5× faster than s = 4 with DIS
+        medium). Measured by ``benchmarks/flow_grid_eval.py`` (see the README).
+    depth_range_mm : tuple of float or None
+        (near, far) depths mapped to the 8-bit images the flow sees. ``None``: fixed once per
+        video from the 1st–99th percentiles of the valid depths of the first window.
+    zero_motion_tolerance : float or None
+        Where zero motion explains two consecutive (prefiltered) frames as well as the flow,
+        up to this factor on the local squared residual, the flow is set to 0
+        (:func:`upsr.method.motion.suppress_spurious_motion`): the flow must not match the noise of
+        static surfaces. ``None`` keeps the raw flow.
+    noise_mm : float or None
+        Noise std of the input (mm), which sets the edge threshold (≥ 4·noise) and the margin of
+        the spurious-motion test. ``None``: estimated once per video from its first N frames
+        (:func:`upsr.method.deblurring.estimate_noise_mm`). Give it (with ``depth_range_mm``) to
+        process a chunk of a longer video exactly as the whole video would be.
+    refine : bool
+        Paper eq. 19: re-estimate each frame's motion against its already registered neighbour
+        (a residual flow on the reference grid, composed into the cumulative motion).
+    min_valid_fraction : float
+        Fusion: a pixel is valid only if more than this share of the registered in-frame samples
+        are valid (ties follow the reference frame). Out-of-frame samples abstain.
+    edge_mm : float
+        Fusion: registered samples further apart than this (mm) lie on different surfaces; the
+        surface with the largest vote wins and only its samples are averaged by the median
+        (never a depth between foreground and background). The threshold actually used is at
+        least 4× the noise std estimated once per video, so noise never splits a surface.
+    edge_weight_px : float or None
+        Fusion at depth edges: a sample's vote is weighted by how close (in units of r px) the
+        centre of the low-res pixel it comes from is to the registered position,
+        ``floor + (1 − floor)·exp(−d²/(2·(edge_weight_px·r)²))``. ``None``: equal votes.
+    edge_weight_floor : float
+        Smallest vote weight (see ``edge_weight_px``).
+    splat_radius_px : float or None
+        Fusion at depth edges (beyond the paper): every low-res sample of the window is
+        forward-registered to the reference at its sub-pixel position, and where the
+        backward-registered samples of a pixel come from several surfaces, the surface of the
+        nearest forward-registered sample within this radius (high-res px) wins
+        (:func:`upsr.method.fusion.splat_points`). ``None``: vote only.
+    speckle_px : int or None
+        Beyond the paper: after the deblurring, connected regions of at most this many
+        high-res px that no neighbour joins within ``edge_mm`` (isolated noise outliers that
+        survived the median) are set to 0 = unknown (:func:`upsr.method.outliers.remove_speckles`).
+        ``None``: r² (one low-res pixel's footprint); 0: keep everything.
+    deblur : DeblurConfig
+        Deblurring parameters (eq. 29–30).
+    """
+
+    scale: int = 2
+    n_frames: int = 9
+    prefilter_sigma_mm: float = 40.0
+    prefilter_sigma_px: float | None = None
+    flow: str = "dis"
+    flow_preset: str = "medium"
+    flow_scale: int | None = None
+    refine_preset: str | None = None
+    depth_range_mm: tuple[float, float] | None = None
+    noise_mm: float | None = None
+    zero_motion_tolerance: float | None = 1.1
+    refine: bool = True
+    splat_radius_px: float | None = 1.0
+    speckle_px: int | None = None
+    min_valid_fraction: float = 0.5
+    edge_mm: float = 100.0
+    edge_weight_px: float | None = 0.35
+    edge_weight_floor: float = 0.25
+    deblur: DeblurConfig = field(default_factory=DeblurConfig)
+
+    def __post_init__(self) -> None:
+        _check(
+            _is_int(self.scale) and self.scale >= 1,
+            f"scale r must be an integer >= 1, got {self.scale!r}",
+        )
+        _check(
+            _is_int(self.n_frames) and self.n_frames >= 1,
+            f"n_frames N must be an integer >= 1, got {self.n_frames!r}",
+        )
+        _check(self.prefilter_sigma_mm > 0, "prefilter_sigma_mm must be > 0")
+        _check(
+            self.flow_scale is None
+            or (_is_int(self.flow_scale) and 1 <= self.flow_scale <= self.scale),
+            f"flow_scale must be an integer in 1..r={self.scale} (or None), "
+            f"got {self.flow_scale!r}",
+        )
+        _check(
+            self.prefilter_sigma_px is None or self.prefilter_sigma_px > 0,
+            "prefilter_sigma_px must be > 0 or None",
+        )
+        _check(
+            self.flow_preset in ("ultrafast", "fast", "medium"),
+            f"flow_preset must be 'ultrafast', 'fast' or 'medium', not {self.flow_preset!r}",
+        )
+        _check(
+            self.refine_preset in (None, "ultrafast", "fast", "medium"),
+            f"refine_preset must be 'ultrafast', 'fast' or 'medium', not {self.refine_preset!r}",
+        )
+        if self.depth_range_mm is not None:
+            near, far = self.depth_range_mm
+            _check(
+                math.isfinite(near) and math.isfinite(far) and 0 <= near < far,
+                "depth_range_mm must be (near, far) with 0 <= near < far",
+            )
+        _check(
+            self.noise_mm is None or (math.isfinite(self.noise_mm) and self.noise_mm >= 0),
+            "noise_mm must be a finite number >= 0 (or None to estimate it)",
+        )
+        _check(0 <= self.min_valid_fraction < 1, "min_valid_fraction must be in [0, 1)")
+        _check(
+            self.speckle_px is None or (_is_int(self.speckle_px) and self.speckle_px >= 0),
+            f"speckle_px must be an integer >= 0 (or None), got {self.speckle_px!r}",
+        )
+        _check(self.edge_mm > 0, "edge_mm must be > 0")
+        object.__setattr__(self, "scale", int(self.scale))
+        object.__setattr__(self, "n_frames", int(self.n_frames))
+
+    @property
+    def half_before(self) -> int:
+        """Frames of the window before the reference: ``(N-1)//2``."""
+        return (self.n_frames - 1) // 2
+
+    def flow_grid_scale(self, width_px: int) -> int:
+        """Upsampling factor s of the flow grid for frames ``width_px`` wide (``flow_scale``)."""
+        if self.flow_scale is not None:
+            return int(self.flow_scale)
+        s = max(2, math.ceil(FLOW_GRID_MIN_WIDTH_PX / max(width_px, 1)))
+        return int(min(self.scale, s))
+
+    def residual_flow_preset(self, grid_width_px: int) -> str:
+        """DIS preset of the eq. 19 residual flows on a flow grid ``grid_width_px`` wide."""
+        if self.refine_preset is not None:
+            return self.refine_preset
+        return "ultrafast" if grid_width_px >= FLOW_GRID_MIN_WIDTH_PX else self.flow_preset
+
+    @property
+    def speckle_size_px(self) -> int:
+        """Largest isolated region removed from the output (high-res px, ``speckle_px``)."""
+        return self.scale * self.scale if self.speckle_px is None else int(self.speckle_px)
+
+    @property
+    def spatial_sigma_px(self) -> float:
+        """Spatial std of the bilateral prefilter in high-res px."""
+        if self.prefilter_sigma_px is not None:
+            return float(self.prefilter_sigma_px)
+        return 0.75 * self.scale + 0.5
+
+    @classmethod
+    def from_options(cls, scale: int, n_frames: int = 9, **options: Any) -> UPSRConfig:
+        """Build a config from flat keyword options.
+
+        Deblurring options may be given with a ``deblur_`` prefix (``deblur_lam=0.1``) or as a
+        :class:`DeblurConfig` in ``deblur``; ``deblur=False`` disables the step. Unknown names
+        raise :class:`~upsr.errors.InputError`.
+        """
+        deblur = options.pop("deblur", None)
+        deblur_opts = {
+            k[len("deblur_") :]: options.pop(k) for k in list(options) if k.startswith("deblur_")
+        }
+        names = {f.name for f in dataclasses.fields(cls)}
+        unknown = sorted(set(options) - names)
+        if unknown:
+            raise InputError(f"unknown option(s): {', '.join(unknown)}")
+        if isinstance(deblur, DeblurConfig):
+            dcfg = dataclasses.replace(deblur, **deblur_opts)
+        else:
+            if deblur is not None:
+                deblur_opts.setdefault("enabled", bool(deblur))
+            dnames = {f.name for f in dataclasses.fields(DeblurConfig)}
+            bad = sorted(set(deblur_opts) - dnames)
+            if bad:
+                raise InputError(f"unknown deblur option(s): {', '.join(bad)}")
+            dcfg = DeblurConfig(**deblur_opts)
+        return cls(scale=scale, n_frames=n_frames, deblur=dcfg, **options)
+
+
+def _is_int(value: Any) -> bool:
+    return isinstance(value, (int, np.integer)) and not isinstance(value, bool)
+
+
+def _check(condition: bool, message: str) -> None:
+    if not condition:
+        raise InputError(message)

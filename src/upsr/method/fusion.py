@@ -1,0 +1,677 @@
+"""Fusion of the registered frames by an invalid-aware temporal median (paper eq. 26–28).
+
+Under i.i.d. Laplacian noise the pixel-wise median of the registered upsampled frames is the
+maximum-likelihood estimate of z_t0 = B x_t0 (eq. 28). Depth sensors add two kinds of missing
+samples, kept apart here:
+
+* **no return** (0 or NaN in the frame, e.g. background out of range, random dropout): these do
+  not vote on the depth, but they do vote on *whether there is depth*: a pixel is valid only if
+  more than ``min_valid_fraction`` of its in-frame samples are valid (a tie follows the
+  reference frame). A random dropout is therefore filled from the other frames, while one stray
+  valid sample among "no return"s never invents depth.
+* **outside** (the motion points outside the frame, marked NaN in the warped stack by
+  :func:`upsr.method.registration.warp_nearest`): abstains entirely.
+
+Where the valid samples come from several surfaces (sorted samples separated by gaps larger than
+``edge_mm``: a depth edge, an occlusion), the surface with the largest vote wins and the output
+is the median of its samples only. The fusion therefore never averages foreground with
+background, even for an even number of samples: no flying pixels.
+"""
+
+from __future__ import annotations
+
+import functools
+
+import numba as nb
+import numpy as np
+import numpy.typing as npt
+
+from upsr._numba import SAFE_FASTMATH
+from upsr.method.registration import interpolation_tables, weight_table
+
+__all__ = [
+    "OUTSIDE",
+    "register_and_fuse",
+    "sorting_network",
+    "splat_nearest",
+    "splat_points",
+    "temporal_median",
+]
+
+#: Marker of a registered sample that fell outside its frame (abstains in the fusion).
+OUTSIDE = np.float32(np.nan)
+
+
+@nb.njit(cache=True, nogil=True, inline="always")
+def _median_sorted(vals, lo, hi):  # pragma: no cover - numba
+    """Median of the sorted vals[lo:hi] (mean of the two middle values for an even count)."""
+    m = lo + (hi - lo) // 2
+    if (hi - lo) % 2 == 1:
+        return vals[m]
+    return 0.5 * (vals[m - 1] + vals[m])
+
+
+def sorting_network(n: int) -> np.ndarray:
+    """Comparators (i, j), i < j, of Batcher's odd–even merge sort for n keys, as an (m, 2) array.
+
+    Built for the next power of two and pruned of every comparator that touches a padding
+    position ≥ n (padding keys are +∞, already in place, so those never swap). For the usual
+    window lengths: 9 keys in 28 compare-exchanges, branch-free, instead of an insertion sort.
+    """
+    size = 1
+    while size < n:
+        size *= 2
+    pairs: list[tuple[int, int]] = []
+
+    def merge(lo: int, length: int, step: int) -> None:
+        double = step * 2
+        if double < length:
+            merge(lo, length, double)
+            merge(lo + step, length, double)
+            pairs.extend((i, i + step) for i in range(lo + step, lo + length - step, double))
+        else:
+            pairs.append((lo, lo + step))
+
+    def sort(lo: int, length: int) -> None:
+        if length > 1:
+            half = length // 2
+            sort(lo, half)
+            sort(lo + half, half)
+            merge(lo, length, 1)
+
+    sort(0, size)
+    kept = [(i, j) for i, j in pairs if j < n]
+    return np.array(kept, np.int64).reshape(-1, 2)
+
+
+@nb.njit(cache=True, nogil=True, inline="always")
+def _too_few_valid(w_valid, w_in, ref_value, min_valid_fraction):  # pragma: no cover - numba
+    """Whether a pixel is unknown: at most ``min_valid_fraction`` of the weight of its
+    in-frame samples is valid (a tie follows the reference: unknown if its sample is)."""
+    frac = w_valid / w_in
+    return frac < min_valid_fraction or (frac == min_valid_fraction and ref_value == 0.0)
+
+
+@nb.njit(cache=True, nogil=True, inline="always")
+def _fuse_pixel(
+    vals, wts, nv, w_in, w_valid, ref_value, g, guide_bonus, min_valid_fraction, edge_mm, network
+):  # pragma: no cover - numba
+    """The fused depth of one pixel from its samples: vals[k] > 0 valid (else +inf) with vote
+    weights wts[k] (0 for invalid ones); nv valid samples; w_in, w_valid the weight of the
+    in-frame and of the valid samples; ref_value the reference's sample (0 if none); g the
+    guide (≤ 0 or NaN: none). Sorts vals/wts in place."""
+    if _too_few_valid(w_valid, w_in, ref_value, min_valid_fraction):
+        return np.float32(0.0)
+    # sort the keys (invalid ones are +inf and end up last), weights alongside; branch-free
+    # (the order of the samples of an edge pixel is random: a branch would mispredict)
+    for c in range(network.shape[0]):
+        a = network[c, 0]
+        b = network[c, 1]
+        va = vals[a]
+        vb = vals[b]
+        wa = wts[a]
+        wb = wts[b]
+        swap = va > vb
+        vals[a] = vb if swap else va
+        vals[b] = va if swap else vb
+        wts[a] = wb if swap else wa
+        wts[b] = wa if swap else wb
+    if vals[nv - 1] - vals[0] <= edge_mm:
+        return _median_sorted(vals, 0, nv)
+    # samples from several surfaces (a depth edge): the surface with the largest vote
+    # weight wins (a tie: the reference's surface); the surface of the guide (the nearest
+    # forward-registered sample) gets a bonus; its median is the output
+    best_lo = 0
+    best_hi = 0
+    best_w = -np.inf
+    lo = 0
+    acc = wts[0]
+    for p in range(1, nv + 1):
+        if p == nv or vals[p] - vals[p - 1] > edge_mm:
+            has_ref = vals[lo] <= ref_value <= vals[p - 1]
+            if g > 0 and vals[lo] - edge_mm <= g <= vals[p - 1] + edge_mm:
+                acc += guide_bonus * w_valid
+            if acc > best_w or (acc == best_w and has_ref):
+                best_w = acc
+                best_lo = lo
+                best_hi = p
+            lo = p
+            acc = 0.0
+        if p < nv:
+            acc += wts[p]
+    return _median_sorted(vals, best_lo, best_hi)
+
+
+@nb.njit(cache=True, nogil=True, parallel=True)
+def _median_kernel(
+    stack, weights, guide, guide_bonus, ref, min_valid_fraction, edge_mm, network, out
+):  # pragma: no cover - numba
+    n, h, w = stack.shape
+    inf = np.float32(np.inf)
+    for i in nb.prange(h):
+        vals = np.empty(n, np.float32)
+        wts = np.empty(n, np.float32)
+        for j in range(w):
+            nv = 0
+            w_in = 0.0
+            w_valid = 0.0
+            for k in range(n):
+                v = stack[k, i, j]
+                wk = weights[k, i, j]
+                vals[k] = inf
+                wts[k] = 0.0
+                if v != v:  # NaN: outside the frame, abstains
+                    continue
+                w_in += wk
+                if v > 0:
+                    w_valid += wk
+                    vals[k] = v
+                    wts[k] = wk
+                    nv += 1
+            if nv == 0:
+                out[i, j] = 0.0
+                continue
+            r = stack[ref, i, j]
+            ref_value = r if (r == r and r > 0) else 0.0
+            out[i, j] = _fuse_pixel(
+                vals,
+                wts,
+                nv,
+                w_in,
+                w_valid,
+                ref_value,
+                guide[i, j],
+                guide_bonus,
+                min_valid_fraction,
+                edge_mm,
+                network,
+            )
+
+
+@nb.njit(cache=True, nogil=True, fastmath=SAFE_FASTMATH)
+def _sort_columns(a, network):  # pragma: no cover - numba
+    """Sort every column of a (n, m) at once: a branch-free min/max sorting network whose
+    compare-exchanges are loops over the row (SIMD; a function of its own so that LLVM
+    vectorises them)."""
+    m = a.shape[1]
+    for c in range(network.shape[0]):
+        ap = a[network[c, 0]]
+        aq = a[network[c, 1]]
+        for j in range(m):
+            lo = min(ap[j], aq[j])
+            aq[j] = max(ap[j], aq[j])
+            ap[j] = lo
+
+
+@nb.njit(cache=True, nogil=True, parallel=True, fastmath=SAFE_FASTMATH)
+def _register_fuse_kernel(
+    lowres,
+    maps,
+    scale,
+    ratio,
+    cols,
+    fx,
+    rows,
+    fy,
+    table,
+    step,
+    floor,
+    guide,
+    guide_bonus,
+    ref,
+    min_valid_fraction,
+    edge_mm,
+    measured,
+    network,
+    still,
+    out,
+):  # pragma: no cover - numba
+    n = lowres.shape[0]
+    hh, ww = out.shape
+    grid_w = maps.shape[2]
+    inf = np.float32(np.inf)
+    nan = np.float32(np.nan)
+    last = table.size - 1
+    # low-res index of a high-res index, and the high-res coordinate of that pixel's centre
+    big = max(hh, ww)
+    low_of = np.empty(big, np.int64)
+    centre_of = np.empty(big, np.float32)
+    for x in range(big):
+        low_of[x] = x // scale
+        centre_of[x] = (x // scale + 0.5) * scale - 0.5
+    half = np.float32(0.5)
+    inv_r = np.float32(1.0 / scale)
+    w_low = lowres.shape[2]
+    for i in nb.prange(hh):
+        y0 = rows[i, 0]
+        y1 = rows[i, 1]
+        gy = fy[i]
+        # the pixels of the row whose low-res pixel some frame of the window measured; all
+        # others are 0 (never invent depth where the camera saw nothing)
+        mrow = measured[low_of[i]]
+        on = np.empty(ww, np.int64)
+        m_on = 0
+        for j in range(ww):
+            if mrow[low_of[j]]:
+                on[m_on] = j
+                m_on += 1
+            else:
+                out[i, j] = 0.0
+        if m_on == 0:
+            continue
+        # their interpolation columns, gathered once per row (contiguous in the loops below)
+        on_a = np.empty(m_on, np.int64)
+        on_b = np.empty(m_on, np.int64)
+        on_fx = np.empty(m_on, np.float32)
+        on_low = np.empty(m_on, np.int64)
+        on_jd = np.empty(m_on, np.float64)
+        fi = np.float64(i)
+        for q in range(m_on):
+            j = on[q]
+            on_jd[q] = np.float64(j)
+            on_a[q] = cols[j, 0]
+            on_b[q] = cols[j, 1]
+            on_fx[q] = fx[j]
+            on_low[q] = low_of[j]
+        # one output row at a time, every frame's sample of each of those pixels: loops
+        # over the row (SIMD where they can)
+        raw = np.empty((n, m_on), np.float32)  # the sample; NaN: outside its frame (abstains)
+        srt = np.empty((n, m_on), np.float32)  # the valid samples (+inf for the others), sorted
+        n_in = np.zeros(m_on, np.int64)
+        nv = np.zeros(m_on, np.int64)
+        px = np.empty((n, m_on), np.float64)  # where each sample lies (output px)
+        py = np.empty((n, m_on), np.float64)
+        at = np.empty(m_on, np.int64)  # its low-res pixel (flat index; -1: outside)
+        vxk = np.empty(grid_w, np.float32)
+        vyk = np.empty(grid_w, np.float32)
+        vals = np.empty(n, np.float32)
+        wts = np.empty(n, np.float32)
+        for k in range(n):
+            if k == still:
+                # a frame that does not move (the reference): the sample of each pixel is
+                # its own low-res pixel, as the general case below gives for a zero flow
+                px[k] = on_jd  # (read where the vote weights are needed)
+                py[k] = fi
+                own = lowres[k, low_of[i]]
+                raw_k = raw[k]
+                srt_k = srt[k]
+                for q in range(m_on):
+                    v = own[on_low[q]]
+                    raw_k[q] = v
+                    srt_k[q] = v if v > 0 else inf
+                    n_in[q] += 1
+                    nv[q] += 1 if v > 0 else 0
+                continue
+            # the flow-grid row interpolated to this output row, in output px (times r/s)
+            m0 = maps[k, y0]
+            m1 = maps[k, y1]
+            for c in range(grid_w):
+                vxk[c] = ((1 - gy) * m0[c, 0] + gy * m1[c, 0]) * ratio
+                vyk[c] = ((1 - gy) * m0[c, 1] + gy * m1[c, 1]) * ratio
+            lk = lowres[k].ravel()
+            rk = raw[k]
+            sk = srt[k]
+            pxk = px[k]
+            pyk = py[k]
+            # where each pixel's sample lies, which low-res pixel that is, its value: three
+            # loops over few arrays each (so that they vectorise)
+            for q in range(m_on):
+                a = on_a[q]
+                b = on_b[q]
+                gx = on_fx[q]
+                pxk[q] = on_jd[q] + (vxk[a] + gx * (vxk[b] - vxk[a]))
+                pyk[q] = fi + (vyk[a] + gx * (vyk[b] - vyk[a]))
+            for q in range(m_on):
+                qx = pxk[q]
+                qy = pyk[q]
+                inside = (-0.5 <= qx) & (qx < ww - 0.5) & (-0.5 <= qy) & (qy < hh - 0.5)
+                xi = min(max(np.int64(qx + 0.5), 0), ww - 1)  # qx + 0.5 >= 0 inside: the floor
+                yi = min(max(np.int64(qy + 0.5), 0), hh - 1)
+                # x // r exactly, without a division: (x + 0.5)/r is ≥ 0.5/r from an integer
+                xl = np.int64((np.float32(xi) + half) * inv_r)
+                yl = np.int64((np.float32(yi) + half) * inv_r)
+                at[q] = (yl * w_low + xl) if inside else np.int64(-1)
+            for q in range(m_on):
+                t = at[q]
+                v = lk[max(t, 0)]
+                inside = t >= 0
+                valid = inside & (v > 0)
+                rk[q] = v if inside else nan
+                sk[q] = v if valid else inf
+                n_in[q] += 1 if inside else 0
+                nv[q] += 1 if valid else 0
+        _sort_columns(srt, network)
+        # the common case, branch-free (SIMD): every sample valid and one surface (a span
+        # of at most edge_mm): the plain median; the other pixels go through the loop below
+        plain = np.empty(m_on, np.float32)
+        other = np.empty(m_on, np.bool_)
+        lo_row = srt[0]
+        hi_row = srt[n - 1]
+        mid_a = srt[(n - 1) // 2]
+        mid_b = srt[n // 2]
+        for q in range(m_on):
+            plain[q] = np.float32(0.5) * (mid_a[q] + mid_b[q]) if n % 2 == 0 else mid_b[q]
+            other[q] = (nv[q] < n) | (hi_row[q] - lo_row[q] > edge_mm)
+        for q in range(m_on):
+            j = on[q]
+            if not other[q]:
+                out[i, j] = plain[q]
+                continue
+            m = nv[q]
+            if m == 0:
+                out[i, j] = 0.0  # no valid sample
+                continue
+            one_surface = srt[m - 1, q] - srt[0, q] <= edge_mm
+            mid = m // 2
+            median = srt[mid, q] if m % 2 == 1 else 0.5 * (srt[mid - 1, q] + srt[mid, q])
+            if m == n_in[q] and one_surface:
+                # the common case: every in-frame sample valid, one surface: the plain median
+                out[i, j] = median
+                continue
+            # some samples invalid, or samples from several surfaces: the vote weights
+            # matter (and are only computed) here, from the distance (px) of the registered
+            # position to the centre of the low-res pixel sampled there
+            w_in = 0.0
+            w_valid = 0.0
+            for k in range(n):
+                v = raw[k, q]
+                vals[k] = inf
+                wts[k] = 0.0
+                if v != v:
+                    continue
+                qx = px[k, q]
+                qy = py[k, q]
+                ex = abs(qx - centre_of[int(qx + 0.5)])
+                ey = abs(qy - centre_of[int(qy + 0.5)])
+                gx_k = table[min(int(ex * step + 0.5), last)]
+                gy_k = table[min(int(ey * step + 0.5), last)]
+                wk = floor + (1.0 - floor) * gx_k * gy_k
+                w_in += wk
+                if v > 0:
+                    w_valid += wk
+                    vals[k] = v
+                    wts[k] = wk
+            r = raw[ref, q]
+            ref_value = r if (r == r and r > 0) else 0.0
+            if one_surface:
+                # what _fuse_pixel gives on one surface, without sorting again
+                few = _too_few_valid(w_valid, w_in, ref_value, min_valid_fraction)
+                out[i, j] = 0.0 if few else median
+                continue
+            out[i, j] = _fuse_pixel(
+                vals,
+                wts,
+                m,
+                w_in,
+                w_valid,
+                ref_value,
+                guide[i, j],
+                guide_bonus,
+                min_valid_fraction,
+                edge_mm,
+                network,
+            )
+
+
+@functools.lru_cache(maxsize=16)
+def _network(n: int) -> np.ndarray:
+    return sorting_network(n)
+
+
+def temporal_median(
+    stack: npt.ArrayLike,
+    ref: int | None = None,
+    *,
+    weights: npt.ArrayLike | None = None,
+    guide: npt.ArrayLike | None = None,
+    guide_bonus: float = 0.35,
+    min_valid_fraction: float = 0.5,
+    edge_mm: float = 100.0,
+) -> np.ndarray:
+    """Invalid-aware pixel-wise temporal median of registered frames (eq. 28).
+
+    Parameters
+    ----------
+    stack : array_like, (N, H, W)
+        Registered frames y_t^{t0}↑ in mm: > 0 valid, 0 = no return, NaN = outside the frame.
+    ref : int, optional
+        Index of the reference frame in the stack (tie-breaks); default the middle one.
+    weights : array_like (N, H, W), optional
+        Vote weight of each sample (default 1). They decide whether a pixel is valid (weighted
+        share of valid samples) and, where the samples come from several surfaces (spread >
+        ``edge_mm``), which surface the pixel belongs to; the depth itself is always the plain
+        median of the samples of that surface.
+    guide : array_like (H, W), optional
+        Where > 0 and the samples come from several surfaces, the surface holding this depth
+        gets ``guide_bonus`` × the total valid weight added to its vote (see
+        :func:`splat_nearest`).
+    guide_bonus : float
+        Weight of the guide, as a share of the total valid vote weight.
+    min_valid_fraction : float
+        A pixel is valid if the share of valid samples among in-frame samples is larger than
+        this (equal: valid if the reference sample is).
+    edge_mm : float
+        Samples further apart than this (mm, a gap in their sorted order) belong to different
+        surfaces; only the winning surface's samples form the median.
+
+    Returns
+    -------
+    ndarray float32 (H, W): the fused depth, 0 where nothing is known.
+    """
+    arr = np.ascontiguousarray(stack, dtype=np.float32)
+    if arr.ndim != 3:
+        raise ValueError(f"stack must be (N, H, W), got shape {arr.shape}")
+    n = arr.shape[0]
+    ref = (n - 1) // 2 if ref is None else int(ref)
+    if not 0 <= ref < n:
+        raise ValueError(f"ref must be in [0, {n}), got {ref}")
+    if weights is None:
+        wts = np.ones(arr.shape, np.float32)
+    else:
+        wts = np.ascontiguousarray(np.broadcast_to(weights, arr.shape), dtype=np.float32)
+    if guide is None:
+        gd = np.zeros(arr.shape[1:], np.float32)
+    else:
+        gd = np.ascontiguousarray(guide, dtype=np.float32)
+    out = np.empty(arr.shape[1:], np.float32)
+    _median_kernel(
+        arr,
+        wts,
+        gd,
+        float(guide_bonus),
+        ref,
+        float(min_valid_fraction),
+        float(edge_mm),
+        _network(n),
+        out,
+    )
+    return out
+
+
+@nb.njit(cache=True, nogil=True)
+def _splat_kernel(values, positions, radius, best_d, best_v):  # pragma: no cover - numba
+    n, h, w = values.shape
+    hh, ww = best_d.shape
+    for k in range(n):
+        for i in range(h):
+            for j in range(w):
+                qx = positions[k, i, j, 0]
+                qy = positions[k, i, j, 1]
+                v = values[k, i, j]
+                y0 = max(int(np.ceil(qy - radius)), 0)
+                y1 = min(int(np.floor(qy + radius)), hh - 1)
+                x0 = max(int(np.ceil(qx - radius)), 0)
+                x1 = min(int(np.floor(qx + radius)), ww - 1)
+                for u in range(y0, y1 + 1):
+                    for vv in range(x0, x1 + 1):
+                        d = (u - qy) ** 2 + (vv - qx) ** 2
+                        if d < best_d[u, vv]:
+                            best_d[u, vv] = d
+                            best_v[u, vv] = v
+
+
+def splat_points(
+    values: npt.ArrayLike,
+    positions_px: npt.ArrayLike,
+    shape: tuple[int, int],
+    radius_px: float = 1.0,
+) -> np.ndarray:
+    """Nearest forward-registered sample per high-res pixel (shift-and-add, Farsiu et al. 2004).
+
+    Each low-res pixel of frame t is a point sample of the scene at its centre (high-res
+    coordinate (i+0.5)·r − 0.5, ``SPEC.md`` §1). Moved to the reference with its own motion
+    C_{t→t0}, the samples of a moving surface land at sub-pixel positions that outline the
+    surface at the reference time far more precisely than the r×r blocks of dense upsampling.
+    The depth of the nearest sample within ``radius_px`` tells on which surface each high-res
+    pixel lies (the guide of :func:`temporal_median`).
+
+    Parameters
+    ----------
+    values : array_like (N, h, w)
+        The low-res frames of the window (mm, 0 = no return).
+    positions_px : array_like (N, h, w, 2)
+        Where each sample lands on the reference grid, (x, y) in high-res px
+        (:func:`upsr.method.registration.trace_to_reference`).
+    shape : (H, W)
+        Size of the high-res grid.
+    radius_px : float
+        Largest distance (high-res px) between a pixel and the sample it takes.
+
+    Returns
+    -------
+    ndarray float32 (H, W): the nearest sample's depth, NaN where none is in reach.
+    """
+    vals = np.ascontiguousarray(values, dtype=np.float32)
+    pos = np.ascontiguousarray(positions_px, dtype=np.float32)
+    best_d = np.full(shape, radius_px * radius_px, np.float64)
+    best_v = np.full(shape, np.nan, np.float32)
+    _splat_kernel(vals, pos, float(radius_px), best_d, best_v)
+    return best_v
+
+
+def splat_nearest(
+    lowres: npt.ArrayLike, to_reference: npt.ArrayLike, scale: int, radius_px: float = 1.0
+) -> np.ndarray:
+    """:func:`splat_points` with dense motion fields to the reference on the high-res grid.
+
+    Parameters
+    ----------
+    lowres : array_like (N, h, w)
+        The low-res frames of the window (mm, 0 = no return).
+    to_reference : array_like (N, r·h, r·w, 2)
+        Motion of each frame to the reference on its own high-res grid
+        (:func:`upsr.method.registration.flows_to_reference`), read at the high-res pixel nearest to
+        each low-res pixel centre.
+    scale : int
+        SR factor r.
+    radius_px : float
+        Largest distance (high-res px) between a pixel and the sample it takes.
+
+    Returns
+    -------
+    ndarray float32 (r·h, r·w): the nearest sample's depth, NaN where none is in reach.
+    """
+    lr = np.asarray(lowres, dtype=np.float32)
+    maps = np.asarray(to_reference, dtype=np.float32)
+    _, h, w = lr.shape
+    hh, ww = maps.shape[1:3]
+    centre_y = np.arange(h) * scale + 0.5 * scale - 0.5
+    centre_x = np.arange(w) * scale + 0.5 * scale - 0.5
+    yi = np.minimum((centre_y + 0.5).astype(np.intp), hh - 1)
+    xi = np.minimum((centre_x + 0.5).astype(np.intp), ww - 1)
+    pos = maps[:, yi[:, None], xi[None, :], :].copy()
+    pos[..., 0] += centre_x[None, None, :]
+    pos[..., 1] += centre_y[None, :, None]
+    return splat_points(lr, pos, (hh, ww), radius_px)
+
+
+def register_and_fuse(
+    lowres: npt.ArrayLike,
+    maps: npt.ArrayLike,
+    scale: int,
+    ref: int | None = None,
+    *,
+    weight_sigma_px: float | None = None,
+    weight_floor: float = 0.25,
+    guide: npt.ArrayLike | None = None,
+    guide_bonus: float = 0.35,
+    min_valid_fraction: float = 0.5,
+    edge_mm: float = 100.0,
+    measured_only: bool = True,
+) -> np.ndarray:
+    """Registration (eq. 20) and invalid-aware median fusion (eq. 28) in one compiled pass.
+
+    With a flow grid of the output size (s = r) this equals
+    ``temporal_median(stack, ref, weights=w, ...)`` with ``stack[k] =
+    warp_nearest(upsample_nearest(lowres[k], r), maps[k])`` and ``w = floor + (1 − floor)·
+    exp(−d²/(2σ²))``, d from :func:`upsr.method.registration.sample_offsets` (the Gaussian is
+    tabulated every 1/64 px), without building those (N, r·h, r·w) stacks: each output pixel
+    reads its N samples straight from the low-res frames, and computes the vote weights only
+    where they can matter (some samples invalid, or samples from several surfaces). A coarser
+    flow grid (s < r) is interpolated bilinearly (pixel centres aligned, like ``cv2.resize``).
+
+    Parameters
+    ----------
+    lowres : array_like (N, h, w)
+        Low-res frames of the window (mm; 0 or NaN = no return).
+    maps : array_like (N, s·h, s·w, 2)
+        Motion from the reference to each frame on the flow grid (flow px).
+    scale : int
+        SR factor r.
+    ref : int, optional
+        Index of the reference frame (default the middle one).
+    weight_sigma_px : float or None
+        σ of the vote weights (high-res px); ``None``: equal votes.
+    weight_floor : float
+        Smallest vote weight.
+    guide, guide_bonus, min_valid_fraction, edge_mm
+        As in :func:`temporal_median`.
+    measured_only : bool
+        Output 0 wherever no frame of the window measured the low-res pixel the output pixel
+        belongs to (never invent depth where the camera saw nothing, even when the motion
+        brings samples there).
+
+    Returns
+    -------
+    ndarray float32 (r·h, r·w): fused depth (mm), 0 where nothing is known.
+    """
+    lr = np.ascontiguousarray(lowres, np.float32)
+    lr = np.where(np.isnan(lr), np.float32(0.0), lr)
+    mp = np.ascontiguousarray(maps, np.float32)
+    n, h, w = lr.shape
+    ref = (n - 1) // 2 if ref is None else int(ref)
+    if not 0 <= ref < n:
+        raise ValueError(f"ref must be in [0, {n}), got {ref}")
+    hh, ww = h * scale, w * scale
+    (cols, fx), (rows, fy), ratio = interpolation_tables((hh, ww), mp.shape[1:3])
+    table, step = weight_table(scale, weight_sigma_px)
+    gd = (
+        np.zeros((hh, ww), np.float32)
+        if guide is None
+        else np.ascontiguousarray(guide, dtype=np.float32)
+    )
+    measured = (lr > 0).any(axis=0) if measured_only else np.ones((h, w), np.bool_)
+    out = np.empty((hh, ww), np.float32)
+    _register_fuse_kernel(
+        lr,
+        mp,
+        int(scale),
+        ratio,
+        cols,
+        fx,
+        rows,
+        fy,
+        table,
+        step,
+        float(weight_floor),
+        gd,
+        float(guide_bonus),
+        ref,
+        float(min_valid_fraction),
+        float(edge_mm),
+        measured,
+        _network(n),
+        ref if not mp[ref].any() else -1,  # the reference's map is zero: a shortcut
+        out,
+    )
+    return out

@@ -1,0 +1,72 @@
+"""Dense (nearest-neighbour) upsampling U and its adjoint, paper eq. 13–15.
+
+Pixel geometry (``SPEC.md`` §1): low-res pixel (i, j) covers the high-res block rows
+r·i … r·i+r−1, cols r·j … r·j+r−1 and sits at their mean, high-res coordinate (i+0.5)·r − 0.5.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import numpy.typing as npt
+
+from upsr.errors import InputError
+
+__all__ = ["decimate", "downsample_mean", "upsample_nearest"]
+
+
+def _check_scale(r: int) -> int:
+    if isinstance(r, bool) or not isinstance(r, (int, np.integer)) or r < 1:
+        raise InputError(f"scale r must be an integer >= 1, got {r!r}")
+    return int(r)
+
+
+def upsample_nearest(y: npt.ArrayLike, r: int) -> np.ndarray:
+    """Dense upsampling y↑ = U y (eq. 13–15): replicate each pixel into an r×r block.
+
+    Parameters
+    ----------
+    y : array_like, shape (..., h, w)
+        Low-res depth (mm); invalid pixels (0) stay invalid, they are never interpolated.
+    r : int
+        Upsampling factor (≥ 1).
+
+    Returns
+    -------
+    ndarray, shape (..., r·h, r·w), same dtype as ``y``.
+    """
+    r = _check_scale(r)
+    y = np.asarray(y)
+    if r == 1:
+        return y.copy()
+    return np.repeat(np.repeat(y, r, axis=-2), r, axis=-1)
+
+
+def decimate(x: npt.ArrayLike, r: int) -> np.ndarray:
+    """The adjoint Uᵀ of dense upsampling: the sum over each r×r block.
+
+    ``<U y, x> == <y, Uᵀ x>`` for all y, x (paper: U is the transpose of the decimation D up to
+    the normalisation 1/r²; see :func:`downsample_mean`).
+
+    Parameters
+    ----------
+    x : array_like, shape (..., r·h, r·w)
+    r : int
+
+    Returns
+    -------
+    ndarray, shape (..., h, w), float64 for integer input, else ``x``'s dtype.
+    """
+    r = _check_scale(r)
+    x = np.asarray(x)
+    hh, ww = x.shape[-2:]
+    if hh % r or ww % r:
+        raise InputError(f"shape {x.shape[-2:]} is not divisible by r = {r}")
+    blocks = x.reshape(*x.shape[:-2], hh // r, r, ww // r, r)
+    dtype = np.float64 if np.issubdtype(x.dtype, np.integer) else x.dtype
+    return blocks.sum(axis=(-3, -1), dtype=dtype)
+
+
+def downsample_mean(x: npt.ArrayLike, r: int) -> np.ndarray:
+    """Block-average decimation D = Uᵀ / r² (so that D U = I)."""
+    r = _check_scale(r)
+    return decimate(x, r) / (r * r)

@@ -1,0 +1,78 @@
+"""Checks and normalisation of depth inputs.
+
+Conventions (``../shared/SPEC.md`` §1): depth is in millimetres; 0 and NaN mean "no
+measurement". Everything else must be a finite, non-negative number.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import numpy.typing as npt
+
+from upsr.errors import InputError
+
+__all__ = ["as_depth_frame", "as_depth_video"]
+
+
+def as_depth_frame(frame: npt.ArrayLike, *, name: str = "frame") -> np.ndarray:
+    """Return ``frame`` as a float32 (h, w) depth map in mm with invalid pixels set to 0.
+
+    Parameters
+    ----------
+    frame : array_like
+        (h, w) depth in mm, float or unsigned/signed integer; 0 or NaN = no measurement.
+    name : str
+        How to call the array in error messages.
+
+    Raises
+    ------
+    InputError
+        Wrong number of dimensions, empty, non-numeric dtype, ±inf or negative depths.
+    """
+    arr = np.asarray(frame)
+    if arr.dtype == object or not (
+        np.issubdtype(arr.dtype, np.integer) or np.issubdtype(arr.dtype, np.floating)
+    ):
+        raise InputError(
+            f"{name}: depth must be a numeric array (float or integer), got dtype {arr.dtype}"
+        )
+    if arr.ndim != 2:
+        raise InputError(f"{name}: expected a 2-D depth frame (h, w), got shape {arr.shape}")
+    if arr.size == 0:
+        raise InputError(f"{name}: empty depth frame of shape {arr.shape}")
+    out = arr.astype(np.float32, copy=True)
+    if np.issubdtype(arr.dtype, np.floating):
+        if np.isinf(out).any():
+            raise InputError(f"{name}: depth contains ±inf (use 0 or NaN for 'no measurement')")
+        np.nan_to_num(out, copy=False, nan=0.0)
+    if (out < 0).any():
+        raise InputError(f"{name}: depth contains negative values (min {float(out.min()):g} mm)")
+    return out
+
+
+def as_depth_video(frames: npt.ArrayLike, *, name: str = "input") -> np.ndarray:
+    """Return ``frames`` as a float32 (T, h, w) depth video in mm, invalid pixels set to 0.
+
+    A single (h, w) frame is not accepted: a video is 3-D. Individual empty (all-invalid)
+    frames are allowed, a video with no valid depth at all is not.
+
+    Raises
+    ------
+    InputError
+        Wrong shape or dtype, NaN-free ±inf, negative depths, no valid depth anywhere.
+    """
+    arr = np.asarray(frames)
+    if arr.dtype == object:
+        raise InputError(f"{name}: object arrays are not depth data")
+    if arr.ndim != 3:
+        raise InputError(
+            f"{name}: expected a depth video of shape (T, h, w), got shape {arr.shape}"
+        )
+    if 0 in arr.shape:
+        raise InputError(f"{name}: empty depth video of shape {arr.shape}")
+    out = np.empty(arr.shape, np.float32)
+    for t in range(arr.shape[0]):
+        out[t] = as_depth_frame(arr[t], name=f"{name} frame {t}")
+    if not (out > 0).any():
+        raise InputError(f"{name}: no valid depth in any frame (all pixels are 0 or NaN)")
+    return out

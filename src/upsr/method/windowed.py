@@ -1,0 +1,532 @@
+"""The UP-SR video pipeline (paper Table 1) as a streaming engine and a batch function.
+
+For each reference frame t0 (every frame of the video):
+
+1. dense upsampling (eq. 13–15) by s ≤ r for motion (the flow grid,
+   :meth:`UPSRConfig.flow_grid_scale <upsr.method.config.UPSRConfig.flow_grid_scale>`),
+   :mod:`upsr.method.upsampling`;
+2. bilateral prefilter and fixed 8-bit mapping, for motion only (§5.2), :mod:`upsr.method.motion`;
+3. optical flow between consecutive upsampled frames (§4, eq. 16–17), :mod:`upsr.method.motion`;
+4. cumulative motion to t0 by composition, with eq. 19 re-estimation, :mod:`upsr.method.registration`;
+5. nearest-neighbour warping of y_t↑ = U y_t to t0 (eq. 20) and 6. the invalid-aware temporal
+   median (eq. 28), in one compiled pass on the r·h × r·w grid that reads the samples from the
+   low-res frames (:func:`upsr.method.fusion.register_and_fuse`);
+7. L1 + BTV deblurring (eq. 29–30), then (beyond the paper) an edge-preserving smoothing of
+   each surface that turns the staircase of dense upsampling into ramps, :mod:`upsr.method.deblurring`.
+
+Windows: N frames with the reference in the middle (``(N-1)//2`` before it); near the ends of a
+video the window is shifted inwards so that it still holds N frames. Each consecutive flow (both
+directions) and each prefiltered frame is computed once per video and shared by every window
+that needs it, and each frame's chain of sample positions (the forward splat) is extended by
+one flow per window; the engine keeps only what later windows need (about N frames of state).
+Complete windows are finished on ``workers`` threads side by side (same output).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import threading
+import time
+from collections.abc import Iterable, Iterator
+from concurrent.futures import Future, wait
+from typing import Any
+
+import numpy as np
+import numpy.typing as npt
+
+from upsr.errors import InputError
+from upsr.method._parallel import both, window_pool
+from upsr.method.config import UPSRConfig
+from upsr.method.deblurring import deblur, estimate_noise_mm
+from upsr.method.fusion import register_and_fuse, splat_points
+from upsr.method.motion import (
+    FlowBackend,
+    bilateral_prefilter_nearest,
+    depth_range,
+    depth_to_u8,
+    flow_backend_is_thread_safe,
+    make_flow_backend,
+    suppress_spurious_motion,
+)
+from upsr.method.outliers import remove_speckles
+from upsr.method.registration import (
+    advance_positions,
+    cumulative_flows,
+    sample_centres,
+    to_output_grid,
+)
+from upsr.method.validation import as_depth_frame, as_depth_video
+
+__all__ = ["STAGES", "UPSR", "finish_fused", "super_resolve", "window_start"]
+
+#: The stages of :attr:`UPSR.timings`.
+STAGES = ("prefilter", "flow", "registration", "fusion", "deblur")
+
+
+def finish_fused(fused_mm: np.ndarray, cfg: UPSRConfig) -> np.ndarray:
+    """UP-SR's steps after the fusion of a window: the deblurring (eq. 29–30, ``cfg.deblur``),
+    then the removal of isolated outliers (:func:`upsr.method.outliers.remove_speckles`)."""
+    out = deblur(fused_mm, cfg.deblur, scale=cfg.scale)
+    return remove_speckles(out, cfg.speckle_size_px, cfg.edge_mm)
+
+
+def window_start(t: int, n_total: int, cfg: UPSRConfig) -> int:
+    """First frame of the window of reference frame ``t`` in a video of ``n_total`` frames."""
+    return int(min(max(t - cfg.half_before, 0), n_total - cfg.n_frames))
+
+
+class UPSR:
+    """Streaming UP-SR: push low-res frames one by one, get high-res frames back in order.
+
+    ``push(frame)`` returns the next finished high-res frame, or ``None`` while the first window
+    fills (the latency is N−1 frames); ``feed(frame)`` returns every frame whose window is
+    complete (latency N−1−(N−1)//2 frames, for live use); ``flush()`` returns the remaining ones
+    at the end of the video and makes the object ready for a new video; ``reset()`` forgets
+    everything. The output is identical to :func:`super_resolve` on the whole video.
+
+    Parameters
+    ----------
+    scale : int
+        SR factor r.
+    n_frames : int
+        Window length N.
+    config : UPSRConfig, optional
+        Full configuration (overrides ``scale``, ``n_frames`` and ``options``).
+    flow_backend : FlowBackend, optional
+        A flow estimator to use instead of ``config.flow``.
+    workers : int, optional
+        Threads that finish windows in the background, several at a time (beyond the paper;
+        the output is the same). ``None``: 2 on a machine with 2 or more cores, else 0.
+        0: each window is finished on the calling thread. Without effect (0) with a
+        ``flow_backend`` or a registered flow backend, which may not be thread-safe.
+        :meth:`push` and :meth:`process` finish up to 2·``workers`` windows ahead of the one
+        they return; :meth:`feed` returns its frames as early as without workers. The
+        threads are shared by the engines of a process (:func:`upsr.method._parallel.window_pool`):
+        engines already run side by side (several processes or threads) want ``workers=0``.
+    **options
+        Any :class:`~upsr.method.config.UPSRConfig` field (``deblur_*`` for :class:`DeblurConfig`).
+
+    Examples
+    --------
+    >>> import numpy as np, upsr
+    >>> engine = upsr.UPSR(scale=2, n_frames=3)
+    >>> video = np.full((5, 8, 8), 1500.0, np.float32)
+    >>> outs = [engine.push(f) for f in video]
+    >>> [o is None for o in outs]
+    [True, True, False, False, False]
+    >>> len(engine.flush())
+    2
+    """
+
+    def __init__(
+        self,
+        scale: int = 2,
+        n_frames: int = 9,
+        *,
+        config: UPSRConfig | None = None,
+        flow_backend: FlowBackend | None = None,
+        workers: int | None = None,
+        **options: Any,
+    ) -> None:
+        self.config = (
+            config if config is not None else UPSRConfig.from_options(scale, n_frames, **options)
+        )
+        if workers is None:
+            workers = 2 if (os.cpu_count() or 1) >= 2 else 0
+        if isinstance(workers, bool) or not isinstance(workers, int) or workers < 0:
+            raise InputError(f"workers must be an integer >= 0, got {workers!r}")
+        self._custom_flow = flow_backend
+        self._timing_lock = threading.Lock()
+        self._pending: dict[int, Future[np.ndarray]] = {}
+        #: Seconds spent in each stage since the engine was made (kept across videos):
+        #: "prefilter", "flow" (consecutive flows), "registration" (cumulative motion with
+        #: eq. 19), "fusion" (forward splat, registration of the samples and median), "deblur"
+        #: (deblurring and speckle removal). With ``workers``, the time of all threads.
+        self.timings: dict[str, float] = dict.fromkeys(STAGES, 0.0)
+        self.reset()
+        # windows in the background only with a built-in (thread-safe) flow backend
+        self._pool = window_pool(workers) if self._parallel else None
+        #: Threads that finish windows in the background (0: none).
+        self.workers = workers if self._pool is not None else 0
+
+    # -- state -------------------------------------------------------------------------------
+    def reset(self) -> None:
+        """Forget all frames and flows (start a new video)."""
+        pending, self._pending = self._pending, {}
+        for future in pending.values():
+            future.cancel()
+        wait(pending.values())  # none still reads the frames of this video
+        cfg = self.config
+        self._flow = self._custom_flow or make_flow_backend(cfg.flow, cfg.flow_preset)
+        self._residual_flow: FlowBackend | None = self._custom_flow  # set by the first frame
+        # flows on two threads at once only with a built-in backend (others may keep state)
+        self._parallel = self._custom_flow is None and flow_backend_is_thread_safe(cfg.flow)
+        self._s = 1  # upsampling factor of the flow grid, set by the first frame
+        self._shape: tuple[int, int] | None = None
+        self._count = 0
+        self._next_out = 0
+        self._next_submit = 0
+        self._any_valid = False
+        self._range: tuple[float, float] | None = self.config.depth_range_mm
+        self._noise_mm = self.config.noise_mm
+        self._edge_mm = self._edge_for(self._noise_mm or 0.0)
+        self._lowres: dict[int, np.ndarray] = {}
+        self._pre: dict[int, np.ndarray] = {}
+        self._guide: dict[int, np.ndarray] = {}
+        self._fwd: dict[int, np.ndarray] = {}
+        self._bwd: dict[int, np.ndarray] = {}
+        # (k, m): frame k's low-res sample centres carried by the consecutive flows to frame m
+        self._chains: dict[tuple[int, int], np.ndarray] = {}
+
+    @property
+    def frames_seen(self) -> int:
+        """Number of frames pushed since the last reset/flush."""
+        return self._count
+
+    @property
+    def output_shape(self) -> tuple[int, int] | None:
+        """(r·h, r·w) once the first frame has been pushed."""
+        if self._shape is None:
+            return None
+        r = self.config.scale
+        return self._shape[0] * r, self._shape[1] * r
+
+    @contextlib.contextmanager
+    def _timed(self, stage: str) -> Iterator[None]:
+        start = time.perf_counter()
+        try:
+            yield
+        finally:
+            elapsed = time.perf_counter() - start
+            with self._timing_lock:
+                self.timings[stage] += elapsed
+
+    # -- per-frame work (once per video) --------------------------------------------------------
+    def _ingest(self, frame: npt.ArrayLike) -> None:
+        t = self._count
+        cfg = self.config
+        f = as_depth_frame(frame, name=f"frame {t}")
+        if self._shape is None:
+            self._shape = f.shape
+            self._s = cfg.flow_grid_scale(f.shape[1])
+            if self._residual_flow is None:
+                preset = cfg.residual_flow_preset(self._s * f.shape[1])
+                self._residual_flow = make_flow_backend(cfg.flow, preset)
+        elif f.shape != self._shape:
+            raise InputError(
+                f"frame {t}: shape {f.shape} differs from the first frame's {self._shape}"
+            )
+        self._any_valid = self._any_valid or bool((f > 0).any())
+        s = self._s
+        self._lowres[t] = f
+        with self._timed("prefilter"):
+            self._pre[t] = bilateral_prefilter_nearest(
+                f,
+                s,
+                cfg.prefilter_sigma_mm,
+                cfg.spatial_sigma_px * s / cfg.scale,
+            )
+        self._count = t + 1
+        if self._count == cfg.n_frames:
+            # per-video statistics, fixed once from the first window (never per frame)
+            first = [self._lowres[k] for k in sorted(self._lowres)]
+            if self._range is None:
+                self._range = depth_range(np.stack(first))
+            if self._noise_mm is None:
+                self._noise_mm = float(np.median([estimate_noise_mm(f) for f in first]))
+                self._edge_mm = self._edge_for(self._noise_mm)
+        if self._range is not None and self._noise_mm is not None:
+            for k in sorted(self._pre):
+                if k not in self._guide:
+                    self._guide[k] = depth_to_u8(self._pre[k], *self._range)
+                    if k - 1 in self._guide:
+                        with self._timed("flow"):
+                            self._fwd[k - 1], self._bwd[k] = both(
+                                lambda k=k: self._consecutive_flow(k - 1, k),
+                                lambda k=k: self._consecutive_flow(k, k - 1),
+                                enabled=self._parallel,
+                            )
+
+    def _edge_for(self, noise_mm: float) -> float:
+        """Depth step (mm) that separates surfaces: ``edge_mm``, at least 4× the noise."""
+        return max(self.config.edge_mm, 4.0 * noise_mm)
+
+    def _consecutive_flow(self, a: int, b: int) -> np.ndarray:
+        """Flow from frame a to frame b (eq. 17), without motion the depth does not support."""
+        flow = self._flow(self._guide[a], self._guide[b])
+        return self._supported_flow(self._pre[a], self._pre[b], flow, units_per_mm=1.0)
+
+    def _refine_flow(self, first: np.ndarray, second: np.ndarray) -> np.ndarray:
+        """Residual flow between registered guide images (eq. 19), spurious motion removed."""
+        near, far = self._range  # type: ignore[misc]
+        flow = self._residual_flow(first, second)  # type: ignore[misc]
+        return self._supported_flow(first, second, flow, units_per_mm=254.0 / max(far - near, 1e-6))
+
+    def _supported_flow(
+        self, first: np.ndarray, second: np.ndarray, flow: np.ndarray, units_per_mm: float
+    ) -> np.ndarray:
+        """:func:`~upsr.method.motion.suppress_spurious_motion` on images in mm × ``units_per_mm``."""
+        if self.config.zero_motion_tolerance is None:
+            return flow
+        return suppress_spurious_motion(
+            first,
+            second,
+            flow,
+            window_px=2 * self._s + 1,
+            tolerance=self.config.zero_motion_tolerance,
+            noise_mm=self._noise_mm * units_per_mm,
+            edge_mm=self._edge_mm * units_per_mm,
+            edge_window_px=4 * self._s + 1,
+        )
+
+    def _finish(self, t: int, n_total: int) -> np.ndarray:
+        cfg = self.config
+        s = window_start(t, n_total, cfg)
+        idx = range(s, s + cfg.n_frames)
+        ref = t - s
+        h, w = self._shape  # type: ignore[misc]
+        r = cfg.scale
+        backward = [self._bwd.get(k) for k in idx]
+        forward = [self._fwd.get(k) for k in idx]
+        with self._timed("registration"):
+            # motion from the reference to every frame, on the flow grid (eq. 19–21)
+            maps = np.empty((cfg.n_frames, *self._guide[t].shape, 2), np.float32)
+            cumulative_flows(
+                ref,
+                backward,
+                forward,
+                self._guide[t].shape,
+                refine=self._refine_flow if cfg.refine else None,
+                guides=[self._guide[k] for k in idx],
+                parallel=self._parallel,
+                out=maps,
+            )
+        with self._timed("fusion"):
+            lowres = np.stack([self._lowres[k] for k in idx])
+            guide = None
+            if cfg.splat_radius_px and cfg.n_frames > 1:
+                # where each sample lands in the reference (upsr.method.registration.
+                # trace_to_reference), each frame's chain kept from one window to the next
+                positions = np.empty((cfg.n_frames, h, w, 2), np.float32)
+                for k in idx:
+                    to_output_grid(self._chain(k, t), r / self._s, out=positions[k - s])
+                guide = splat_points(lowres, positions, (h * r, w * r), cfg.splat_radius_px)
+            # registration (eq. 20) and the invalid-aware median (eq. 28), one compiled pass
+            fused = register_and_fuse(
+                lowres,
+                maps,
+                r,
+                ref,
+                weight_sigma_px=cfg.edge_weight_px * r if cfg.edge_weight_px else None,
+                weight_floor=cfg.edge_weight_floor,
+                guide=guide,
+                min_valid_fraction=cfg.min_valid_fraction,
+                edge_mm=self._edge_mm,
+                measured_only=True,  # never invent depth where no frame measured anything
+            )
+        with self._timed("deblur"):
+            return finish_fused(fused, cfg)
+
+    def _chain(self, k: int, m: int) -> np.ndarray:
+        """Frame k's low-res sample centres carried by the consecutive flows to frame m (flow
+        grid px), one flow step beyond what an earlier window computed. Windows finished at
+        once may compute a step twice (same values); never a wrong one."""
+        pos = self._chains.get((k, m))
+        if pos is None:
+            if m == k:
+                pos = sample_centres(self._shape, self._s)  # type: ignore[arg-type]
+            elif m > k:
+                pos = advance_positions(self._chain(k, m - 1), self._fwd[m - 1])
+            else:
+                pos = advance_positions(self._chain(k, m + 1), self._bwd[m + 1])
+            self._chains[(k, m)] = pos
+        return pos
+
+    # -- windows in order, some finished ahead in the background --------------------------------
+    def _submit_ready(self, n_total: int, ahead: int) -> None:
+        """Start finishing, in the background, the windows (up to ``ahead`` beyond the next
+        output) that lie in the frames seen so far (final for a video of ``n_total``)."""
+        if self._pool is None:
+            return
+        cfg = self.config
+        t = max(self._next_submit, self._next_out)
+        while (
+            t < self._count
+            and t - self._next_out < ahead
+            and window_start(t, n_total, cfg) + cfg.n_frames <= self._count
+        ):
+            self._pending[t] = self._pool.submit(self._finish, t, n_total)
+            t += 1
+        self._next_submit = t
+
+    def _take(self, n_total: int) -> np.ndarray:
+        """The next output frame (finished in the background, or now), then forget what no
+        later window needs."""
+        t = self._next_out
+        future = self._pending.pop(t, None)
+        out = future.result() if future is not None else self._finish(t, n_total)
+        self._next_out = t + 1
+        # the next window starts at window_start(t + 1, T) for a video of T >= frames_seen
+        # frames, which is at least this; windows in the background start later still
+        cfg = self.config
+        keep_from = max(min(t + 1 - cfg.half_before, self._count - cfg.n_frames), 0)
+        for store in (self._lowres, self._pre, self._guide, self._fwd, self._bwd):
+            for k in [k for k in store if k < keep_from]:
+                del store[k]
+        for key in list(self._chains):  # (list(): workers may add chains meanwhile)
+            if key[0] < keep_from:
+                self._chains.pop(key, None)
+        return out
+
+    def _complete(self, n_total: int) -> bool:
+        """Whether the window of the next output frame lies in the frames seen so far."""
+        t = self._next_out
+        n = self.config.n_frames
+        return t < self._count and window_start(t, n_total, self.config) + n <= self._count
+
+    # -- public streaming API -------------------------------------------------------------------
+    def push(self, frame: npt.ArrayLike) -> np.ndarray | None:
+        """Add the next low-res frame (h, w) in mm; return the next finished high-res frame.
+
+        Returns
+        -------
+        ndarray float32 (r·h, r·w) or None
+            Output frame number ``frames_seen - N`` once N frames have been pushed, else None.
+        """
+        self._ingest(frame)
+        n = self.config.n_frames
+        if self._count < n:
+            return None
+        self._submit_ready(self._count + n, ahead=2 * self.workers)
+        return self._take(n_total=self._count + n)
+
+    def flush(self) -> list[np.ndarray]:
+        """Finish the video: return the high-res frames not returned yet, then reset.
+
+        Raises
+        ------
+        InputError
+            Fewer than N frames were pushed, or none of them had any valid depth.
+        """
+        try:
+            if self._count == 0:
+                return []
+            if self._count < self.config.n_frames:
+                raise InputError(
+                    f"N={self.config.n_frames} frames per window but the video has "
+                    f"only {self._count} frame(s)"
+                )
+            if not self._any_valid:
+                raise InputError("no valid depth in any frame (all pixels are 0 or NaN)")
+            self._submit_ready(self._count, ahead=self._count)
+            return [self._take(self._count) for _ in range(self._next_out, self._count)]
+        finally:
+            self.reset()
+
+    def feed(self, frame: npt.ArrayLike) -> list[np.ndarray]:
+        """Add the next low-res frame; return every high-res frame whose window is now complete.
+
+        The low-latency form of :meth:`push` for live use: output frame t comes out as soon as
+        frame t + N − 1 − (N−1)//2 has been fed (4 frames later at N = 9, against N − 1 = 8
+        for :meth:`push`); the first call that completes a window returns the first
+        (N−1)//2 + 1 frames at once. Use either ``push`` or ``feed`` for a video, then
+        :meth:`flush`. The frames are the same as :func:`super_resolve`'s.
+
+        Returns
+        -------
+        list of ndarray float32 (r·h, r·w), in order (possibly empty)
+        """
+        self._ingest(frame)
+        n = self.config.n_frames
+        outs: list[np.ndarray] = []
+        if self._count < n:
+            return outs
+        # a window that lies in the frames seen so far is final whatever the video's length
+        horizon = self._count + n
+        self._submit_ready(horizon, ahead=self._count)
+        while self._complete(horizon):
+            outs.append(self._take(horizon))
+        return outs
+
+    def process(self, frames: Iterable[npt.ArrayLike]) -> Iterator[np.ndarray]:
+        """Super-resolve a stream of frames; yields one high-res frame per input frame, in
+        order. Without workers each comes as soon as its window is complete (see
+        :meth:`feed`); with workers, once a worker has finished it (the engine reads up to
+        2·``workers`` windows ahead)."""
+        if self._pool is None:
+            for frame in frames:
+                yield from self.feed(frame)
+            yield from self.flush()
+            return
+        n = self.config.n_frames
+        ahead = 2 * self.workers
+        for frame in frames:
+            self._ingest(frame)
+            horizon = self._count + n
+            self._submit_ready(horizon, ahead)
+            # in order, as the background finishes them; wait only with enough ahead
+            while self._complete(horizon) and (
+                self._next_submit - self._next_out >= ahead
+                or (self._next_out in self._pending and self._pending[self._next_out].done())
+            ):
+                yield self._take(horizon)
+        yield from self.flush()
+
+
+def super_resolve(
+    frames: npt.ArrayLike,
+    scale: int,
+    n_frames: int = 9,
+    *,
+    config: UPSRConfig | None = None,
+    progress: bool | None = None,
+    workers: int | None = None,
+    **options: Any,
+) -> np.ndarray:
+    """Super-resolve a depth video with UP-SR (paper Table 1).
+
+    Parameters
+    ----------
+    frames : array_like, (T, h, w)
+        Depth in mm, float or integer; 0 or NaN = no measurement.
+    scale : int
+        SR factor r ≥ 1.
+    n_frames : int
+        Frames per window N (1 ≤ N ≤ T), reference in the middle.
+    config : UPSRConfig, optional
+        Full configuration; overrides ``scale``, ``n_frames`` and ``options``.
+    progress : bool, optional
+        Show a progress bar on stderr.
+    workers : int, optional
+        Threads that finish windows side by side (see :class:`UPSR`); the output is the same.
+    **options
+        Any :class:`~upsr.method.config.UPSRConfig` field, ``deblur_*`` for deblurring options.
+
+    Returns
+    -------
+    ndarray float32 (T, r·h, r·w)
+        Depth in mm, 0 where nothing is known.
+
+    Raises
+    ------
+    InputError
+        Bad data (shape, dtype, ±inf, negative depth, no valid depth) or parameters.
+    """
+    cfg = config if config is not None else UPSRConfig.from_options(scale, n_frames, **options)
+    video = as_depth_video(frames)
+    t_total, h, w = video.shape
+    if cfg.n_frames > t_total:
+        raise InputError(
+            f"N={cfg.n_frames} frames per window but the video has only {t_total} frame(s)"
+        )
+    out = np.empty((t_total, h * cfg.scale, w * cfg.scale), np.float32)
+    engine = UPSR(config=cfg, workers=workers)
+    results = engine.process(video)
+    if progress:
+        from tqdm import tqdm
+
+        results = tqdm(results, total=t_total, unit="frame", desc="upsr", leave=False)
+    for t, frame in enumerate(results):
+        out[t] = frame
+    return out

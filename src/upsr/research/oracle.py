@@ -1,0 +1,416 @@
+"""Plain NumPy reference implementations of the compiled (numba) kernels.
+
+These are "the straightforward path": vectorised NumPy versions of
+
+* :func:`upsr.method.fusion.temporal_median` (:func:`temporal_median_numpy`),
+* :func:`upsr.method.deblurring.btv_subgradient` (:func:`btv_subgradient_numpy`),
+* :func:`upsr.method.deblurring.estimate_noise_mm` (:func:`estimate_noise_mm_numpy`),
+* :func:`upsr.method.deblurring.deblur` with B = I (:func:`deblur_numpy`),
+* :func:`upsr.super_resolve` with nothing shared between windows, flows at the full r and
+  the kernels above (:func:`super_resolve_straightforward`),
+
+with the same semantics, down to the float32 / float64 arithmetic of the kernels. They exist
+for the tests (the compiled kernels must compute the same thing) and for the speed benchmark
+(the speed-up of the compiled kernels over plain NumPy). They are slow on purpose: no numba,
+only array operations, loops only over the samples of a pixel or over the BTV shifts.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import numpy.typing as npt
+
+from upsr.method.config import DeblurConfig, UPSRConfig
+from upsr.method.deblurring import smooth_surfaces
+from upsr.method.outliers import remove_speckles
+
+__all__ = [
+    "btv_subgradient_numpy",
+    "deblur_numpy",
+    "estimate_noise_mm_numpy",
+    "super_resolve_straightforward",
+    "temporal_median_numpy",
+]
+
+
+def _take(a: np.ndarray, idx: np.ndarray) -> np.ndarray:
+    """a[idx[i, j], i, j] for an (N, H, W) array a and an (H, W) index array."""
+    return np.take_along_axis(a, idx[None], axis=0)[0]
+
+
+def temporal_median_numpy(
+    stack: npt.ArrayLike,
+    ref: int | None = None,
+    *,
+    weights: npt.ArrayLike | None = None,
+    guide: npt.ArrayLike | None = None,
+    guide_bonus: float = 0.35,
+    min_valid_fraction: float = 0.5,
+    edge_mm: float = 100.0,
+) -> np.ndarray:
+    """Invalid-aware temporal median, in plain NumPy: the reference of
+    :func:`upsr.method.fusion.temporal_median` (same parameters, same result).
+
+    Per pixel: NaN samples (outside the frame) abstain; samples ≤ 0 (no return) only vote on
+    validity. The pixel is valid if the weighted share of valid samples among the in-frame ones
+    is larger than ``min_valid_fraction`` (equal: valid if the reference sample is). Its valid
+    samples are sorted; if their spread is at most ``edge_mm`` the output is their median,
+    otherwise they are split into surfaces at gaps larger than ``edge_mm``, each surface votes
+    with the sum of its weights (plus ``guide_bonus`` × the valid weight if it holds the guide
+    depth, within ``edge_mm``), the largest vote wins (a later surface with an equal vote only
+    if it holds the reference sample) and the output is the median of its samples.
+
+    Weights are accumulated in float64, depths stay float32, as in the compiled kernel.
+
+    Parameters
+    ----------
+    stack : array_like, (N, H, W)
+        Registered frames in mm: > 0 valid, 0 = no return, NaN = outside the frame.
+    ref : int, optional
+        Index of the reference frame (tie-breaks); default the middle one.
+    weights : array_like (N, H, W), optional
+        Vote weight of each sample (default 1), broadcast to the stack's shape.
+    guide : array_like (H, W), optional
+        Guide depth (≤ 0 or NaN: none).
+    guide_bonus : float
+        Weight of the guide, as a share of the total valid vote weight.
+    min_valid_fraction : float
+        Threshold on the weighted share of valid samples.
+    edge_mm : float
+        Gap (mm) between sorted samples that separates two surfaces.
+
+    Returns
+    -------
+    ndarray float32 (H, W): the fused depth, 0 where nothing is known.
+    """
+    arr = np.asarray(stack, dtype=np.float32)
+    if arr.ndim != 3:
+        raise ValueError(f"stack must be (N, H, W), got shape {arr.shape}")
+    n = arr.shape[0]
+    ref = (n - 1) // 2 if ref is None else int(ref)
+    if not 0 <= ref < n:
+        raise ValueError(f"ref must be in [0, {n}), got {ref}")
+    if weights is None:
+        wts = np.ones(arr.shape, np.float32)
+    else:
+        wts = np.broadcast_to(np.asarray(weights, dtype=np.float32), arr.shape)
+    if guide is None:
+        g = np.zeros(arr.shape[1:], np.float64)
+    else:
+        g = np.asarray(guide, dtype=np.float32).astype(np.float64)
+    edge = np.float64(edge_mm)
+    mvf = np.float64(min_valid_fraction)
+
+    # validity vote: float64 sums of the float32 weights, in sample order (as the kernel)
+    inside = ~np.isnan(arr)
+    valid = arr > 0
+    w_in = np.zeros(arr.shape[1:], np.float64)
+    w_valid = np.zeros(arr.shape[1:], np.float64)
+    for k in range(n):
+        w_in += np.where(inside[k], wts[k], np.float32(0.0))
+        w_valid += np.where(valid[k], wts[k], np.float32(0.0))
+    nv = valid.sum(axis=0)
+    r = arr[ref]
+    ref_value = np.where(r > 0, r, np.float32(0.0)).astype(np.float64)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        frac = w_valid / w_in
+    known = (nv > 0) & ~((frac < mvf) | ((frac == mvf) & (ref_value == 0.0)))
+
+    # sort the valid samples (invalid ones as +inf, last), weights alongside
+    keys = np.where(valid, arr, np.float32(np.inf))
+    order = np.argsort(keys, axis=0, kind="stable")
+    vals = np.take_along_axis(keys, order, axis=0)
+    ws = np.take_along_axis(np.where(valid, wts, np.float32(0.0)), order, axis=0)
+    pos = np.arange(n).reshape(n, 1, 1)
+    in_sorted = pos < nv  # the first nv sorted samples are the valid ones
+    last = np.maximum(nv - 1, 0)
+    vmin = vals[0]
+    vmax = _take(vals, last)
+    with np.errstate(invalid="ignore"):  # inf - inf where no sample is valid
+        single = (vmax - vmin).astype(np.float64) <= edge
+
+    # surfaces: labels by the cumulative count of gaps > edge_mm in the sorted valid samples
+    gaps = np.zeros(vals.shape, bool)
+    if n > 1:
+        with np.errstate(invalid="ignore"):
+            step = (vals[1:] - vals[:-1]).astype(np.float64)
+        gaps[1:] = in_sorted[1:] & (step > edge)
+    labels = np.cumsum(gaps, axis=0)
+    best_lo = np.zeros(arr.shape[1:], np.int64)
+    best_hi = nv.astype(np.int64)
+    best_w = np.full(arr.shape[1:], -np.inf)
+    several = known & ~single
+    n_labels = int(labels[:, several].max()) + 1 if several.any() else 0
+    for c in range(n_labels):
+        member = in_sorted & (labels == c)
+        count = member.sum(axis=0)
+        exists = several & (count > 0)
+        lo = (in_sorted & (labels < c)).sum(axis=0)
+        hi = lo + count
+        lo_v = _take(vals, np.minimum(lo, n - 1)).astype(np.float64)
+        hi_v = _take(vals, np.clip(hi - 1, 0, n - 1)).astype(np.float64)
+        acc = np.where(member, ws, np.float32(0.0)).sum(axis=0, dtype=np.float64)
+        with np.errstate(invalid="ignore"):
+            holds_guide = (g > 0) & (lo_v - edge <= g) & (g <= hi_v + edge)
+            acc = acc + np.where(holds_guide, guide_bonus * w_valid, 0.0)
+        has_ref = (lo_v <= ref_value) & (ref_value <= hi_v)
+        better = exists & ((acc > best_w) | ((acc == best_w) & has_ref))
+        best_w = np.where(better, acc, best_w)
+        best_lo = np.where(better, lo, best_lo)
+        best_hi = np.where(better, hi, best_hi)
+
+    # the median of the winning surface (float32: mean of the two middle values if even)
+    mid = best_lo + (best_hi - best_lo) // 2
+    upper = _take(vals, np.clip(mid, 0, n - 1))
+    lower = _take(vals, np.clip(mid - 1, 0, n - 1))
+    odd = (best_hi - best_lo) % 2 == 1
+    with np.errstate(invalid="ignore", over="ignore"):
+        med = np.where(odd, upper, np.float32(0.5) * (lower + upper))
+    return np.where(known, med, np.float32(0.0)).astype(np.float32)
+
+
+def estimate_noise_mm_numpy(z: npt.ArrayLike, lag_px: int = 1) -> float:
+    """:func:`upsr.method.deblurring.estimate_noise_mm` with NumPy: 1.4826·MAD/√2 of the valid
+    same-surface (|Δ| < 100 mm) differences ``lag_px`` apart, horizontally and vertically."""
+    z = np.asarray(z, np.float32)
+    diffs = []
+    for a, b in ((z[:, lag_px:], z[:, :-lag_px]), (z[lag_px:, :], z[:-lag_px, :])):
+        d = (a - b)[(a > 0) & (b > 0)]
+        diffs.append(d[np.abs(d) < 100.0])
+    d = np.concatenate(diffs)
+    if d.size == 0:
+        return 0.0
+    return float(1.4826 * np.median(np.abs(d - np.median(d))) / np.sqrt(2.0))
+
+
+def btv_subgradient_numpy(
+    x: npt.ArrayLike,
+    guide: npt.ArrayLike,
+    *,
+    radius_px: int = 2,
+    alpha: float = 0.7,
+    edge_mm: float | None = None,
+) -> np.ndarray:
+    """Subgradient of the BTV energy (eq. 29) in plain NumPy: the reference of
+    :func:`upsr.method.deblurring.btv_subgradient`.
+
+    ∂Γ/∂x_p = 2 Σ_{(l,m)≠0} α^{|l|+|m|} sign(x_p − x_{p+(l,m)}) over the shifts |l|, |m| ≤ P
+    whose neighbour lies in the image, is valid in ``guide`` (> 0) and is on the same surface
+    (|guide_p − guide_n| ≤ ``edge_mm``); 0 at the pixels invalid in ``guide``. One loop over
+    the (2P+1)² − 1 shifts, shifted slices inside; float32 accumulation, as the kernel.
+
+    Parameters
+    ----------
+    x : array_like (H, W)
+        Current estimate (mm).
+    guide : array_like (H, W)
+        Validity (> 0) and surfaces of the pairs (the fused image).
+    radius_px : int
+        BTV half-window P (px).
+    alpha : float
+        Decay α of the BTV weights.
+    edge_mm : float or None
+        Pairs with |Δguide| larger than this are left out; ``None``: none is.
+
+    Returns
+    -------
+    ndarray float32 (H, W)
+    """
+    xa = np.asarray(x, dtype=np.float32)
+    gd = np.asarray(guide, dtype=np.float32)
+    if xa.shape != gd.shape or xa.ndim != 2:
+        raise ValueError(f"x and guide must be (H, W) of one shape, got {xa.shape}, {gd.shape}")
+    edge = np.float64(np.inf if edge_mm is None else edge_mm)
+    radius = int(radius_px)
+    h, w = xa.shape
+    valid = gd > 0
+    out = np.zeros((h, w), np.float32)
+    for dl in range(-radius, radius + 1):
+        for dm in range(-radius, radius + 1):
+            i0, i1 = max(0, -dl), min(h, h - dl)
+            j0, j1 = max(0, -dm), min(w, w - dm)
+            if (dl == 0 and dm == 0) or i0 >= i1 or j0 >= j1:
+                continue
+            here = (slice(i0, i1), slice(j0, j1))
+            there = (slice(i0 + dl, i1 + dl), slice(j0 + dm, j1 + dm))
+            pair = valid[here] & valid[there] & (np.abs(gd[here] - gd[there]) <= edge)
+            d = xa[here] - xa[there]
+            sign = (d > 0).astype(np.float32) - (d < 0).astype(np.float32)
+            weight = np.float32(2.0 * alpha ** (abs(dl) + abs(dm)))
+            out[here] += np.where(pair, weight * sign, np.float32(0.0))
+    return out
+
+
+def deblur_numpy(
+    z: npt.ArrayLike, cfg: DeblurConfig | None = None, *, scale: int = 1
+) -> np.ndarray:
+    """BTV-L1 deblurring with B = I in plain NumPy: the reference of
+    :func:`upsr.method.deblurring.deblur` (same step rule, same result up to sign ties).
+
+    x₀ = z; x_{k+1} = x_k − β_k / norm · (sign(x_k − z) + λ ∂Γ_BTV(x_k)) on the pixels valid
+    in z (0 elsewhere), β₀ = ``cfg.step_mm`` or max(0.5, noise of z), β_{k+1} = β_k ·
+    ``cfg.step_decay``, norm = 1 + 2λ((Σ_k α^|k|)² − 1); then x ≥ 10⁻³ mm on the valid pixels
+    and :func:`upsr.method.deblurring.smooth_surfaces` if ``cfg.smooth_sigma_mm`` is set.
+
+    Parameters
+    ----------
+    z : array_like, (H, W)
+        Fused depth (mm), 0 = unknown.
+    cfg : DeblurConfig, optional
+        Its ``blur`` must give B = I: ``"none"`` (or ``"box"`` at ``scale`` 1, as in
+        :func:`upsr.method.deblurring.deblur`).
+    scale : int
+        SR factor r (the lag of the noise estimate, the default smoothing std).
+
+    Returns
+    -------
+    ndarray float32 (H, W), 0 exactly where z is 0.
+
+    Raises
+    ------
+    NotImplementedError
+        For a blur model B ≠ I (``"gaussian"``, or ``"box"`` with ``scale`` > 1).
+    """
+    cfg = cfg or DeblurConfig()
+    if not (cfg.blur == "none" or (cfg.blur == "box" and scale <= 1)):
+        raise NotImplementedError(
+            f"deblur_numpy implements only B = I (blur='none'), got blur={cfg.blur!r} "
+            f"at scale {scale}; use upsr.method.deblurring.deblur"
+        )
+    z = np.array(z, dtype=np.float32)
+    mask = z > 0
+    if not cfg.enabled or not mask.any():
+        return z
+    beta = cfg.step_mm if cfg.step_mm is not None else max(0.5, estimate_noise_mm_numpy(z, scale))
+    s1 = sum(cfg.alpha ** abs(k) for k in range(-cfg.radius_px, cfg.radius_px + 1))
+    norm = 1.0 + cfg.lam * 2.0 * (s1 * s1 - 1.0)
+    x = z.copy()
+    for _ in range(cfg.iterations):
+        step = np.float32(beta / norm)
+        d = x - z
+        data = (d > 0).astype(np.float32) - (d < 0).astype(np.float32)
+        reg = btv_subgradient_numpy(
+            x, z, radius_px=cfg.radius_px, alpha=cfg.alpha, edge_mm=cfg.edge_mm
+        )
+        x = x - step * (data + np.float32(cfg.lam) * reg)
+        x[~mask] = 0.0
+        beta *= cfg.step_decay
+    np.maximum(x, np.float32(1e-3), out=x, where=mask)
+    if cfg.smooth_sigma_mm is not None:
+        sigma_px = cfg.smooth_sigma_px if cfg.smooth_sigma_px is not None else 0.5 * scale
+        x = smooth_surfaces(x, cfg.smooth_sigma_mm, sigma_px)
+    return x
+
+
+def super_resolve_straightforward(frames: npt.ArrayLike, config: UPSRConfig) -> np.ndarray:
+    """UP-SR (paper Table 1) done the straightforward way, as the speed benchmark's baseline.
+
+    For every reference frame its window is processed from scratch: each frame is upsampled
+    by r, prefiltered and mapped to 8 bit, and the N−1 consecutive flows of the window are
+    estimated in both directions at the full r (the paper's setting; ``flow_scale`` and
+    ``refine_preset`` are ignored: DIS ``flow_preset`` everywhere); cumulative motion with
+    eq. 19, :func:`~upsr.method.registration.warp_nearest` per frame, vote weights from
+    :func:`~upsr.method.registration.sample_offsets`, the splat guide from dense motion fields
+    (:func:`~upsr.method.fusion.splat_nearest`), :func:`temporal_median_numpy` and
+    :func:`deblur_numpy`. Nothing is shared between windows. The per-video depth range and
+    noise are fixed from the first N frames, as in :class:`upsr.UPSR`.
+
+    Parameters
+    ----------
+    frames : array_like (T, h, w)
+        Depth in mm (0 = no measurement).
+    config : UPSRConfig
+        Parameters (deblurring with ``blur="none"`` only).
+
+    Returns
+    -------
+    ndarray float32 (T, r·h, r·w)
+    """
+    from upsr.method.fusion import splat_nearest
+    from upsr.method.motion import (
+        bilateral_prefilter,
+        depth_range,
+        depth_to_u8,
+        make_flow_backend,
+        suppress_spurious_motion,
+    )
+    from upsr.method.registration import (
+        cumulative_flows,
+        flows_to_reference,
+        sample_offsets,
+        warp_nearest,
+    )
+    from upsr.method.upsampling import upsample_nearest
+    from upsr.method.validation import as_depth_video
+    from upsr.method.windowed import window_start
+
+    cfg = config
+    video = as_depth_video(frames)
+    t_total, h, w = video.shape
+    r, n = cfg.scale, cfg.n_frames
+    first = video[:n]
+    near, far = cfg.depth_range_mm or depth_range(first)
+    noise = cfg.noise_mm
+    if noise is None:
+        noise = float(np.median([estimate_noise_mm_numpy(f) for f in first]))
+    edge_mm = max(cfg.edge_mm, 4.0 * noise)
+    flow = make_flow_backend(cfg.flow, cfg.flow_preset)
+
+    def supported(a: np.ndarray, b: np.ndarray, f: np.ndarray, units: float) -> np.ndarray:
+        if cfg.zero_motion_tolerance is None:
+            return f
+        return suppress_spurious_motion(
+            a,
+            b,
+            f,
+            window_px=2 * r + 1,
+            tolerance=cfg.zero_motion_tolerance,
+            noise_mm=noise * units,
+            edge_mm=edge_mm * units,
+            edge_window_px=4 * r + 1,
+        )
+
+    units_u8 = 254.0 / max(far - near, 1e-6)
+
+    def refine(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+        return supported(a.astype(np.float32), b.astype(np.float32), flow(a, b), units_u8)
+
+    out = np.empty((t_total, h * r, w * r), np.float32)
+    for t in range(t_total):
+        s = window_start(t, t_total, cfg)
+        ref = t - s
+        up = [upsample_nearest(video[k], r) for k in range(s, s + n)]
+        pre = [bilateral_prefilter(u, cfg.prefilter_sigma_mm, cfg.spatial_sigma_px) for u in up]
+        guides = [depth_to_u8(p, near, far) for p in pre]
+        fwd: list[np.ndarray | None] = [None] * n
+        bwd: list[np.ndarray | None] = [None] * n
+        for j in range(n - 1):
+            fwd[j] = supported(pre[j], pre[j + 1], flow(guides[j], guides[j + 1]), 1.0)
+            bwd[j + 1] = supported(pre[j + 1], pre[j], flow(guides[j + 1], guides[j]), 1.0)
+        maps = cumulative_flows(
+            ref, bwd, fwd, (h * r, w * r), refine=refine if cfg.refine else None, guides=guides
+        )
+        stack = np.stack([warp_nearest(u, m) for u, m in zip(up, maps, strict=True)])
+        weights = None
+        if cfg.edge_weight_px:
+            d = np.stack([sample_offsets(m, r) for m in maps])
+            s2 = 2.0 * (cfg.edge_weight_px * r) ** 2
+            weights = cfg.edge_weight_floor + (1.0 - cfg.edge_weight_floor) * np.exp(-d * d / s2)
+        lowres = video[s : s + n]
+        guide = None
+        if cfg.splat_radius_px and n > 1:
+            back = flows_to_reference(ref, bwd, fwd, (h * r, w * r))
+            guide = splat_nearest(lowres, np.stack(back), r, cfg.splat_radius_px)
+        fused = temporal_median_numpy(
+            stack,
+            ref,
+            weights=weights,
+            guide=guide,
+            min_valid_fraction=cfg.min_valid_fraction,
+            edge_mm=edge_mm,
+        )
+        fused[~upsample_nearest((lowres > 0).any(axis=0), r)] = 0.0
+        out[t] = remove_speckles(
+            deblur_numpy(fused, cfg.deblur, scale=r), cfg.speckle_size_px, cfg.edge_mm
+        )
+    return out

@@ -1,0 +1,16 @@
+"""Synthetic dynamic depth scenes with exact ground truth, and sensor degradations."""
+
+from __future__ import annotations
+
+from upsr.research.synth.degradation import add_laplacian_noise, dropout, flying_pixel_artefacts
+from upsr.research.synth.scenes import DynamicScene, SyntheticVideo, dynamic_scene, make_scene
+
+__all__ = [
+    "DynamicScene",
+    "SyntheticVideo",
+    "add_laplacian_noise",
+    "dropout",
+    "dynamic_scene",
+    "flying_pixel_artefacts",
+    "make_scene",
+]

@@ -1,0 +1,696 @@
+"""The ``upsr`` command line: success paths, every kind of bad input, exit codes, no debris."""
+
+from __future__ import annotations
+
+import hashlib
+import os
+import signal
+import subprocess
+import sys
+import types
+from collections.abc import Callable, Iterator
+from pathlib import Path
+
+import cv2
+import numpy as np
+import pytest
+from typer.testing import CliRunner
+
+import upsr
+from upsr.apps.cli import main as cli
+from upsr.method import windowed as pipeline
+
+BIN = Path(sys.executable).parent / "upsr"
+T, H, W = 5, 12, 16
+
+
+def video(seed: int = 0, t: int = T, h: int = H, w: int = W) -> np.ndarray:
+    rng = np.random.default_rng(seed)
+    _yy, xx = np.mgrid[0:h, 0:w]
+    frames = []
+    for k in range(t):  # a foreground square moving right over a slanted background
+        d = 2000.0 + 10.0 * xx + rng.normal(0, 5, (h, w))
+        d[3:9, 2 + k : 8 + k] = 1000.0
+        frames.append(d)
+    return np.round(np.array(frames)).astype(np.float32)
+
+
+def png_folder(folder: Path, v: np.ndarray, dtype: type = np.uint16) -> Path:
+    folder.mkdir(parents=True, exist_ok=True)
+    for i, frame in enumerate(v):
+        ok, buf = cv2.imencode(".png", frame.astype(dtype))
+        assert ok
+        (folder / f"{i:03d}.png").write_bytes(buf.tobytes())
+    return folder
+
+
+def digest(path: Path) -> str:
+    h = hashlib.sha256()
+    for p in sorted([path] if path.is_file() else path.rglob("*")):
+        h.update(str(p.relative_to(path.parent)).encode())
+        if p.is_file():
+            h.update(p.read_bytes())
+    return h.hexdigest()
+
+
+def listing(folder: Path) -> list[str]:
+    return sorted(str(p.relative_to(folder)) for p in folder.rglob("*"))
+
+
+def run_cli(capsys: pytest.CaptureFixture[str], *args: object) -> tuple[int, str, str]:
+    rc = cli.main([str(a) for a in args])
+    out, err = capsys.readouterr()
+    return rc, out, err
+
+
+def assert_user_error(rc: int, out: str, err: str, match: str = "") -> None:
+    assert rc == 2, (rc, out, err)
+    lines = err.strip().splitlines()
+    assert len(lines) == 1, err
+    assert lines[0].startswith("upsr: error: "), err
+    assert "Traceback" not in err and out == ""
+    assert match.lower() in lines[0].lower(), (match, lines[0])
+
+
+# ---------------------------------------------------------------------------------------------
+# success paths
+# ---------------------------------------------------------------------------------------------
+@pytest.fixture(params=["npy", "npz", "png"])
+def video_input(request: pytest.FixtureRequest, tmp_path: Path) -> Path:
+    v = video()
+    if request.param == "npy":
+        np.save(tmp_path / "in.npy", v)
+        return tmp_path / "in.npy"
+    if request.param == "npz":
+        np.savez_compressed(tmp_path / "in.npz", depth=v)
+        return tmp_path / "in.npz"
+    return png_folder(tmp_path / "in", v)
+
+
+@pytest.mark.parametrize("out_name", ["out.npy", "out.npz", "out"])
+def test_run_success(
+    capsys: pytest.CaptureFixture[str], tmp_path: Path, video_input: Path, out_name: str
+) -> None:
+    before = digest(video_input)
+    out = tmp_path / "res" / out_name
+    rc, stdout, stderr = run_cli(capsys, "run", video_input, "-o", out, "-r", 2, "-n", 3, "--quiet")
+    assert rc == 0, stderr
+    assert stderr == ""
+    lines = stdout.strip().splitlines()
+    assert len(lines) == 1
+    assert lines[0].startswith(f"upsr: {T} frames {W}x{H} -> {2 * W}x{2 * H} (r=2, N=3) in ")
+    assert lines[0].endswith(f"-> {out}")
+    result = upsr.io.read_video(out)
+    assert result.dtype == np.float32 and result.shape == (T, 2 * H, 2 * W)
+    assert (result > 0).mean() > 0.9
+    assert abs(float(np.median(result[result > 0])) - np.median(video())) < 100
+    assert digest(video_input) == before  # the input is untouched
+    if out.suffix == ".npy":
+        raw = np.load(out, allow_pickle=False)
+        assert raw.dtype == np.float32 and raw.shape == (T, 2 * H, 2 * W)
+    assert [p.name for p in out.parent.iterdir()] == [out.name]  # no temporaries left
+
+
+def test_run_options_reach_the_config(
+    capsys: pytest.CaptureFixture[str], tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    seen = {}
+    real = pipeline.UPSR
+
+    class Spy(real):  # type: ignore[misc,valid-type]
+        def __init__(self, *a: object, **k: object) -> None:
+            super().__init__(*a, **k)
+            seen["cfg"] = self.config
+            seen["workers"] = self.workers
+
+    monkeypatch.setattr(pipeline, "UPSR", Spy)
+    np.save(tmp_path / "in.npy", video())
+    rc, _, err = run_cli(
+        capsys,
+        "run",
+        tmp_path / "in.npy",
+        "-o",
+        tmp_path / "o.npy",
+        "-r",
+        3,
+        "-n",
+        5,
+        "--lam",
+        0.25,
+        "--alpha",
+        0.5,
+        "--btv-radius",
+        3,
+        "--iterations",
+        4,
+        "--blur",
+        "box",
+        "--flow",
+        "farneback",
+        "--flow-preset",
+        "fast",
+        "--flow-scale",
+        2,
+        "--refine-preset",
+        "ultrafast",
+        "--speckle-px",
+        0,
+        "--no-refine",
+        "--workers",
+        0,
+        "-q",
+    )
+    assert rc == 0, err
+    assert seen["workers"] == 0
+    cfg = seen["cfg"]
+    assert (cfg.flow_scale, cfg.refine_preset) == (2, "ultrafast")
+    assert cfg.speckle_size_px == 0
+    assert (cfg.scale, cfg.n_frames, cfg.flow, cfg.flow_preset, cfg.refine) == (
+        3,
+        5,
+        "farneback",
+        "fast",
+        False,
+    )
+    d = cfg.deblur
+    assert (d.enabled, d.lam, d.alpha, d.radius_px, d.iterations, d.blur) == (
+        True,
+        0.25,
+        0.5,
+        3,
+        4,
+        "box",
+    )
+    rc, _, err = run_cli(
+        capsys,
+        "run",
+        tmp_path / "in.npy",
+        "-o",
+        tmp_path / "o2.npy",
+        "-r",
+        1,
+        "-n",
+        1,
+        "--no-deblur",
+        "--keep-all-motion",
+        "-q",
+    )
+    assert rc == 0, err
+    assert seen["cfg"].deblur.enabled is False
+    assert seen["cfg"].zero_motion_tolerance is None
+
+
+def test_run_png_depth_scale_and_overwrite(
+    capsys: pytest.CaptureFixture[str], tmp_path: Path
+) -> None:
+    v = video()
+    png_folder(tmp_path / "tum", v * 5)  # TUM: raw = mm * 5
+    out = tmp_path / "out"
+    args = [
+        "run",
+        tmp_path / "tum",
+        "-o",
+        out,
+        "-r",
+        1,
+        "-n",
+        1,
+        "--no-deblur",
+        "-q",
+        "--depth-scale",
+        5000,
+        "--format",
+        "npy",
+    ]
+    rc, _, err = run_cli(capsys, *args)
+    assert rc == 0, err
+    np.testing.assert_allclose(np.load(out), v, atol=1e-3)  # r=1, N=1, no deblur: identity
+    rc, _, err = run_cli(capsys, *args)
+    assert_user_error(rc, "", err, "already exists")
+    rc, _, err = run_cli(capsys, *args, "--overwrite")
+    assert rc == 0, err
+
+
+def test_progress_bar_on_stderr(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
+    np.save(tmp_path / "in.npy", video())
+    rc, out, err = run_cli(
+        capsys, "run", tmp_path / "in.npy", "-o", tmp_path / "o.npy", "-r", 2, "-n", 3
+    )
+    assert rc == 0
+    assert "frame" in err and len(out.strip().splitlines()) == 1
+
+
+# ---------------------------------------------------------------------------------------------
+# bad inputs: exit 2, one line on stderr, no traceback, no output
+# ---------------------------------------------------------------------------------------------
+def _npy(arr: np.ndarray) -> Callable[[Path], Path]:
+    def make(d: Path) -> Path:
+        np.save(d / "in.npy", arr, allow_pickle=arr.dtype == object)
+        return d / "in.npy"
+
+    return make
+
+
+def _npz(arr: np.ndarray) -> Callable[[Path], Path]:
+    def make(d: Path) -> Path:
+        np.savez(d / "in.npz", arr)
+        return d / "in.npz"
+
+    return make
+
+
+def _with(index: tuple[int, ...], value: float) -> np.ndarray:
+    v = video()
+    v[index] = value
+    return v
+
+
+def _truncated(d: Path) -> Path:
+    np.save(d / "in.npy", video())
+    data = (d / "in.npy").read_bytes()
+    (d / "in.npy").write_bytes(data[: len(data) - 100])
+    return d / "in.npy"
+
+
+def _corrupt_npz(d: Path) -> Path:
+    np.savez_compressed(d / "in.npz", depth=video())
+    data = bytearray((d / "in.npz").read_bytes())
+    data[80:140] = bytes(60)
+    (d / "in.npz").write_bytes(bytes(data))
+    return d / "in.npz"
+
+
+def _not_a_zip(d: Path) -> Path:
+    (d / "in.npz").write_bytes(b"this is not a zip file at all")
+    return d / "in.npz"
+
+
+def _mixed_png(d: Path) -> Path:
+    f = png_folder(d / "in", video())
+    _ok, buf = cv2.imencode(".png", np.ones((H, W + 2), np.uint16))
+    (f / "002.png").write_bytes(buf.tobytes())
+    return f
+
+
+def _png8(d: Path) -> Path:
+    return png_folder(d / "in", np.clip(video() / 20, 0, 255), np.uint8)
+
+
+def _png_rgb(d: Path) -> Path:
+    return png_folder(d / "in", np.repeat(video()[..., None], 3, axis=-1))
+
+
+def _corrupt_png(d: Path) -> Path:
+    f = png_folder(d / "in", video())
+    data = bytearray((f / "003.png").read_bytes())
+    data[50:60] = bytes(10)
+    (f / "003.png").write_bytes(bytes(data))
+    return f
+
+
+def _truncated_png(d: Path) -> Path:
+    f = png_folder(d / "in", video())
+    data = (f / "001.png").read_bytes()
+    (f / "001.png").write_bytes(data[:-40])
+    return f
+
+
+def _empty_folder(d: Path) -> Path:
+    (d / "in").mkdir()
+    return d / "in"
+
+
+def _missing(d: Path) -> Path:
+    return d / "nothere.npy"
+
+
+def _wrong_suffix(d: Path) -> Path:
+    (d / "in.mp4").write_bytes(b"\x00" * 100)
+    return d / "in.mp4"
+
+
+def _unreadable(d: Path) -> Path:
+    np.save(d / "in.npy", video())
+    (d / "in.npy").chmod(0)
+    return d / "in.npy"
+
+
+BAD_INPUTS: dict[str, tuple[Callable[[Path], Path], str]] = {
+    "2d_npy": (_npy(video()[0]), "shape (T, h, w)"),
+    "4d_npy": (_npy(video()[None]), "shape (T, h, w)"),
+    "complex_npy": (_npy(video().astype(np.complex64)), "numeric"),
+    "bool_npy": (_npy(video() > 0), "numeric"),
+    "string_npy": (_npy(video().astype(str)), "numeric"),
+    "object_npy": (_npy(video().astype(object)), "object arrays"),
+    "object_npz": (_npz(video().astype(object)), "object arrays"),
+    "complex_npz": (_npz(video().astype(np.complex128)), "numeric"),
+    "2d_npz": (_npz(video()[0]), "shape (T, h, w)"),
+    "plus_inf": (_npy(_with((3, 2, 2), np.inf)), "frame 3"),
+    "minus_inf": (_npy(_with((1, 2, 2), -np.inf)), "frame 1"),
+    "negative": (_npy(_with((4, 5, 5), -1.0)), "frame 4: depth contains negative"),
+    "negative_npz": (_npz(_with((2, 5, 5), -3.0)), "frame 2"),
+    "all_zero": (_npy(np.zeros((T, H, W), np.float32)), "no valid depth"),
+    "all_nan": (_npy(np.full((T, H, W), np.nan, np.float32)), "no valid depth"),
+    "empty_npy": (_npy(np.zeros((0, H, W), np.float32)), "empty"),
+    "truncated_npy": (_truncated, "truncated"),
+    "corrupt_npz": (_corrupt_npz, "in.npz"),
+    "not_a_zip": (_not_a_zip, "in.npz"),
+    "mixed_png_sizes": (_mixed_png, "002.png: frame size"),
+    "png_8bit": (_png8, "8-bit"),
+    "png_rgb": (_png_rgb, "RGB"),
+    "corrupt_png": (_corrupt_png, "003.png"),
+    "truncated_png": (_truncated_png, "001.png"),
+    "empty_folder": (_empty_folder, "no PNG frames"),
+    "nonexistent": (_missing, "no such file"),
+    "unknown_suffix": (_wrong_suffix, "unknown input format"),
+}
+if os.geteuid() != 0:  # root can read anything
+    BAD_INPUTS["unreadable"] = (_unreadable, "cannot read")
+
+
+@pytest.mark.parametrize("quiet", [True, False], ids=["quiet", "bar"])
+@pytest.mark.parametrize("case", sorted(BAD_INPUTS))
+def test_bad_input(
+    capsys: pytest.CaptureFixture[str], tmp_path: Path, case: str, quiet: bool
+) -> None:
+    make, match = BAD_INPUTS[case]
+    d = tmp_path / "work"
+    d.mkdir()
+    inp = make(d)
+    before = listing(d)
+    out = tmp_path / "out" / "result.npy"
+    rc, stdout, err = run_cli(
+        capsys, "run", inp, "-o", out, "-r", 2, "-n", 3, *(["--quiet"] if quiet else [])
+    )
+    if not quiet:  # the progress bar may have been drawn (and erased with \r) before the error
+        err = err.split("\r")[-1]
+    assert_user_error(rc, stdout, err, match)
+    assert not (tmp_path / "out").exists()
+    assert listing(d) == before
+
+
+def test_empty_frame_in_the_middle_is_fine(
+    capsys: pytest.CaptureFixture[str], tmp_path: Path
+) -> None:
+    v = video()
+    v[2] = 0
+    v[3, :4] = np.nan
+    np.save(tmp_path / "in.npy", v)
+    rc, _, err = run_cli(
+        capsys, "run", tmp_path / "in.npy", "-o", tmp_path / "o.npy", "-r", 2, "-n", 3, "-q"
+    )
+    assert rc == 0, err
+    assert np.load(tmp_path / "o.npy").shape == (T, 2 * H, 2 * W)
+
+
+@pytest.mark.parametrize(
+    ("args", "match"),
+    [
+        (["-r", "0"], "scale r must be an integer >= 1"),
+        (["-r", "-2"], "scale r must be an integer >= 1"),
+        (["-r", "1.5"], "--scale"),
+        (["-r", "x"], "--scale"),
+        (["-r", "2", "-n", "0"], "n_frames N must be an integer >= 1"),
+        (["-r", "2", "-n", "-1"], "n_frames N"),
+        (["-r", "2", "-n", "6"], "N=6 > 5 frames"),
+        (["-r", "2", "-n", "3", "--lam", "-1"], "lam"),
+        (["-r", "2", "-n", "3", "--alpha", "0"], "alpha"),
+        (["-r", "2", "-n", "3", "--btv-radius", "0"], "radius"),
+        (["-r", "2", "-n", "3", "--iterations", "-1"], "iterations"),
+        (["-r", "2", "-n", "3", "--blur", "median"], "--blur"),
+        (["-r", "2", "-n", "3", "--flow", "raft"], "--flow"),
+        (["-r", "2", "-n", "3", "--flow-scale", "3"], "flow_scale"),
+        (["-r", "2", "-n", "3", "--flow-scale", "0"], "--flow-scale"),
+        (["-r", "2", "-n", "3", "--refine-preset", "slow"], "--refine-preset"),
+        (["-r", "2", "-n", "3", "--speckle-px", "-1"], "--speckle-px"),
+        (["-r", "2", "-n", "3", "--workers", "-1"], "--workers"),
+        (["-r", "2", "-n", "3", "--depth-scale", "0"], "depth_scale"),
+        (["-r", "2", "-n", "3", "--key", "depth"], "only applies to .npz"),
+        (["-r", "2", "-n", "3", "--bogus"], "No such option"),
+        (["-n", "3"], "Missing option '--scale'"),
+    ],
+)
+def test_bad_options(
+    capsys: pytest.CaptureFixture[str], tmp_path: Path, args: list[str], match: str
+) -> None:
+    np.save(tmp_path / "in.npy", video())
+    rc, out, err = run_cli(capsys, "run", tmp_path / "in.npy", "-o", tmp_path / "o.npy", *args)
+    assert_user_error(rc, out, err, match)
+    assert listing(tmp_path) == ["in.npy"]
+
+
+def test_missing_output_option(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
+    np.save(tmp_path / "in.npy", video())
+    rc, out, err = run_cli(capsys, "run", tmp_path / "in.npy", "-r", "2")
+    assert_user_error(rc, out, err, "Missing option '--output'")
+
+
+def test_output_is_input_or_exists(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
+    np.save(tmp_path / "in.npy", video())
+    frames = png_folder(tmp_path / "frames", video())
+    before = digest(tmp_path)
+    common = ["-r", "2", "-n", "3", "-q"]
+    cases = [
+        (["run", tmp_path / "in.npy", "-o", tmp_path / "in.npy", "--overwrite"], "is the input"),
+        (["run", tmp_path / "in.npy", "-o", tmp_path / "in.npy"], "is the input"),
+        (["run", frames, "-o", frames, "--overwrite"], "is the input"),
+        (["run", tmp_path / "in.npy", "-o", tmp_path, "--overwrite"], "contains the input"),
+        (["run", tmp_path / "in.npy", "-o", frames], "already exists"),
+        (["run", tmp_path / "in.npy", "-o", tmp_path / "o.mp4"], "unknown output format"),
+    ]
+    for args, match in cases:
+        rc, out, err = run_cli(capsys, *args, *common)
+        assert_user_error(rc, out, err, match)
+    assert digest(tmp_path) == before
+
+
+def test_interrupt_leaves_no_output(
+    capsys: pytest.CaptureFixture[str], tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    np.save(tmp_path / "in.npy", video())
+
+    def interrupted(self: object, frames: object) -> Iterator[np.ndarray]:
+        yield np.ones((2 * H, 2 * W), np.float32)
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(pipeline.UPSR, "process", interrupted)
+    rc, _out, err = run_cli(
+        capsys, "run", tmp_path / "in.npy", "-o", tmp_path / "new" / "o.npy", "-r", 2, "-n", 3, "-q"
+    )
+    assert rc == 130 and "interrupted" in err and "Traceback" not in err
+    assert listing(tmp_path) == ["in.npy"]
+
+
+def test_internal_error(
+    capsys: pytest.CaptureFixture[str], tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    np.save(tmp_path / "in.npy", video())
+
+    def broken(self: object, frames: object) -> Iterator[np.ndarray]:
+        yield np.ones((2 * H, 2 * W), np.float32)
+        raise ZeroDivisionError("oops")
+
+    monkeypatch.setattr(pipeline.UPSR, "process", broken)
+    args = ["run", tmp_path / "in.npy", "-o", tmp_path / "o.npy", "-r", 2, "-n", 3, "-q"]
+    rc, _, err = run_cli(capsys, *args)
+    assert rc == 1
+    assert err.strip() == (
+        "upsr: internal error: ZeroDivisionError: oops (rerun with --debug for a traceback)"
+    )
+    assert listing(tmp_path) == ["in.npy"]
+    rc, _, err = run_cli(capsys, "--debug", *args)
+    assert rc == 1 and "Traceback" in err and "ZeroDivisionError" in err
+    rc, _out, err = run_cli(
+        capsys, "--debug", "run", tmp_path / "nothere.npy", "-o", tmp_path / "o.npy", "-r", 2
+    )
+    assert rc == 2 and "Traceback" in err and err.strip().endswith("no such file or folder")
+
+
+def test_warnings_are_one_line(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
+    np.save(tmp_path / "in.npy", video() * 40)  # up to ~100 m: does not fit 16-bit mm PNGs
+    rc, _out, err = run_cli(
+        capsys,
+        "run",
+        tmp_path / "in.npy",
+        "-o",
+        tmp_path / "o",
+        "-r",
+        1,
+        "-n",
+        1,
+        "--no-deblur",
+        "-q",
+    )
+    assert rc == 0
+    assert err.startswith("upsr: warning: ") and "clipped" in err
+    assert len(err.strip().splitlines()) == 1
+
+
+# ---------------------------------------------------------------------------------------------
+# help, version, demo
+# ---------------------------------------------------------------------------------------------
+def test_help_texts() -> None:
+    runner = CliRunner()
+    res = runner.invoke(cli.app, ["run", "--help"])
+    assert res.exit_code == 0
+    text = " ".join(res.output.split())
+    for needle in (
+        "--scale",
+        "--frames",
+        "[default: 9, or all the frames of a shorter video]",
+        "mm",
+        "--depth-scale",
+        "TUM",
+        "5000",
+        "--no-deblur",
+        "--overwrite",
+        "Examples:",
+        "upsr run video.npy",
+    ):
+        assert needle in text, needle
+    res = runner.invoke(cli.app, ["--help"])
+    assert res.exit_code == 0 and "run" in res.output and "demo" in res.output
+    res = runner.invoke(cli.app, ["demo", "--help"])
+    assert res.exit_code == 0 and "--seed" in res.output
+
+
+def test_no_arguments_prints_help(capsys: pytest.CaptureFixture[str]) -> None:
+    rc, out, _err = run_cli(capsys)
+    assert rc == 0 and "Usage" in out and "run" in out
+
+
+def test_version(capsys: pytest.CaptureFixture[str]) -> None:
+    rc, out, _ = run_cli(capsys, "--version")
+    assert rc == 0 and out.strip() == f"upsr {upsr.__version__}"
+
+
+def test_demo_command(
+    capsys: pytest.CaptureFixture[str], tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    try:
+        import upsr.apps.demo as demo_module
+    except ImportError:  # being written by someone else: stand in for it
+        demo_module = types.ModuleType("upsr.apps.demo")
+        monkeypatch.setitem(sys.modules, "upsr.apps.demo", demo_module)
+        monkeypatch.setattr(upsr, "demo", demo_module, raising=False)
+    calls = {}
+
+    def run_demo(out_dir: Path, *, seed: int = 0, progress: bool = True) -> dict:
+        calls.update(out_dir=Path(out_dir), seed=seed, progress=progress)
+        return {"upsr": {"rmse": 1.0}}
+
+    monkeypatch.setattr(demo_module, "run_demo", run_demo, raising=False)
+    monkeypatch.setattr(
+        demo_module, "format_metrics_table", lambda m: f"TABLE {sorted(m)}", raising=False
+    )
+    rc, out, err = run_cli(capsys, "demo", "--out", tmp_path / "d", "--seed", 3, "-q")
+    assert rc == 0, err
+    assert calls == {"out_dir": tmp_path / "d", "seed": 3, "progress": False}
+    assert "TABLE ['upsr']" in out and str(tmp_path / "d") in out
+
+
+# ---------------------------------------------------------------------------------------------
+# the installed console script, in a real process
+# ---------------------------------------------------------------------------------------------
+def _proc(*args: object, **kw: object) -> subprocess.CompletedProcess[str]:
+    return subprocess.run(
+        [str(BIN), *map(str, args)], capture_output=True, text=True, timeout=300, **kw
+    )  # type: ignore[call-overload]
+
+
+@pytest.mark.skipif(not BIN.exists(), reason="console script not installed")
+def test_console_script_success_and_errors(tmp_path: Path) -> None:
+    np.save(tmp_path / "in.npy", video())
+    p = _proc("run", tmp_path / "in.npy", "-o", tmp_path / "o.npz", "-r", 2, "-n", 3)
+    assert p.returncode == 0, p.stderr
+    assert len(p.stdout.strip().splitlines()) == 1 and "frames/s" in p.stdout
+    assert np.load(tmp_path / "o.npz")["depth"].shape == (T, 2 * H, 2 * W)
+
+    np.save(tmp_path / "bad.npy", video().astype(object), allow_pickle=True)
+    p = _proc("run", tmp_path / "bad.npy", "-o", tmp_path / "o2.npy", "-r", 2, "-n", 3)
+    assert p.returncode == 2 and p.stdout == ""
+    assert p.stderr.strip().splitlines() == [
+        f"upsr: error: {tmp_path / 'bad.npy'}: object arrays are refused (they would need "
+        f"unpickling); save depth as a numeric array"
+    ]
+    p = _proc("run", tmp_path / "in.npy", "-o", tmp_path / "o3.npy", "--scale", "0")
+    assert p.returncode == 2 and len(p.stderr.strip().splitlines()) == 1
+    p = _proc("--version")
+    assert p.returncode == 0 and p.stdout.strip() == f"upsr {upsr.__version__}"
+    assert sorted(x.name for x in tmp_path.iterdir()) == ["bad.npy", "in.npy", "o.npz"]
+
+
+_SLOW_RUN = """
+import signal, sys, time
+import numpy as np
+from upsr.apps.cli import main as cli
+from upsr.method import windowed
+
+# the test sends SIGINT: give the child Python's own handler whatever the parent inherited
+signal.signal(signal.SIGINT, signal.default_int_handler)
+signal.signal(signal.SIGTERM, signal.SIG_DFL)
+
+def slow(self, frames):
+    for f in frames:
+        time.sleep(0.3)
+        print("frame", flush=True, file=sys.stderr)
+        yield np.repeat(np.repeat(f, 2, 0), 2, 1)
+
+windowed.UPSR.process = slow
+sys.exit(cli.main(sys.argv[1:]))
+"""
+
+
+@pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM], ids=["SIGINT", "SIGTERM"])
+def test_signal_leaves_no_output(tmp_path: Path, sig: int) -> None:
+    np.save(tmp_path / "in.npy", np.ones((40, H, W), np.float32))
+    proc = subprocess.Popen(
+        [
+            sys.executable,
+            "-c",
+            _SLOW_RUN,
+            "run",
+            str(tmp_path / "in.npy"),
+            "-o",
+            str(tmp_path / "out" / "o.npy"),
+            "-r",
+            "2",
+            "-n",
+            "3",
+            "-q",
+        ],
+        stderr=subprocess.PIPE,
+        stdout=subprocess.PIPE,
+        text=True,
+    )
+    assert proc.stderr is not None
+    seen = 0
+    while seen < 2:  # wait until it is writing
+        line = proc.stderr.readline()
+        assert line, "the child exited early"
+        seen += line.strip() == "frame"
+    assert (tmp_path / "out").exists()
+    proc.send_signal(sig)
+    try:
+        _, err = proc.communicate(timeout=60)
+    finally:
+        proc.kill()
+    assert proc.returncode == (130 if sig == signal.SIGINT else 143), err
+    assert ("interrupted" if sig == signal.SIGINT else "terminated") in err
+    assert "Traceback" not in err
+    assert listing(tmp_path) == ["in.npy"]
+
+
+def test_default_window_shrinks_to_a_short_video_but_explicit_n_does_not(
+    capsys: pytest.CaptureFixture[str], tmp_path: Path
+) -> None:
+    src = tmp_path / "short.npy"
+    np.save(src, video(t=4))
+    out = tmp_path / "out.npy"
+    rc, stdout, err = run_cli(capsys, "run", src, "-o", out, "-r", 2, "-q")
+    assert rc == 0, err
+    assert "N=4" in stdout and "N = 4" in err
+    assert np.load(out).shape == (4, 2 * H, 2 * W)
+    rc, stdout, err = run_cli(capsys, "run", src, "-o", tmp_path / "o2.npy", "-r", 2, "-n", 9)
+    assert_user_error(rc, stdout, err, "N=9 > 4 frames")
+    assert not (tmp_path / "o2.npy").exists()

@@ -1,0 +1,98 @@
+import pytest
+
+from upsr import DeblurConfig, InputError, UPSRConfig
+
+
+def test_defaults_are_valid_and_documented():
+    cfg = UPSRConfig(scale=4)
+    assert cfg.n_frames == 9 and cfg.half_before == 4
+    assert cfg.deblur.enabled and cfg.deblur.radius_px >= 1
+    assert UPSRConfig.__doc__ and "n_frames" in UPSRConfig.__doc__
+    assert "lam" in DeblurConfig.__doc__
+
+
+def test_from_options_routes_deblur_prefix():
+    cfg = UPSRConfig.from_options(2, 5, deblur_lam=0.1, deblur_iterations=3, refine=False)
+    assert cfg.deblur.lam == 0.1 and cfg.deblur.iterations == 3 and not cfg.refine
+    assert not UPSRConfig.from_options(2, 5, deblur=False).deblur.enabled
+
+
+@pytest.mark.parametrize(
+    "kwargs",
+    [
+        {"scale": 0},
+        {"scale": -2},
+        {"scale": 2.5},
+        {"scale": 2, "n_frames": 0},
+        {"scale": 2, "n_frames": -3},
+        {"scale": 2, "depth_range_mm": (500.0, 100.0)},
+        {"scale": 2, "min_valid_fraction": 1.0},
+        {"scale": 2, "flow_preset": "slow"},
+    ],
+)
+def test_bad_parameters_rejected(kwargs):
+    with pytest.raises(InputError):
+        UPSRConfig(**kwargs)
+
+
+@pytest.mark.parametrize(
+    "kwargs",
+    [
+        {"lam": -1},
+        {"alpha": 0},
+        {"alpha": 1.5},
+        {"radius_px": 0},
+        {"blur": "motion"},
+        {"iterations": -1},
+        {"step_mm": 0},
+        {"step_decay": 0},
+        {"edge_mm": -5},
+    ],
+)
+def test_bad_deblur_parameters_rejected(kwargs):
+    with pytest.raises(InputError):
+        DeblurConfig(**kwargs)
+
+
+def test_unknown_option_rejected():
+    with pytest.raises(InputError, match="unknown option"):
+        UPSRConfig.from_options(2, 9, nonsense=1)
+    with pytest.raises(InputError, match="unknown deblur option"):
+        UPSRConfig.from_options(2, 9, deblur_nonsense=1)
+
+
+def test_flow_grid_scale_and_residual_preset_follow_the_frame_width():
+    from upsr.method.config import FLOW_GRID_MIN_WIDTH_PX
+
+    cfg = UPSRConfig(scale=4)
+    assert cfg.flow_grid_scale(64) == 3  # ToF 64 px wide: a 192 px grid
+    assert cfg.flow_grid_scale(40) == 4  # never more than r
+    assert cfg.flow_grid_scale(256) == 2  # at least 2 (sub-pixel motion, paper eq. 9–12)
+    assert UPSRConfig(scale=1).flow_grid_scale(64) == 1
+    assert UPSRConfig(scale=2).flow_grid_scale(64) == 2
+    assert UPSRConfig(scale=4, flow_scale=3).flow_grid_scale(640) == 3
+    assert cfg.residual_flow_preset(FLOW_GRID_MIN_WIDTH_PX) == "ultrafast"
+    assert cfg.residual_flow_preset(FLOW_GRID_MIN_WIDTH_PX - 1) == cfg.flow_preset
+    assert UPSRConfig(refine_preset="fast").residual_flow_preset(10) == "fast"
+
+
+def test_speckle_size_is_one_lowres_pixel_by_default():
+    assert UPSRConfig(scale=4).speckle_size_px == 16
+    assert UPSRConfig(scale=4, speckle_px=0).speckle_size_px == 0
+    assert UPSRConfig(scale=2, speckle_px=9).speckle_size_px == 9
+
+
+@pytest.mark.parametrize(
+    "options",
+    [
+        {"flow_scale": 0},
+        {"flow_scale": 5},
+        {"flow_scale": 1.5},
+        {"refine_preset": "slow"},
+        {"speckle_px": -1},
+        {"speckle_px": 2.5},
+    ],
+)
+def test_bad_flow_grid_options_are_rejected(options):
+    with pytest.raises(InputError):
+        UPSRConfig(scale=4, **options)
