@@ -21,8 +21,8 @@ from typing import Any
 import cv2
 import numpy as np
 
+from upsr._atomic import write_text_atomic
 from upsr.errors import InputError
-from upsr.io._core import write_text_atomic
 from upsr.method.windowed import super_resolve
 from upsr.research import baselines
 from upsr.research.metrics import evaluate

@@ -118,7 +118,7 @@ def write_intrinsics(
     scale: int | float | None = None,
 ) -> Path:
     """Write ``camera`` as JSON atomically (with the input camera and scale, if given)."""
-    from upsr.io._core import write_text_atomic
+    from upsr._atomic import write_text_atomic
 
     d = camera_to_dict(camera)
     if scale is not None:

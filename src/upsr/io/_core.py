@@ -44,10 +44,8 @@ import contextlib
 import math
 import os
 import re
-import secrets
 import shutil
 import struct
-import tempfile
 import warnings
 import weakref
 import zipfile
@@ -55,11 +53,20 @@ import zlib
 from collections.abc import Iterable, Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import IO, Any, BinaryIO, TypeVar
+from typing import IO, Any, BinaryIO
 
 import numpy as np
 import numpy.typing as npt
 
+from upsr._atomic import (
+    AtomicWriter,
+    new_temp_dir,
+    new_temp_file,
+    remove,
+    temp_name,
+    write_bytes_atomic,
+    write_text_atomic,
+)
 from upsr.errors import InputError
 from upsr.method.validation import as_depth_frame
 
@@ -803,48 +810,14 @@ def check_output_path(
     return out
 
 
-def _remove(path: Path) -> None:
-    with contextlib.suppress(OSError):
-        if path.is_dir() and not path.is_symlink():
-            shutil.rmtree(path, ignore_errors=True)
-        elif os.path.lexists(path):
-            path.unlink()
-
-
 def _cleanup(temps: list[Path], created_dirs: list[Path]) -> None:
     for p in temps:
-        _remove(p)
+        remove(p)
     temps.clear()
     for d in reversed(created_dirs):  # innermost first; only if still empty
         with contextlib.suppress(OSError):
             d.rmdir()
     created_dirs.clear()
-
-
-def _temp_name(dest: Path, tag: str) -> Path:
-    return dest.with_name(f".{dest.name}.{secrets.token_hex(4)}.{tag}")
-
-
-def _new_temp_file(dest: Path, tag: str = "part") -> tuple[Path, BinaryIO]:
-    for _ in range(100):
-        p = _temp_name(dest, tag)
-        try:  # plain os.open: the umask applies, as for any other file the user creates
-            fd = os.open(p, os.O_RDWR | os.O_CREAT | os.O_EXCL | getattr(os, "O_BINARY", 0), 0o666)
-        except FileExistsError:
-            continue
-        return p, os.fdopen(fd, "w+b")
-    raise FileExistsError(f"cannot create a temporary file next to {dest}")
-
-
-def _new_temp_dir(dest: Path) -> Path:
-    for _ in range(100):
-        p = _temp_name(dest, "part")
-        try:
-            os.mkdir(p)
-        except FileExistsError:
-            continue
-        return p
-    raise FileExistsError(f"cannot create a temporary folder next to {dest}")
 
 
 def _npy_header(shape: tuple[int, int, int]) -> bytes:
@@ -856,29 +829,6 @@ def _npy_header(shape: tuple[int, int, int]) -> bytes:
         raise InputError(f"video shape {shape} too large for a .npy header")
     text = (d + " " * pad + "\n").encode("latin1")
     return b"\x93NUMPY\x01\x00" + struct.pack("<H", len(text)) + text
-
-
-_Writer = TypeVar("_Writer", bound="AtomicWriter")
-
-
-class AtomicWriter:
-    """Context-manager protocol of the writers that publish their output only when complete:
-    ``close()`` on success, ``abort()`` (nothing left at the output path) on any exception."""
-
-    def close(self) -> Any:  # pragma: no cover - overridden
-        raise NotImplementedError
-
-    def abort(self) -> None:  # pragma: no cover - overridden
-        raise NotImplementedError
-
-    def __enter__(self: _Writer) -> _Writer:
-        return self
-
-    def __exit__(self, exc_type: Any, exc: Any, tb: Any) -> None:
-        if exc_type is None:
-            self.close()
-        else:
-            self.abort()
 
 
 class VideoWriter(AtomicWriter):
@@ -956,10 +906,10 @@ class VideoWriter(AtomicWriter):
 
             fh: Any = None
             if _folder_output(self.format, self.path):
-                self._temp = _new_temp_dir(self.path)
+                self._temp = new_temp_dir(self.path)
                 self._temps.append(self._temp)
             else:
-                self._temp, fh = _new_temp_file(self.path)
+                self._temp, fh = new_temp_file(self.path)
                 self._temps.append(self._temp)
                 if self.format == "exr":
                     fh.close()  # OpenEXR writes by name
@@ -971,10 +921,10 @@ class VideoWriter(AtomicWriter):
                 single = not _folder_output("exr", self.path)
                 self._sink = exr.FrameSink(self._temp, self.depth_scale, single)
         elif self.format == "png":
-            self._temp = _new_temp_dir(self.path)
+            self._temp = new_temp_dir(self.path)
             self._temps.append(self._temp)
         else:
-            self._temp, self._fh = _new_temp_file(self.path)
+            self._temp, self._fh = new_temp_file(self.path)
             self._temps.append(self._temp)
             self._fh.write(_npy_header((0, *self._shape)))  # type: ignore[arg-type]
 
@@ -1051,13 +1001,13 @@ class VideoWriter(AtomicWriter):
                     self._fh.close()
                 else:
                     self._fh.seek(0)
-                    zpath, zfh = _new_temp_file(self.path)
+                    zpath, zfh = new_temp_file(self.path)
                     self._temps.append(zpath)
                     with zfh, zipfile.ZipFile(zfh, "w", zipfile.ZIP_DEFLATED) as zf:
                         with zf.open("depth.npy", "w", force_zip64=True) as member:
                             shutil.copyfileobj(self._fh, member, 1 << 20)
                     self._fh.close()
-                    _remove(self._temp)
+                    remove(self._temp)
                     self._temp = zpath
                 self._fh = None
             self._install()
@@ -1077,11 +1027,11 @@ class VideoWriter(AtomicWriter):
                 )
             check_output_path((), dest, True, fmt=self.format)
             if _folder_output(self.format, dest) and not dest.is_symlink():
-                trash = _temp_name(dest, "old")
+                trash = temp_name(dest, "old")
                 os.replace(dest, trash)
                 self._temps.append(trash)
                 os.replace(tmp, dest)
-                _remove(trash)
+                remove(trash)
                 self._temps.clear()
                 return
         os.replace(tmp, dest)
@@ -1105,39 +1055,6 @@ class VideoWriter(AtomicWriter):
     def closed(self) -> bool:
         """True once :meth:`close` or :meth:`abort` ran."""
         return self._closed
-
-
-def write_bytes_atomic(path: PathLike, data: bytes) -> Path:
-    """Write ``data`` to ``path`` atomically: a temporary file in the same folder, renamed over
-    ``path`` only once it is complete (readers never see a half-written file). The parent
-    folder is created if needed; the file gets the usual permissions (umask), not ``mkstemp``'s
-    0600.
-
-    Returns
-    -------
-    pathlib.Path
-        The path written.
-    """
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    try:
-        with os.fdopen(fd, "wb") as f:
-            f.write(data)
-        umask = os.umask(0)
-        os.umask(umask)
-        os.chmod(tmp, 0o666 & ~umask)
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
-    return path
-
-
-def write_text_atomic(path: PathLike, text: str) -> Path:
-    """:func:`write_bytes_atomic` for UTF-8 text."""
-    return write_bytes_atomic(path, text.encode("utf-8"))
 
 
 def write_video(

@@ -140,7 +140,7 @@ def write_ply(
     pathlib.Path
         The path written.
     """
-    from upsr.io._core import write_bytes_atomic
+    from upsr._atomic import write_bytes_atomic
 
     points, valid = backproject(depth_mm, camera)
     rgb = None

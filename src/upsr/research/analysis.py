@@ -89,8 +89,8 @@ import numpy as np
 import numpy.typing as npt
 from scipy import special
 
+from upsr._atomic import write_text_atomic
 from upsr.errors import InputError
-from upsr.io._core import write_text_atomic
 
 __all__ = [
     "bias_sq",

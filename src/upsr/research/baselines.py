@@ -42,7 +42,7 @@ from upsr.method.motion import (
     suppress_spurious_motion,
 )
 from upsr.method.registration import flows_to_reference
-from upsr.method.upsampling import upsample_nearest
+from upsr.method.upsampling import upsample_bicubic, upsample_nearest
 from upsr.method.validation import as_depth_frame
 from upsr.research.metrics import _check_mm
 
@@ -130,14 +130,7 @@ def bicubic(lowres: npt.ArrayLike, r: int) -> np.ndarray:
     """
     r = _check_scale(r)
     frames, single = _as_frames(lowres)
-    _, h, w = frames.shape
-    if r == 1:
-        out = frames.copy()
-    else:
-        out = np.stack(
-            [cv2.resize(f, (w * r, h * r), interpolation=cv2.INTER_CUBIC) for f in frames]
-        )
-        np.maximum(out, 0.0, out=out)
+    out = upsample_bicubic(frames, r)
     return out[0] if single else out
 
 

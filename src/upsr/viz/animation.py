@@ -19,8 +19,8 @@ import numpy as np
 import numpy.typing as npt
 from numba import njit
 
+from upsr._atomic import AtomicWriter
 from upsr.errors import InputError
-from upsr.io._core import AtomicWriter
 
 __all__ = ["GifWriter", "lzw_encode", "quantize"]
 

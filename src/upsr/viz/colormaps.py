@@ -17,8 +17,8 @@ import cv2
 import numpy as np
 import numpy.typing as npt
 
+from upsr._atomic import write_bytes_atomic
 from upsr.errors import InputError
-from upsr.io._core import write_bytes_atomic
 
 __all__ = [
     "INVALID_BGR",

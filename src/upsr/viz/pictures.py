@@ -26,10 +26,11 @@ import cv2
 import numpy as np
 import numpy.typing as npt
 
+from upsr._atomic import AtomicWriter
 from upsr.errors import InputError
 from upsr.geometry.camera import PinholeCamera
 from upsr.geometry.rendering import look_at, render_depth
-from upsr.io._core import AtomicWriter
+from upsr.method.upsampling import upsample_bicubic
 from upsr.method.validation import as_depth_frame
 from upsr.viz.colormaps import colorbar, colorize_depth, colorize_error, panel_grid, write_png
 
@@ -107,7 +108,6 @@ def comparison_frame(
     caption : str
         ASCII text under the panels (e.g. the frame number).
     """
-    from upsr.research.baselines import bicubic
 
     low = as_depth_frame(lowres_mm, name="low-res frame")
     up = as_depth_frame(upsr_mm, name="UP-SR frame")
@@ -117,7 +117,7 @@ def comparison_frame(
             f"UP-SR frame {up.shape[1]}x{up.shape[0]} is not r={r} times the low-res "
             f"{low.shape[1]}x{low.shape[0]}"
         )
-    bic = bicubic(low, r)
+    bic = upsample_bicubic(low[None], r)[0]
     panels: list[tuple[str, np.ndarray]] = [
         ("low-res", colorize_depth(low, vmin_mm, vmax_mm)),
         ("bicubic", colorize_depth(bic, vmin_mm, vmax_mm)),

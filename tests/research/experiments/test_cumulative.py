@@ -7,8 +7,8 @@ from pathlib import Path
 import cv2
 import numpy as np
 import pytest
-from tests.research.experiments._helpers import read_csv
 
+from tests.research.experiments._helpers import read_csv
 from upsr.apps.cli import main as cli
 from upsr.method.upsampling import upsample_nearest
 from upsr.research.experiments.cumulative import (

@@ -8,8 +8,8 @@ from pathlib import Path
 
 import cv2
 import pytest
-from tests.research.experiments._helpers import read_csv
 
+from tests.research.experiments._helpers import read_csv
 from upsr.apps.cli import main as cli
 from upsr.research.analysis import median_variance
 from upsr.research.experiments.factors import CSV_COLUMNS

@@ -10,8 +10,8 @@ from pathlib import Path
 import cv2
 import numpy as np
 import pytest
-from tests.research.experiments._helpers import read_csv, synthetic_disparity
 
+from tests.research.experiments._helpers import read_csv, synthetic_disparity
 from upsr.apps.cli import main as cli
 from upsr.errors import InputError
 from upsr.research.experiments.data import disparity_to_depth_mm, load_middlebury_art

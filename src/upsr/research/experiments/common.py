@@ -17,8 +17,8 @@ from typing import Any
 
 import numpy as np
 
+from upsr._atomic import write_text_atomic
 from upsr.errors import InputError
-from upsr.io._core import write_text_atomic
 from upsr.viz.colormaps import write_png
 
 __all__ = [

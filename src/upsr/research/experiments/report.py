@@ -8,7 +8,7 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
-from upsr.io._core import write_text_atomic
+from upsr._atomic import write_text_atomic
 from upsr.research.experiments.common import (
     DEFAULT_DATA,
     ExperimentResult,

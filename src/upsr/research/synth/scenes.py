@@ -23,8 +23,8 @@ from typing import Literal
 import numpy as np
 import numpy.typing as npt
 
+import upsr.research.synth.degradation as _deg
 from upsr.errors import InputError
-from upsr.research.synth import degradation as _deg
 
 __all__ = ["DynamicScene", "SyntheticVideo", "dynamic_scene", "make_scene"]
 
