@@ -305,9 +305,9 @@ def _register_fuse_kernel(
         li = low_of[i]
         anc_row = anchor[li]
         tol_row = tol[li]
-        quarter = 0.25 * scale
+        quarter = 0.0  # the half of the block on that side
         dy = fi - centre_of[i]
-        ny = li + 1 if dy >= quarter else (li - 1 if dy <= -quarter else -1)
+        ny = li + 1 if dy > quarter else (li - 1 if dy < -quarter else -1)
         ny = ny if 0 <= ny < anchor.shape[0] else -1
         for q in range(m_on):
             j = on[q]
@@ -322,7 +322,7 @@ def _register_fuse_kernel(
             on_tol[q] = tol_row[lj]
             if a0 > 0:
                 dx = on_jd[q] - centre_of[j]
-                nx = lj + 1 if dx >= quarter else (lj - 1 if dx <= -quarter else -1)
+                nx = lj + 1 if dx > quarter else (lj - 1 if dx < -quarter else -1)
                 if 0 <= nx < w_low and abs(anc_row[nx] - a0) > edge_mm:
                     on_ax[q] = anc_row[nx]
                     on_tx[q] = tol_row[nx]

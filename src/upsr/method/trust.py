@@ -37,6 +37,7 @@ __all__ = [
     "radial_offsets",
     "reference_anchor",
     "remove_mixed_pixels",
+    "surface_support",
     "trust_arrays",
 ]
 
@@ -391,3 +392,22 @@ def trust_arrays(
     else:
         offs = np.ascontiguousarray(offsets, np.float32).reshape(n, h, w)
     return anc, tol, offs
+
+
+def surface_support(reference: npt.ArrayLike, edge_mm: float) -> np.ndarray:
+    """Pixels of the reference with depth and at least one 8-neighbour within ``edge_mm``:
+    part of a surface the camera saw (a thin part one pixel wide included), not a lone
+    pixel. Their output is kept by the speckle filter (the fusion never erases what the
+    reference measured on a surface)."""
+    z = np.asarray(reference, np.float32)
+    z = np.where(np.isnan(z), np.float32(0.0), z)
+    h, w = z.shape
+    pad = np.zeros((h + 2, w + 2), np.float32)
+    pad[1:-1, 1:-1] = z
+    found = np.zeros((h, w), np.bool_)
+    for di in (-1, 0, 1):
+        for dj in (-1, 0, 1):
+            if di or dj:
+                u = pad[1 + di : 1 + di + h, 1 + dj : 1 + dj + w]
+                found |= (u > 0) & (np.abs(u - z) <= edge_mm)
+    return found & (z > 0)

@@ -63,6 +63,7 @@ from upsr.method.trust import (
     radial_offsets,
     reference_anchor,
     remove_mixed_pixels,
+    surface_support,
 )
 from upsr.method.validation import as_depth_frame, as_depth_video
 
@@ -369,6 +370,13 @@ class UPSR:
             )
         with self._timed("deblur"):
             out = finish_fused(fused, cfg)
+            if anchor is not None:
+                # the speckle filter never erases what the reference measured on a surface
+                # (a thin fast part kept by its anchor is an island, not noise)
+                keep = surface_support(lowres[ref], self._edge_mm)
+                lost = np.repeat(np.repeat(keep, r, axis=0), r, axis=1) & (out == 0) & (fused > 0)
+                if lost.any():
+                    out = np.where(lost, fused, out)
             if cfg.fill_holes:
                 out = fill_holes(out, r, iterations=64)  # invented depth (off by default)
             return out
