@@ -138,8 +138,8 @@ def test_streaming_bad_input():
 
 
 def test_chunk_with_the_videos_statistics_equals_the_whole_run():
-    from upsr.method.deblurring import estimate_noise_mm
     from upsr.method.motion import depth_range
+    from upsr.method.noise import estimate_noise_mm
     from upsr.method.windowed import window_start
 
     scene = dynamic_scene(n_frames=14, lowres_shape=(16, 20), scale=2, noise_sigma_mm=20, seed=4)

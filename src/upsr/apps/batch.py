@@ -104,7 +104,7 @@ def video_statistics(first_frames: np.ndarray) -> tuple[tuple[float, float], flo
     noise_mm : float
         Median over the frames of :func:`upsr.method.deblurring.estimate_noise_mm`.
     """
-    from upsr.method.deblurring import estimate_noise_mm
+    from upsr.method.noise import estimate_noise_mm
     from upsr.method.motion import depth_range
 
     # kept exactly as the engine computes them (NumPy scalars): the 8-bit mapping's rounding

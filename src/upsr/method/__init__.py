@@ -22,10 +22,13 @@ __getattr__, __dir__, __all__ = attach(
     submodules=[
         "config",
         "deblurring",
+        "frontend",
         "fusion",
         "motion",
+        "noise",
         "outliers",
         "registration",
+        "smoothing",
         "upsampling",
         "validation",
         "windowed",

@@ -38,7 +38,8 @@ import numpy.typing as npt
 from upsr.errors import InputError
 from upsr.method._parallel import both, window_pool
 from upsr.method.config import UPSRConfig
-from upsr.method.deblurring import deblur, estimate_noise_mm
+from upsr.method.deblurring import deblur
+from upsr.method.noise import estimate_noise_mm
 from upsr.method.fusion import register_and_fuse, splat_points
 from upsr.method.motion import (
     FlowBackend,

@@ -4,7 +4,7 @@ These are "the straightforward path": vectorised NumPy versions of
 
 * :func:`upsr.method.fusion.temporal_median` (:func:`temporal_median_numpy`),
 * :func:`upsr.method.deblurring.btv_subgradient` (:func:`btv_subgradient_numpy`),
-* :func:`upsr.method.deblurring.estimate_noise_mm` (:func:`estimate_noise_mm_numpy`),
+* :func:`upsr.method.noise.estimate_noise_mm` (:func:`estimate_noise_mm_numpy`),
 * :func:`upsr.method.deblurring.deblur` with B = I (:func:`deblur_numpy`),
 * :func:`upsr.super_resolve` with nothing shared between windows, flows at the full r and
   the kernels above (:func:`super_resolve_straightforward`),
@@ -21,7 +21,7 @@ import numpy as np
 import numpy.typing as npt
 
 from upsr.method.config import DeblurConfig, UPSRConfig
-from upsr.method.deblurring import smooth_surfaces
+from upsr.method.smoothing import smooth_surfaces
 from upsr.method.outliers import remove_speckles
 
 __all__ = [
@@ -170,7 +170,7 @@ def temporal_median_numpy(
 
 
 def estimate_noise_mm_numpy(z: npt.ArrayLike, lag_px: int = 1) -> float:
-    """:func:`upsr.method.deblurring.estimate_noise_mm` with NumPy: 1.4826·MAD/√2 of the valid
+    """:func:`upsr.method.noise.estimate_noise_mm` with NumPy: 1.4826·MAD/√2 of the valid
     same-surface (|Δ| < 100 mm) differences ``lag_px`` apart, horizontally and vertically."""
     z = np.asarray(z, np.float32)
     diffs = []
@@ -250,7 +250,7 @@ def deblur_numpy(
     x₀ = z; x_{k+1} = x_k − β_k / norm · (sign(x_k − z) + λ ∂Γ_BTV(x_k)) on the pixels valid
     in z (0 elsewhere), β₀ = ``cfg.step_mm`` or max(0.5, noise of z), β_{k+1} = β_k ·
     ``cfg.step_decay``, norm = 1 + 2λ((Σ_k α^|k|)² − 1); then x ≥ 10⁻³ mm on the valid pixels
-    and :func:`upsr.method.deblurring.smooth_surfaces` if ``cfg.smooth_sigma_mm`` is set.
+    and :func:`upsr.method.smoothing.smooth_surfaces` if ``cfg.smooth_sigma_mm`` is set.
 
     Parameters
     ----------
