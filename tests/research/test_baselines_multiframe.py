@@ -329,3 +329,20 @@ def test_multiframe_bad_input():
         shift_add(video, 0)
     with pytest.raises(InputError, match="n_examples"):
         train_patch_sisr(2, n_examples=0)
+
+
+def test_upsampled_flows_are_the_engines_consecutive_flows():
+    """The baselines' motion is UP-SR's own (one motion front-end): with the flow grid at r the
+    engine's consecutive flows, to the bit (range and noise fixed from the first window)."""
+    from upsr.method.config import UPSRConfig
+    from upsr.method.windowed import UPSR
+
+    scene = dynamic_scene(n_frames=6, lowres_shape=(16, 20), scale=3, noise_sigma_mm=20, seed=3)
+    cfg = UPSRConfig(scale=3, n_frames=5, flow_scale=3)
+    fwd, bwd = upsampled_flows(scene.lowres, 3, config=cfg)
+    engine = UPSR(config=cfg, workers=0)
+    for f in scene.lowres:
+        engine._ingest(f)  # the per-frame work only: every consecutive flow of the video
+    for k in range(len(scene.lowres) - 1):
+        np.testing.assert_array_equal(fwd[k], engine._fwd[k])
+        np.testing.assert_array_equal(bwd[k], engine._bwd[k + 1])

@@ -21,8 +21,8 @@ import numpy as np
 import numpy.typing as npt
 
 from upsr.method.config import DeblurConfig, UPSRConfig
-from upsr.method.smoothing import smooth_surfaces
 from upsr.method.outliers import remove_speckles
+from upsr.method.smoothing import smooth_surfaces
 
 __all__ = [
     "btv_subgradient_numpy",
@@ -326,14 +326,9 @@ def super_resolve_straightforward(frames: npt.ArrayLike, config: UPSRConfig) -> 
     -------
     ndarray float32 (T, r·h, r·w)
     """
+    from upsr.method.frontend import MotionFrontEnd
     from upsr.method.fusion import splat_nearest
-    from upsr.method.motion import (
-        bilateral_prefilter,
-        depth_range,
-        depth_to_u8,
-        make_flow_backend,
-        suppress_spurious_motion,
-    )
+    from upsr.method.motion import make_flow_backend
     from upsr.method.registration import (
         cumulative_flows,
         flows_to_reference,
@@ -348,48 +343,27 @@ def super_resolve_straightforward(frames: npt.ArrayLike, config: UPSRConfig) -> 
     video = as_depth_video(frames)
     t_total, h, w = video.shape
     r, n = cfg.scale, cfg.n_frames
-    first = video[:n]
-    near, far = cfg.depth_range_mm or depth_range(first)
-    noise = cfg.noise_mm
-    if noise is None:
-        noise = float(np.median([estimate_noise_mm_numpy(f) for f in first]))
-    edge_mm = max(cfg.edge_mm, 4.0 * noise)
+    # UP-SR's motion front-end on the full r grid, DIS flow_preset everywhere, the prefilter
+    # on the upsampled frames (OpenCV) and the NumPy noise estimate
     flow = make_flow_backend(cfg.flow, cfg.flow_preset)
-
-    def supported(a: np.ndarray, b: np.ndarray, f: np.ndarray, units: float) -> np.ndarray:
-        if cfg.zero_motion_tolerance is None:
-            return f
-        return suppress_spurious_motion(
-            a,
-            b,
-            f,
-            window_px=2 * r + 1,
-            tolerance=cfg.zero_motion_tolerance,
-            noise_mm=noise * units,
-            edge_mm=edge_mm * units,
-            edge_window_px=4 * r + 1,
-        )
-
-    units_u8 = 254.0 / max(far - near, 1e-6)
-
-    def refine(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-        return supported(a.astype(np.float32), b.astype(np.float32), flow(a, b), units_u8)
-
+    front = MotionFrontEnd(
+        cfg, w, grid_scale=r, flow_backend=flow, residual_flow_backend=flow, blockwise=False
+    )
+    front.fix_statistics(video[:n], estimate_noise=estimate_noise_mm_numpy)
+    edge_mm = front.edge_mm
     out = np.empty((t_total, h * r, w * r), np.float32)
     for t in range(t_total):
         s = window_start(t, t_total, cfg)
         ref = t - s
         up = [upsample_nearest(video[k], r) for k in range(s, s + n)]
-        pre = [bilateral_prefilter(u, cfg.prefilter_sigma_mm, cfg.spatial_sigma_px) for u in up]
-        guides = [depth_to_u8(p, near, far) for p in pre]
+        pre = [front.prefilter(video[k]) for k in range(s, s + n)]
+        guides = [front.guide(p) for p in pre]
         fwd: list[np.ndarray | None] = [None] * n
         bwd: list[np.ndarray | None] = [None] * n
         for j in range(n - 1):
-            fwd[j] = supported(pre[j], pre[j + 1], flow(guides[j], guides[j + 1]), 1.0)
-            bwd[j + 1] = supported(pre[j + 1], pre[j], flow(guides[j + 1], guides[j]), 1.0)
-        maps = cumulative_flows(
-            ref, bwd, fwd, (h * r, w * r), refine=refine if cfg.refine else None, guides=guides
-        )
+            fwd[j], bwd[j + 1] = front.flow_pair(pre[j], pre[j + 1], guides[j], guides[j + 1])
+        refine = front.residual_flow if cfg.refine else None
+        maps = cumulative_flows(ref, bwd, fwd, (h * r, w * r), refine=refine, guides=guides)
         stack = np.stack([warp_nearest(u, m) for u, m in zip(up, maps, strict=True)])
         weights = None
         if cfg.edge_weight_px:

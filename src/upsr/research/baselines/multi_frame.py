@@ -9,6 +9,7 @@ Pixel geometry of ``SPEC.md`` §1; depth is float32 mm, 0 = unknown.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections.abc import Callable, Iterator
 
@@ -19,16 +20,8 @@ from scipy import ndimage, sparse
 
 from upsr.errors import InputError
 from upsr.method.config import UPSRConfig
-from upsr.method.motion import (
-    bilateral_prefilter,
-    depth_range,
-    depth_to_u8,
-    make_flow_backend,
-    suppress_spurious_motion,
-)
-from upsr.method.noise import estimate_noise_mm
+from upsr.method.frontend import MotionFrontEnd
 from upsr.method.registration import flows_to_reference
-from upsr.method.upsampling import upsample_nearest
 from upsr.research.baselines._common import _as_frames, _check_scale
 
 __all__ = [
@@ -51,12 +44,15 @@ FlowPair = tuple[np.ndarray, np.ndarray]
 def upsampled_flows(lowres: npt.ArrayLike, r: int, *, config: UPSRConfig | None = None) -> FlowPair:
     """Consecutive optical flows between the *upsampled* frames, as UP-SR estimates them.
 
-    Paper §4 and §5.2, steps 1–3 of ``SPEC.md`` §2: each frame is densely upsampled
-    (nearest, eq. 13–15), bilateral-prefiltered and mapped to 8 bit with one fixed depth range
-    for the whole video (:mod:`upsr.method.motion`); the flow backend of ``config`` then runs between
-    consecutive frames in both directions, and motion that the depth does not support is
-    zeroed (:func:`upsr.method.motion.suppress_spurious_motion`), exactly as in
-    :class:`upsr.method.windowed.UPSR` (except that the depth range comes from the whole video).
+    Paper §4 and §5.2, steps 1–3 of ``SPEC.md`` §2, by UP-SR's own motion front-end
+    (:class:`upsr.method.frontend.MotionFrontEnd`, as in :class:`upsr.method.windowed.UPSR`)
+    with the flow grid at the full r: each frame is densely upsampled (nearest, eq. 13–15),
+    bilateral-prefiltered and mapped to 8 bit with one fixed depth range per video; the flow
+    backend of ``config`` then runs between consecutive frames in both directions, and motion
+    that the depth does not support is zeroed
+    (:func:`upsr.method.motion.suppress_spurious_motion`, edge rule included). The depth range
+    and the noise level are fixed from the first ``config.n_frames`` frames (the first
+    window), unless ``config`` gives them.
 
     Parameters
     ----------
@@ -65,8 +61,9 @@ def upsampled_flows(lowres: npt.ArrayLike, r: int, *, config: UPSRConfig | None 
     r : int
         SR factor ≥ 1: the flows live on the (r·h, r·w) grid.
     config : UPSRConfig, optional
-        Prefilter, flow backend and spurious-motion parameters (``UPSRConfig(scale=r)`` by
-        default).
+        Prefilter, flow backend, spurious-motion parameters and window length
+        (``UPSRConfig(scale=r)`` by default; its ``scale`` is taken as r, ``flow_scale`` is
+        ignored).
 
     Returns
     -------
@@ -77,37 +74,21 @@ def upsampled_flows(lowres: npt.ArrayLike, r: int, *, config: UPSRConfig | None 
     r = _check_scale(r)
     frames, _ = _as_frames(lowres)
     cfg = config if config is not None else UPSRConfig(scale=r)
+    if cfg.scale != r:
+        cfg = dataclasses.replace(cfg, scale=r, flow_scale=None)
     t, h, w = frames.shape
     fwd = np.zeros((max(t - 1, 0), h * r, w * r, 2), np.float32)
     bwd = np.zeros_like(fwd)
     if t < 2:
         return fwd, bwd
-    up = upsample_nearest(frames, r)
-    sigma_px = (
-        float(cfg.prefilter_sigma_px) if cfg.prefilter_sigma_px is not None else 0.75 * r + 0.5
-    )
-    pre = [bilateral_prefilter(u, cfg.prefilter_sigma_mm, sigma_px) for u in up]
-    near, far = cfg.depth_range_mm if cfg.depth_range_mm is not None else depth_range(frames)
-    guides = [depth_to_u8(p, near, far) for p in pre]
-    noise_mm = float(np.median([estimate_noise_mm(f) for f in frames]))
-    backend = make_flow_backend(cfg.flow, cfg.flow_preset)
-
-    def one(a: int, b: int) -> np.ndarray:
-        flow = backend(guides[a], guides[b])
-        if cfg.zero_motion_tolerance is not None:
-            flow = suppress_spurious_motion(
-                pre[a],
-                pre[b],
-                flow,
-                window_px=2 * r + 1,
-                tolerance=cfg.zero_motion_tolerance,
-                noise_mm=noise_mm,
-            )
-        return flow
-
+    front = MotionFrontEnd(cfg, w, grid_scale=r)
+    front.fix_statistics(frames[: cfg.n_frames])
+    pre = [front.prefilter(f) for f in frames]
+    guides = [front.guide(p) for p in pre]
     for k in range(t - 1):
-        fwd[k] = one(k, k + 1)
-        bwd[k] = one(k + 1, k)
+        fwd[k], bwd[k] = front.flow_pair(
+            pre[k], pre[k + 1], guides[k], guides[k + 1], parallel=front.thread_safe
+        )
     return fwd, bwd
 
 
@@ -148,7 +129,8 @@ def _windows(
     shape = (h * r, w * r)
     n = min(n_frames, t_total)
     if flows is None:
-        fwd, bwd = upsampled_flows(frames, r, config=config)
+        cfg = config if config is not None else UPSRConfig(scale=r, n_frames=n)
+        fwd, bwd = upsampled_flows(frames, r, config=cfg)
     else:
         fwd, bwd = _check_flows(flows, t_total, shape)
     for t in range(t_total):
