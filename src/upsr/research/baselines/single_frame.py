@@ -61,13 +61,13 @@ def bicubic(lowres: npt.ArrayLike, r: int) -> np.ndarray:
     Parameters
     ----------
     lowres : array_like, shape (h, w) or (T, h, w)
-        Depth (mm); 0 or NaN = invalid (NaN becomes 0).
+        Depth (mm); 0 or NaN = invalid, both interpolated as depth 0.
     r : int
         SR factor ≥ 1.
 
     Returns
     -------
-    ndarray of float32, shape (r·h, r·w) or (T, r·h, r·w).
+    ndarray of float32 ≥ 0 (0 = invalid), shape (r·h, r·w) or (T, r·h, r·w).
     """
     r = _check_scale(r)
     frames, single = _as_frames(lowres)
