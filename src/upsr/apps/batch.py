@@ -104,8 +104,8 @@ def video_statistics(first_frames: np.ndarray) -> tuple[tuple[float, float], flo
     noise_mm : float
         Median over the frames of :func:`upsr.method.deblurring.estimate_noise_mm`.
     """
-    from upsr.method.noise import estimate_noise_mm
     from upsr.method.motion import depth_range
+    from upsr.method.noise import estimate_noise_mm
 
     # kept exactly as the engine computes them (NumPy scalars): the 8-bit mapping's rounding
     # depends on their type (NumPy 2 promotion rules)
