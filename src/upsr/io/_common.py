@@ -21,7 +21,6 @@ __all__ = [
     "frame_files",
     "mixed_size",
     "raw_to_mm",
-    "reading",
 ]
 
 

@@ -21,14 +21,13 @@ from typing import Any, BinaryIO
 import numpy as np
 
 from upsr.errors import InputError
-from upsr.io._base import VideoInfo
+from upsr.io._base import VideoInfo, reading
 from upsr.io._common import (
     c_output_captured,
     check_frame_size,
     frame_files,
     mixed_size,
     raw_to_mm,
-    reading,
 )
 from upsr.io.registry import ReadOptions, require
 from upsr.method.validation import as_depth_frame

@@ -22,8 +22,8 @@ from typing import Any
 import numpy as np
 
 from upsr.errors import InputError
-from upsr.io._base import VideoInfo
-from upsr.io._common import check_frame_size, reading
+from upsr.io._base import VideoInfo, reading
+from upsr.io._common import check_frame_size
 from upsr.io.registry import ReadOptions, require
 from upsr.method.validation import as_depth_frame
 

@@ -1,6 +1,11 @@
-"""Depth video input/output, streamed frame by frame.
+"""Depth video input/output, streamed frame by frame: the entry points of :mod:`upsr.io`.
 
-Three containers are understood, chosen by the path (or forced with ``fmt=``):
+:func:`probe`, :func:`iter_frames` (a whole video or a frame range ``start``/``stop``),
+:func:`read_video` and :class:`VideoWriter` choose the format by the path (or ``fmt=``) and
+dispatch to its module (:mod:`upsr.io.npy`, :mod:`upsr.io.npz`, :mod:`upsr.io.png`,
+:mod:`upsr.io.tiff`, :mod:`upsr.io.exr`, :mod:`upsr.io.rosbag`, :mod:`upsr.io.datasets`)
+through :mod:`upsr.io.registry`; every module has the reader functions and, when writable,
+the ``FrameSink`` of :mod:`upsr.io._base`. The three basic containers:
 
 ``.npy`` (``fmt="npy"``)
     One (T, h, w) array of depth in mm, any integer or float dtype. Read through a memory map
@@ -37,6 +42,8 @@ written; on an exception (KeyboardInterrupt included) the temporary is removed. 
 folders of the output are created (and removed again if the writing fails).
 :func:`check_output_path` refuses an output that would overwrite an input.
 """
+
+from __future__ import annotations
 
 import contextlib
 import os
