@@ -170,3 +170,39 @@ def test_batch_reuses_finished_chunks(videos, tmp_path: Path, monkeypatch) -> No
     assert res.exit_code == 0
     assert sorted(computed) == [8, 12]  # chunks [8, 12) and [12, 13) only: the others reused
     _check(tmp_path, {"a": ref["a"]})
+
+
+def test_chunks_read_only_their_frames_and_finish_only_their_outputs(
+    videos, tmp_path: Path, monkeypatch
+) -> None:
+    from upsr.io import npy
+    from upsr.method.windowed import UPSR
+
+    d, ref = videos
+    reads: list[tuple[int, int | None, int]] = []  # (start, stop, frames decoded)
+    real_frames = npy.frames
+
+    def spy(path, opts=None, fmt="npy", start=0, stop=None):  # type: ignore[no-untyped-def]
+        reads.append((start, stop, 0))
+        for frame in real_frames(path, opts, fmt, start, stop):
+            reads[-1] = (reads[-1][0], reads[-1][1], reads[-1][2] + 1)
+            yield frame
+
+    finished: list[int] = []
+    real_finish = UPSR._finish
+
+    def counting(self, t, n_total):  # type: ignore[no-untyped-def]
+        finished.append(t)
+        return real_finish(self, t, n_total)
+
+    monkeypatch.setattr(npy, "frames", spy)
+    monkeypatch.setattr(UPSR, "_finish", counting)
+    cfg = UPSRConfig(scale=R, n_frames=N)
+    res = run_batch([d / "a.npy"], tmp_path, cfg, workers=1, chunk_frames=4, progress=False)
+    assert res.exit_code == 0
+    _check(tmp_path, {"a": ref["a"]})
+    plan = chunk_plan(13, N, 4)
+    # _prepare reads the first N frames; every chunk exactly its input frames [lo, hi)
+    assert reads[0] == (0, N, N)
+    assert sorted(reads[1:]) == sorted((lo, hi, hi - lo) for _, _, lo, hi in plan)
+    assert len(finished) == 13  # one window per output frame: none for the overlaps

@@ -12,7 +12,7 @@ import pytest
 from upsr.apps.cli.main import main
 from upsr.errors import InputError
 from upsr.geometry.intrinsics import load_intrinsics, parse_intrinsics, write_intrinsics
-from upsr.io import _core as io
+from upsr.io import video as io
 from upsr.io.pointcloud import backproject
 from upsr.viz.animation import GifWriter, lzw_encode, quantize
 from upsr.viz.pictures import ComparisonWriter, comparison_frame, render_view

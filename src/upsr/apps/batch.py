@@ -159,9 +159,28 @@ def _part_ok(part: Path, n: int, shape: tuple[int, int]) -> bool:
         return False
 
 
-def _run_chunk(spec: dict[str, Any]) -> dict[str, Any]:
-    from upsr.io import _core as io
+def _chunk_engine(cfg: UPSRConfig, keep: range) -> Any:
+    """A one-thread UP-SR engine that finishes only the windows of the outputs in ``keep``.
+
+    Every frame is still ingested (prefilter, flows: later windows need them); the windows of
+    the other outputs (those before the chunk's first output and after its last, which only
+    exist because the chunk's input overlaps its neighbours') are not computed: their output
+    is None.
+    """
     from upsr.method.windowed import UPSR
+
+    class ChunkEngine(UPSR):
+        def _finish(self, t: int, n_total: int) -> Any:
+            if t not in keep:
+                return None
+            return super()._finish(t, n_total)
+
+    # the cluster runs chunks side by side: one thread per chunk, no window threads
+    return ChunkEngine(config=cfg, workers=0)
+
+
+def _run_chunk(spec: dict[str, Any]) -> dict[str, Any]:
+    from upsr.io import video as io
 
     start = time.perf_counter()
     cfg = _config_from_dict(spec["config"])
@@ -170,27 +189,24 @@ def _run_chunk(spec: dict[str, Any]) -> dict[str, Any]:
     out_shape = (spec["height"] * cfg.scale, spec["width"] * cfg.scale)
     if _part_ok(part, b - a, out_shape):
         return {"part": str(part), "frames": b - a, "seconds": 0.0, "reused": True}
+    # only the input frames [lo, hi) the chunk's windows need are read (the format seeks)
     frames = io.iter_frames(
         spec["input"],
         key=spec["key"],
         topic=spec["topic"],
         fmt=spec["fmt"],
         depth_scale=spec["depth_scale"],
+        start=lo,
+        stop=hi,
     )
-
-    def window() -> Iterator[np.ndarray]:
-        with contextlib.closing(frames):
-            for t, frame in enumerate(frames):
-                if t >= hi:
-                    return
-                if t >= lo:
-                    yield frame
-
-    # the cluster runs chunks side by side: one thread per chunk, no window threads
-    engine = UPSR(config=cfg, workers=0)
+    # the chunk is a video of hi - lo frames; its outputs a - lo ... b - lo - 1 are kept
+    engine = _chunk_engine(cfg, range(a - lo, b - lo))
     part.parent.mkdir(parents=True, exist_ok=True)
-    with io.VideoWriter(part, n_frames=b - a, fmt="npy", overwrite=True) as writer:
-        for t, out in enumerate(engine.process(window()), start=lo):
+    with (
+        contextlib.closing(frames),
+        io.VideoWriter(part, n_frames=b - a, fmt="npy", overwrite=True) as writer,
+    ):
+        for t, out in enumerate(engine.process(frames), start=lo):
             if a <= t < b:
                 writer.write(out)
     return {
@@ -352,7 +368,7 @@ def _prepare(
     shrink_frames: bool = False,
 ) -> list[dict[str, Any]]:
     """Probe, compute the video statistics and plan the chunks of one recording."""
-    from upsr.io import _core as io
+    from upsr.io import video as io
 
     info = io.probe(rec.input, key=read["key"], fmt=read["fmt"], topic=read["topic"])
     if shrink_frames and cfg.n_frames > info.n_frames:
@@ -366,7 +382,8 @@ def _prepare(
     rec.n_frames = info.n_frames
     rec.camera = _camera(rec.input, info, read, intrinsics)
     first = []
-    with contextlib.closing(io.iter_frames(rec.input, **read)) as frames:
+    # the first N frames only (not exhausted: their validity is not the whole video's)
+    with contextlib.closing(io.iter_frames(rec.input, **read, stop=cfg.n_frames)) as frames:
         for frame in frames:
             first.append(frame)
             if len(first) == cfg.n_frames:
