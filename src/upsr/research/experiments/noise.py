@@ -57,7 +57,7 @@ from upsr.research.experiments.common import (
 from upsr.research.experiments.data import render_samba, samba_mesh_paths
 from upsr.research.metrics import evaluate
 from upsr.research.synth import add_laplacian_noise
-from upsr.viz.figures import PALETTE, Series, line_plot
+from upsr.viz.figures import PALETTE, LinePlot, Series, line_plot
 
 __all__ = ["DEBLUR_GRID", "METHODS", "run_noise", "search_deblur"]
 
@@ -290,10 +290,10 @@ def run_noise(
     )
 
 
-_COLORS = (*PALETTE, (0, 0, 0), (200, 200, 0))
+_COLORS = (*PALETTE, "black", "tab:cyan")
 
 
-def _plot(rows: list[dict[str, Any]]) -> np.ndarray:
+def _plot(rows: list[dict[str, Any]]) -> LinePlot:
     series = []
     for k, method in enumerate(dict.fromkeys(row["method"] for row in rows)):
         mine = [row for row in rows if row["method"] == method]
@@ -314,8 +314,8 @@ def _plot(rows: list[dict[str, Any]]) -> np.ndarray:
     return line_plot(
         series,
         title="Samba, r = 4, N = 9: MSE vs noise",
-        xlabel="noise sigma [mm]",
-        ylabel="MSE [mm^2]",
+        xlabel="noise σ [mm]",
+        ylabel="MSE [mm²]",
         log_y=True,
         ylim=ylim,
         size=(900, 640),
