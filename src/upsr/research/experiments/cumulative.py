@@ -296,8 +296,8 @@ def _load(
             return add_laplacian_noise(scene.lowres_clean, sigma, rng)
 
         desc = (
-            f"synthetic dynamic scene (upsr.research.synth.dynamic_scene, no background, blob moving "
-            f"1.5 low-res px/frame), {QUICK_SHAPE[1]}x{QUICK_SHAPE[0]} -> "
+            "synthetic dynamic scene (upsr.research.synth.dynamic_scene, no background, blob "
+            f"moving 1.5 low-res px/frame), {QUICK_SHAPE[1]}x{QUICK_SHAPE[0]} -> "
             f"{QUICK_SHAPE[1] * SCALE}x{QUICK_SHAPE[0] * SCALE}, {QUICK_N_TOTAL} frames"
         )
         return scene.truth, noisy, desc

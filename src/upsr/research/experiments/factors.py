@@ -20,11 +20,12 @@ largest r) from any depth discontinuity of the truth (``surface_mse``, the same 
 every r). The plot shows ``surface_mse``: the model of §6 describes the noise and the
 upsampling blur, not the misregistration of occluded pixels at depth edges.
 
-Model (:mod:`upsr.research.analysis`): per pixel, MSE(σ) = var(σ) + (r² − 1)·ρ², var(σ) the exact
-variance of the median of N = 9 Laplace samples (:func:`upsr.research.analysis.median_variance`) and ρ the
-mean error per upsampled pixel (eq. 34), fitted once per r with
-:func:`upsr.research.analysis.estimate_rho` on the noise-free run (σ = 0) and then *predicted* for every
-σ (the model's bias does not depend on σ). For r = 1 the model has no bias: MSE = var(σ).
+Model (:mod:`upsr.research.analysis`): per pixel, MSE(σ) = var(σ) + (r² − 1)·ρ², var(σ) the
+exact variance of the median of N = 9 Laplace samples
+(:func:`upsr.research.analysis.median_variance`) and ρ the mean error per upsampled pixel
+(eq. 34), fitted once per r with :func:`upsr.research.analysis.estimate_rho` on the noise-free
+run (σ = 0) and then *predicted* for every σ (the model's bias does not depend on σ). For r = 1
+the model has no bias: MSE = var(σ).
 """
 
 from __future__ import annotations
