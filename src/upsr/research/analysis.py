@@ -571,9 +571,10 @@ def run_analysis(
     rng_n, rng_s = (np.random.default_rng(c) for c in np.random.SeedSequence(seed).spawn(2))
     vs_n = _sweep_frames(s, n_max, n_trials, rng_n)
     vs_sigma = _sweep_sigma(n_trials, rng_s)
-    plot_n, plot_s = _analysis_plots(vs_n, vs_sigma, s, n_trials)
-
+    from upsr.research._analysis_figures import analysis_plots
     from upsr.viz.figures import write_figure
+
+    plot_n, plot_s = analysis_plots(vs_n, vs_sigma, s, n_trials, N_FRAMES_VS_SIGMA)
 
     out_dir.mkdir(parents=True, exist_ok=True)
     files = {
@@ -665,48 +666,6 @@ def _sweep_sigma(n_trials: int, rng: np.random.Generator) -> list[dict[str, Any]
         }
         for i in range(sig.size)
     ]
-
-
-def _analysis_plots(
-    vs_n: list[dict[str, Any]], vs_sigma: list[dict[str, Any]], s: float, n_trials: int
-) -> tuple[Any, Any]:
-    """The two figures of :func:`run_analysis` (:class:`upsr.viz.figures.LinePlot`)."""
-    from upsr.viz.figures import PALETTE, Series, line_plot
-
-    col = {k: np.array([row[k] for row in vs_n]) for k in vs_n[0]}
-    cs = {k: np.array([row[k] for row in vs_sigma]) for k in vs_sigma[0]}
-    ns, sig = col["n_frames"], cs["sigma_mm"]
-    size = (820, 540)
-    mc_label = f"Monte-Carlo ({n_trials} trials)"
-    crb_label = "Cramér–Rao bound σ²/(2N)"
-    plot_n = line_plot(
-        [
-            Series(ns, col["paper_printed_mm2"], "paper eq. (35)–(37) as printed", PALETTE[3],
-                   "dashed"),
-            Series(ns, col["crb_mm2"], crb_label, PALETTE[2], "dashed"),
-            Series(ns, col["variance_mm2"], "exact variance (theory)", PALETTE[0], "solid"),
-            Series(ns, col["mc_variance_mm2"], mc_label, PALETTE[1], "markers"),
-        ],
-        title=f"Median of N Laplace samples, σ = {s:g} mm",
-        xlabel="number of frames N",
-        ylabel="variance of the median [mm²]",
-        size=size,
-        log_y=True,
-        legend="upper right",
-    )  # fmt: skip
-    plot_s = line_plot(
-        [
-            Series(sig, cs["crb_mm2"], crb_label, PALETTE[2], "dashed"),
-            Series(sig, cs["variance_mm2"], "exact variance (theory)", PALETTE[0], "solid"),
-            Series(sig, cs["mc_variance_mm2"], mc_label, PALETTE[1], "markers"),
-        ],
-        title=f"Median of N = {N_FRAMES_VS_SIGMA} Laplace samples",
-        xlabel="noise standard deviation σ [mm]",
-        ylabel="variance of the median [mm²]",
-        size=size,
-        legend="upper left",
-    )
-    return plot_n, plot_s
 
 
 def format_analysis_table(result: dict[str, Any]) -> str:

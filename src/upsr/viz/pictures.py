@@ -11,7 +11,7 @@ or an H.264 MP4 (both :mod:`upsr.viz.animation`), atomically.
 :func:`render_view` renders a depth frame as a shaded 3-D surface seen from a rotated viewpoint
 (like Fig. 3 of the paper): the pixels become a triangle mesh (no triangle spans a depth jump
 larger than ``edge_mm``, so foreground and background stay apart), rendered with the z-buffer
-rasteriser of :mod:`upsr.research.synth.render` and lit from the viewer.
+rasteriser of :mod:`upsr.geometry.rendering` and lit from the viewer.
 """
 
 from __future__ import annotations
