@@ -14,7 +14,7 @@ from upsr.errors import InputError
 from upsr.geometry.intrinsics import load_intrinsics, parse_intrinsics, write_intrinsics
 from upsr.io import video as io
 from upsr.io.pointcloud import backproject
-from upsr.viz.animation import GifWriter, lzw_encode, quantize
+from upsr.viz.animation import GifWriter
 from upsr.viz.pictures import ComparisonWriter, comparison_frame, render_view
 
 DATA = Path(__file__).parents[1] / "io" / "data" / "formats"
@@ -151,47 +151,6 @@ def test_export_ply(tmp_path: Path) -> None:
 # ---------------------------------------------------------------------------------------------
 # pictures
 # ---------------------------------------------------------------------------------------------
-def test_gif_encoder_decodes() -> None:
-    rng = np.random.default_rng(0)
-    for n in (1, 2, 300, 5000):  # past the 4096-code table reset
-        idx = rng.integers(0, 256, n).astype(np.uint8)
-        assert _lzw_decode(lzw_encode(idx)) == idx.tolist()
-    runs = np.repeat(rng.integers(0, 3, 400), 20).astype(np.uint8)
-    assert _lzw_decode(lzw_encode(runs)) == runs.tolist()
-    img = cv2.applyColorMap(np.tile(np.arange(256, dtype=np.uint8), (4, 1)), cv2.COLORMAP_TURBO)
-    pal, ind = quantize(img)
-    np.testing.assert_array_equal(pal[ind][..., ::-1], img)  # <= 256 colours: exact
-
-
-def _lzw_decode(data: bytes) -> list[int]:
-    """Reference GIF LZW decoder (minimum code size 8)."""
-    bits = int.from_bytes(data, "little")
-    pos, size, out = 0, 9, []
-    table: list[list[int]] = []
-    prev: list[int] | None = None
-    while True:
-        code = (bits >> pos) & ((1 << size) - 1)
-        pos += size
-        if code == 256:
-            table = [[i] for i in range(256)] + [[], []]
-            size, prev = 9, None
-            continue
-        if code == 257:
-            return out
-        if code < len(table):
-            entry = table[code]
-            if prev is not None:
-                table.append(prev + entry[:1])
-        else:
-            assert prev is not None and code == len(table)
-            entry = prev + prev[:1]
-            table.append(entry)
-        out.extend(entry)
-        prev = entry
-        if len(table) == (1 << size) and size < 12:
-            size += 1
-
-
 def test_comparison_pictures(tmp_path: Path) -> None:
     v = scene()
     hi = np.kron(v, np.ones((2, 2), np.float32))
@@ -210,6 +169,7 @@ def test_comparison_pictures(tmp_path: Path) -> None:
     while cap.read()[0]:
         n += 1
     assert n == 3
+    assert cv2.VideoWriter_fourcc(*"h264") == int(cap.get(cv2.CAP_PROP_FOURCC))
     if hasattr(cv2, "imreadanimation"):
         ok, anim = cv2.imreadanimation(str(tmp_path / "a.gif"))
         assert ok and len(anim.frames) == 3
