@@ -2,15 +2,31 @@
 
 from __future__ import annotations
 
-from upsr.research.synth.degradation import add_laplacian_noise, dropout, flying_pixel_artefacts
+from upsr.research.synth.degradation import (
+    add_depth_dependent_noise,
+    add_laplacian_noise,
+    dropout,
+    flying_pixel_artefacts,
+    kinect,
+    kinect_axial_sigma_mm,
+    projector_shadows,
+    quantise_disparity,
+    tof_footprint,
+)
 from upsr.research.synth.scenes import DynamicScene, SyntheticVideo, dynamic_scene, make_scene
 
 __all__ = [
     "DynamicScene",
     "SyntheticVideo",
+    "add_depth_dependent_noise",
     "add_laplacian_noise",
     "dropout",
     "dynamic_scene",
     "flying_pixel_artefacts",
+    "kinect",
+    "kinect_axial_sigma_mm",
     "make_scene",
+    "projector_shadows",
+    "quantise_disparity",
+    "tof_footprint",
 ]
