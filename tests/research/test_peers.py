@@ -39,3 +39,17 @@ def test_temporal_mean_windows_and_invalid_samples():
     assert out[2, 3, 3] == pytest.approx(300.0)
     assert out[2, 0, 0] == pytest.approx(300.0)  # mean of 200 and 400
     assert out[4, 3, 3] == pytest.approx(400.0)
+
+
+@pytest.mark.parametrize("r", [1, 2, 3])
+def test_blockwise_bilateral_equals_the_filter_of_the_nearest_upsampling(r):
+    from upsr.method.upsampling import upsample_nearest
+
+    rng = np.random.default_rng(r)
+    low = rng.uniform(1000, 1100, (2, 7, 9)).astype(np.float32)
+    low[:, :, 5:] += 800.0
+    low[0, 3, 3] = 0.0
+    sigma = rng.uniform(5, 30, low.shape).astype(np.float32)
+    fast = bilateral_nearest(low, r, sigma)
+    slow = masked_bilateral(upsample_nearest(low, r), float(r), 3.0 * upsample_nearest(sigma, r))
+    np.testing.assert_allclose(fast, slow, rtol=1e-5, atol=1e-3)
