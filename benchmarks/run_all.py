@@ -1,7 +1,8 @@
 """Run every benchmark (``make bench``): speed (ToF always; Samba, speed-up and memory when the
 Samba meshes are at ``--data``, default ``../shared/data``), the flow grid, the synthetic scenes,
-the realistic sensor scenes (``--out docs/results`` writes them to docs/results/realistic), the deblurring iterations and speckle removal, and the Samba accuracy tables. Each benchmark
-prints its table and writes ``results.json`` under ``--out``."""
+the realistic sensor scenes (``--out docs/results`` writes them to docs/results/realistic), the
+deblurring iterations and speckle removal, and the Samba accuracy tables. Each benchmark prints
+its table and writes ``results.json`` under ``--out``."""
 
 from __future__ import annotations
 
