@@ -217,6 +217,20 @@ def markdown(rows: list[dict[str, Any]], config: dict[str, Any]) -> str:
     ]
     for (scene, sensor), worse in _losses(rows).items():
         lines.append(f"| {scene} | {sensor} | {'; '.join(worse) if worse else '—'} |")
+    moving_cam = [r for r in rows if r["scene"] == "toward_wall" and r["method"] == "upsr"]
+    if moving_cam:
+        lines += [
+            "",
+            "## Per-frame bias, camera toward the wall (upsr, mean(output − truth) in mm)",
+            "",
+            "| sensor | "
+            + " | ".join(f"t={t}" for t in range(len(moving_cam[0]["bias_per_frame"])))
+            + " |",
+            "|---|" + "---:|" * len(moving_cam[0]["bias_per_frame"]),
+        ]
+        for r in moving_cam:
+            cells = " | ".join(_fmt(b, "bias") for b in r["bias_per_frame"])
+            lines.append(f"| {r['sensor']} | {cells} |")
     lines += ["", "## All results", ""]
     lines.append("| scene | sensor | method | " + " | ".join(COLUMNS) + " |")
     lines.append("|---|---|---|" + "---:|" * len(COLUMNS))
