@@ -6,8 +6,8 @@ s = clip(t − (N−1)//2, 0, T − N), :func:`upsr.method.windowed.window_start
 overlap by N − 1 input frames. The per-video statistics that the engine would fix from the
 first N frames of the video — the 8-bit depth mapping of the flow images
 (:func:`upsr.method.motion.depth_range`) and the noise estimate (median over those frames of
-:func:`upsr.method.deblurring.estimate_noise_mm`) — are computed once per recording and given to every
-chunk: the result is identical, frame for frame, to a single run over the whole recording.
+:func:`upsr.method.deblurring.estimate_noise_mm`) — are computed once per recording and given to
+every chunk: the result is identical, frame for frame, to a single run over the whole recording.
 
 Chunks run in worker processes (``workers``) or as tasks on an existing Dask scheduler
 (``scheduler="tcp://host:port"``, the ``[dask]`` extra; inputs and the output folder must be

@@ -3,8 +3,8 @@
 Synthesises a short noisy low-res depth video of a non-rigidly moving object in front of a
 wall (:func:`upsr.research.synth.dynamic_scene`), super-resolves it with UP-SR
 (:func:`upsr.method.windowed.super_resolve`) and with the single-frame baselines of paper §7
-(:mod:`upsr.research.baselines`), scores all of them against the truth (:mod:`upsr.research.metrics`) and writes
-a picture and the numbers.
+(:mod:`upsr.research.baselines`), scores all of them against the truth
+(:mod:`upsr.research.metrics`) and writes a picture and the numbers.
 """
 
 from __future__ import annotations
