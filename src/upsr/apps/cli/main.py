@@ -27,7 +27,6 @@ from typing import Annotated, Any
 
 import typer
 
-from upsr import __version__
 from upsr.apps.cli import batch, demo, experiment, pictures, pointcloud, run
 from upsr.errors import InputError
 
@@ -48,6 +47,7 @@ except ImportError:  # pragma: no cover
 
 __all__ = ["app", "main"]
 
+
 class _State:
     debug = False
     terminated = False
@@ -67,6 +67,8 @@ app = typer.Typer(
 
 def _version_callback(value: bool) -> None:
     if value:
+        from upsr import __version__
+
         typer.echo(f"upsr {__version__}")
         raise typer.Exit()
 

@@ -12,6 +12,7 @@ from typing import Annotated, Any
 import typer
 
 from upsr.apps.cli.options import (
+    DEFAULT_FRAMES,
     AlphaOpt,
     BlurOpt,
     BtvRadiusOpt,
@@ -154,16 +155,9 @@ def run(
     in_fmt, out_fmt = fmt(input_format), fmt(output_format)
     info = io.probe(input_path, key=key, fmt=in_fmt, topic=topic)
     camera = input_camera(input_path, info, intrinsics, fmt=in_fmt, topic=topic)
-    shortened = frames is None and info.n_frames < cfg.n_frames
-    if shortened:  # the default N, not the user's: a shorter video uses all its frames
-        cfg = dataclasses.replace(cfg, n_frames=info.n_frames)
-    if cfg.n_frames > info.n_frames:
-        raise InputError(
-            f"N={cfg.n_frames} > {info.n_frames} frames in {input_path}: use "
-            f"--frames {info.n_frames} or less"
-        )
+    cfg = _fit_window(cfg, info.n_frames, input_path, explicit=frames is not None)
     io.check_output_path([input_path], output, overwrite, fmt=out_fmt)
-    if shortened:
+    if frames is None and cfg.n_frames < DEFAULT_FRAMES:
         typer.echo(
             f"upsr: note: the video has {info.n_frames} frame(s): N = {cfg.n_frames}", err=True
         )
@@ -194,6 +188,21 @@ def run(
         f"upsr: {t_n} frames {w}x{h} -> {w * r}x{h * r} (r={r}, N={cfg.n_frames}) in "
         f"{elapsed:.1f} s ({rate:.1f} frames/s) -> {output}"
     )
+
+
+def _fit_window(cfg: Any, n_total: int, path: Path, *, explicit: bool) -> Any:
+    """The config with N fitted to a video of ``n_total`` frames.
+
+    The default N (not the user's ``--frames``) shrinks to a shorter video's length; an N
+    larger than the video is an error.
+    """
+    if not explicit and n_total < cfg.n_frames:
+        cfg = dataclasses.replace(cfg, n_frames=n_total)
+    if cfg.n_frames > n_total:
+        raise InputError(
+            f"N={cfg.n_frames} > {n_total} frames in {path}: use --frames {n_total} or less"
+        )
+    return cfg
 
 
 def _write_video(
