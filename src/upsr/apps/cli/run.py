@@ -63,40 +63,55 @@ Examples:
 """
 
 
+InputArg = Annotated[
+    Path,
+    typer.Argument(
+        metavar="INPUT",
+        show_default=False,
+        help="Low-res depth video: a .npy/.npz (T, h, w) array in mm, or a folder "
+        "of 16-bit PNG depth frames.",
+    ),
+]
+OutputOpt = Annotated[
+    Path,
+    typer.Option(
+        "--output",
+        "-o",
+        show_default=False,
+        help="Where to write the high-res video: .npy or .npz (float32 mm, key "
+        "'depth') or a folder name (16-bit PNG frames). Missing parent folders "
+        "are created.",
+    ),
+]
+FormatOpt = Annotated[
+    OutFormat | None,
+    typer.Option(
+        "--format",
+        "-f",
+        case_sensitive=False,
+        help="Output format [default: from the output name].",
+    ),
+]
+WorkersOpt = Annotated[
+    int | None,
+    typer.Option(
+        "--workers",
+        min=0,
+        help="Threads that finish windows side by side (same output) [default: 2 on a "
+        "machine with 2 or more cores; 0: one window at a time].",
+    ),
+]
+RunOverwriteOpt = Annotated[bool, typer.Option("--overwrite", help="Replace OUTPUT if it exists.")]
+
+
 def run(
-    input_path: Annotated[
-        Path,
-        typer.Argument(
-            metavar="INPUT",
-            show_default=False,
-            help="Low-res depth video: a .npy/.npz (T, h, w) array in mm, or a folder "
-            "of 16-bit PNG depth frames.",
-        ),
-    ],
-    output: Annotated[
-        Path,
-        typer.Option(
-            "--output",
-            "-o",
-            show_default=False,
-            help="Where to write the high-res video: .npy or .npz (float32 mm, key "
-            "'depth') or a folder name (16-bit PNG frames). Missing parent folders "
-            "are created.",
-        ),
-    ],
+    input_path: InputArg,
+    output: OutputOpt,
     scale: ScaleOpt,
     frames: FramesOpt = None,
     key: KeyOpt = None,
     depth_scale: OutDepthScaleOpt = 1000.0,
-    output_format: Annotated[
-        OutFormat | None,
-        typer.Option(
-            "--format",
-            "-f",
-            case_sensitive=False,
-            help="Output format [default: from the output name].",
-        ),
-    ] = None,
+    output_format: FormatOpt = None,
     input_format: InFormatOpt = None,
     topic: TopicOpt = None,
     intrinsics: OutIntrinsicsOpt = None,
@@ -113,18 +128,8 @@ def run(
     speckle_px: SpecklePxOpt = None,
     no_refine: NoRefineOpt = False,
     keep_all_motion: KeepAllMotionOpt = False,
-    workers: Annotated[
-        int | None,
-        typer.Option(
-            "--workers",
-            min=0,
-            help="Threads that finish windows side by side (same output) [default: 2 on a "
-            "machine with 2 or more cores; 0: one window at a time].",
-        ),
-    ] = None,
-    overwrite: Annotated[
-        bool, typer.Option("--overwrite", help="Replace OUTPUT if it exists.")
-    ] = False,
+    workers: WorkersOpt = None,
+    overwrite: RunOverwriteOpt = False,
     quiet: QuietOpt = False,
 ) -> None:
     """Super-resolve a depth video with UP-SR and write the result.
