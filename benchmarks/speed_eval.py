@@ -47,7 +47,7 @@ from typing import Any
 import numpy as np
 
 import upsr
-from upsr.io import _core as io
+from upsr.io import video as io
 from upsr.method.config import UPSRConfig
 from upsr.method.windowed import STAGES
 from upsr.research.metrics import evaluate

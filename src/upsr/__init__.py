@@ -17,16 +17,11 @@ architecture section):
 Everything here is loaded on first use (PEP 562).
 """
 
-from importlib.metadata import PackageNotFoundError, version
+from typing import Any
 
 from upsr._lazy import attach
 
-try:
-    __version__ = version("upsr")
-except PackageNotFoundError:  # pragma: no cover - running from a source tree
-    __version__ = "0+unknown"
-
-__getattr__, __dir__, __all__ = attach(
+_lazy_getattr, __dir__, __all__ = attach(
     __name__,
     submodules=["apps", "errors", "geometry", "io", "method", "research", "viz"],
     names={
@@ -45,3 +40,16 @@ __getattr__, __dir__, __all__ = attach(
         "synth": "research",
     },
 )
+
+
+def __getattr__(name: str) -> Any:
+    if name == "__version__":  # from the package metadata, read on first use (not on import)
+        from importlib.metadata import PackageNotFoundError, version
+
+        try:
+            value = version("upsr")
+        except PackageNotFoundError:  # pragma: no cover - running from a source tree
+            value = "0+unknown"
+        globals()["__version__"] = value
+        return value
+    return _lazy_getattr(name)

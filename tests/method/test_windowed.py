@@ -147,8 +147,8 @@ def test_streaming_bad_input():
 
 
 def test_chunk_with_the_videos_statistics_equals_the_whole_run():
-    from upsr.method.deblurring import estimate_noise_mm
     from upsr.method.motion import depth_range
+    from upsr.method.noise import estimate_noise_mm
     from upsr.method.trust import choose_estimator, noise_shape
     from upsr.method.windowed import window_start
 

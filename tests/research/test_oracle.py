@@ -7,8 +7,9 @@ import pytest
 
 from upsr.errors import InputError
 from upsr.method.config import DeblurConfig
-from upsr.method.deblurring import btv_subgradient, deblur, estimate_noise_mm
+from upsr.method.deblurring import btv_subgradient, deblur
 from upsr.method.fusion import temporal_median
+from upsr.method.noise import estimate_noise_mm
 from upsr.research.oracle import (
     btv_subgradient_numpy,
     deblur_numpy,

@@ -6,8 +6,8 @@ s = clip(t − (N−1)//2, 0, T − N), :func:`upsr.method.windowed.window_start
 overlap by N − 1 input frames. The per-video statistics that the engine would fix from the
 first N frames of the video — the 8-bit depth mapping of the flow images
 (:func:`upsr.method.motion.depth_range`) and the noise estimate (median over those frames of
-:func:`upsr.method.deblurring.estimate_noise_mm`) — are computed once per recording and given to every
-chunk: the result is identical, frame for frame, to a single run over the whole recording.
+:func:`upsr.method.deblurring.estimate_noise_mm`) — are computed once per recording and given to
+every chunk: the result is identical, frame for frame, to a single run over the whole recording.
 
 Chunks run in worker processes (``workers``) or as tasks on an existing Dask scheduler
 (``scheduler="tcp://host:port"``, the ``[dask]`` extra; inputs and the output folder must be
@@ -104,8 +104,8 @@ def video_statistics(first_frames: np.ndarray) -> tuple[tuple[float, float], flo
     noise_mm : float
         Median over the frames of :func:`upsr.method.deblurring.estimate_noise_mm`.
     """
-    from upsr.method.deblurring import estimate_noise_mm
     from upsr.method.motion import depth_range
+    from upsr.method.noise import estimate_noise_mm
 
     # kept exactly as the engine computes them (NumPy scalars): the 8-bit mapping's rounding
     # depends on their type (NumPy 2 promotion rules)
@@ -159,9 +159,28 @@ def _part_ok(part: Path, n: int, shape: tuple[int, int]) -> bool:
         return False
 
 
-def _run_chunk(spec: dict[str, Any]) -> dict[str, Any]:
-    from upsr.io import _core as io
+def _chunk_engine(cfg: UPSRConfig, keep: range) -> Any:
+    """A one-thread UP-SR engine that finishes only the windows of the outputs in ``keep``.
+
+    Every frame is still ingested (prefilter, flows: later windows need them); the windows of
+    the other outputs (those before the chunk's first output and after its last, which only
+    exist because the chunk's input overlaps its neighbours') are not computed: their output
+    is None.
+    """
     from upsr.method.windowed import UPSR
+
+    class ChunkEngine(UPSR):
+        def _finish(self, t: int, n_total: int) -> Any:
+            if t not in keep:
+                return None
+            return super()._finish(t, n_total)
+
+    # the cluster runs chunks side by side: one thread per chunk, no window threads
+    return ChunkEngine(config=cfg, workers=0)
+
+
+def _run_chunk(spec: dict[str, Any]) -> dict[str, Any]:
+    from upsr.io import video as io
 
     start = time.perf_counter()
     cfg = _config_from_dict(spec["config"])
@@ -170,27 +189,24 @@ def _run_chunk(spec: dict[str, Any]) -> dict[str, Any]:
     out_shape = (spec["height"] * cfg.scale, spec["width"] * cfg.scale)
     if _part_ok(part, b - a, out_shape):
         return {"part": str(part), "frames": b - a, "seconds": 0.0, "reused": True}
+    # only the input frames [lo, hi) the chunk's windows need are read (the format seeks)
     frames = io.iter_frames(
         spec["input"],
         key=spec["key"],
         topic=spec["topic"],
         fmt=spec["fmt"],
         depth_scale=spec["depth_scale"],
+        start=lo,
+        stop=hi,
     )
-
-    def window() -> Iterator[np.ndarray]:
-        with contextlib.closing(frames):
-            for t, frame in enumerate(frames):
-                if t >= hi:
-                    return
-                if t >= lo:
-                    yield frame
-
-    # the cluster runs chunks side by side: one thread per chunk, no window threads
-    engine = UPSR(config=cfg, workers=0)
+    # the chunk is a video of hi - lo frames; its outputs a - lo ... b - lo - 1 are kept
+    engine = _chunk_engine(cfg, range(a - lo, b - lo))
     part.parent.mkdir(parents=True, exist_ok=True)
-    with io.VideoWriter(part, n_frames=b - a, fmt="npy", overwrite=True) as writer:
-        for t, out in enumerate(engine.process(window()), start=lo):
+    with (
+        contextlib.closing(frames),
+        io.VideoWriter(part, n_frames=b - a, fmt="npy", overwrite=True) as writer,
+    ):
+        for t, out in enumerate(engine.process(frames), start=lo):
             if a <= t < b:
                 writer.write(out)
     return {
@@ -352,7 +368,7 @@ def _prepare(
     shrink_frames: bool = False,
 ) -> list[dict[str, Any]]:
     """Probe, compute the video statistics and plan the chunks of one recording."""
-    from upsr.io import _core as io
+    from upsr.io import video as io
 
     info = io.probe(rec.input, key=read["key"], fmt=read["fmt"], topic=read["topic"])
     if shrink_frames and cfg.n_frames > info.n_frames:
@@ -366,7 +382,8 @@ def _prepare(
     rec.n_frames = info.n_frames
     rec.camera = _camera(rec.input, info, read, intrinsics)
     first = []
-    with contextlib.closing(io.iter_frames(rec.input, **read)) as frames:
+    # the first N frames only (not exhausted: their validity is not the whole video's)
+    with contextlib.closing(io.iter_frames(rec.input, **read, stop=cfg.n_frames)) as frames:
         for frame in frames:
             first.append(frame)
             if len(first) == cfg.n_frames:
@@ -411,20 +428,15 @@ def _prepare(
 
 
 def _camera(inp: Path, info: Any, read: dict[str, Any], intrinsics: str | None) -> Any:
-    from upsr.geometry.intrinsics import parse_intrinsics
-    from upsr.io import _core as io
+    """The camera of a recording: :func:`upsr.apps._camera.input_camera`."""
+    from upsr.apps._camera import input_camera
 
-    if intrinsics is not None:
-        return parse_intrinsics(intrinsics, info.width, info.height)
-    cam = io.read_intrinsics(inp, fmt=read["fmt"], topic=read["topic"])
-    if cam is not None and cam.shape != (info.height, info.width):
-        return None
-    return cam
+    return input_camera(inp, info, intrinsics, fmt=read["fmt"], topic=read["topic"])
 
 
 def _assemble(rec: Recording, cfg: UPSRConfig, out_fmt: str | None, depth_scale: float) -> None:
     from upsr.geometry.intrinsics import write_intrinsics
-    from upsr.io import _core as io
+    from upsr.io import video as io
 
     with io.VideoWriter(
         rec.output, n_frames=rec.n_frames, fmt=out_fmt, depth_scale=depth_scale, overwrite=True
@@ -509,43 +521,13 @@ def run_batch(
     """
     from tqdm import tqdm
 
-    from upsr.io import _core as io
-
     out = Path(out_dir)
     if not inputs:
         raise InputError("no input recordings given")
-    if workers is not None and workers < 1:
-        raise InputError(f"--workers must be >= 1, got {workers}")
-    if chunk_frames < 0:
-        raise InputError(f"--chunk-frames must be >= 0, got {chunk_frames}")
-    if out.exists() and not out.is_dir():
-        raise InputError(f"--out {out} exists and is not a folder")
-    out_fmt = (output_format or "npy").lower()
-    if out_fmt not in _OUT_SUFFIX:
-        raise InputError(
-            f"cannot write {output_format!r} (output formats: {', '.join(_OUT_SUFFIX)})"
-        )
-    suffix = _OUT_SUFFIX[out_fmt]
-    recs: list[Recording] = []
-    by_output: dict[Path, Path] = {}
-    for inp in inputs:
-        p = Path(inp)
-        dest = out / (output_name(p) + suffix)
-        if dest in by_output:
-            raise InputError(
-                f"{by_output[dest]} and {p} would both be written to {dest}: "
-                f"give the recordings different names or run them separately"
-            )
-        by_output[dest] = p
-        recs.append(Recording(p, dest))
+    out_fmt = _check_batch_options(out, output_format, workers, chunk_frames)
+    recs = _recordings(inputs, out, _OUT_SUFFIX[out_fmt])
     read = {"key": key, "topic": topic, "fmt": input_format, "depth_scale": depth_scale}
     say = log or (lambda line: None)
-
-    def fail(rec: Recording, message: str, kind: str) -> None:
-        rec.status, rec.error, rec.error_kind = "failed", message, kind
-        _drop_work(rec)
-        say(f"failed: {rec.input}: {message}")
-
     executor: Any = None
     bar = tqdm(
         total=len(recs),
@@ -561,54 +543,11 @@ def run_batch(
             if scheduler
             else _LocalExecutor(workers or os.cpu_count() or 1)
         )
-        n_workers = executor.workers
-        pending: dict[Any, tuple[Recording, int]] = {}
-        for rec in recs:
-            if os.path.lexists(rec.output) and not overwrite:
-                rec.status = "skipped"
-                say(f"skipped (output exists): {rec.output}")
-                bar.update(1)
-                continue
-            try:
-                io.check_output_path([rec.input], rec.output, True, fmt=out_fmt)
-                rec.chunks = _prepare(
-                    rec, config, read, chunk_frames, n_workers, intrinsics, shrink_frames
-                )
-            except InputError as e:
-                fail(rec, str(e), "input")
-                bar.update(1)
-                continue
-            for i, spec in enumerate(rec.chunks):
-                pending[executor.submit(spec)] = (rec, i)
-        for fut in executor.as_completed(list(pending)):
-            rec, i = pending.pop(fut)
-            if rec.status != "pending":
-                continue  # the recording failed already
-            try:
-                res = fut.result()
-            except Exception as e:  # a worker died, the cluster went away
-                res = {"error": f"{type(e).__name__}: {e}", "kind": "internal"}
-            if "error" in res:
-                fail(rec, res["error"], res["kind"])
-                for other, (r2, _) in pending.items():
-                    if r2 is rec:
-                        other.cancel()
-                bar.update(1)
-                continue
-            rec.done_chunks += 1
-            rec.seconds += float(res["seconds"])
-            if rec.done_chunks < len(rec.chunks):
-                continue
-            try:
-                _assemble(rec, rec.config or config, out_fmt, depth_scale)
-            except InputError as e:
-                fail(rec, str(e), "input")
-            except OSError as e:
-                fail(rec, f"cannot write {rec.output}: {e}", "input")
-            else:
-                rec.status = "done"
-                say(f"done: {rec.input} -> {rec.output} ({rec.n_frames} frames)")
-            bar.update(1)
+        run = _BatchRun(recs, config, say, bar.update)
+        pending = run.submit_all(
+            executor, read, out_fmt, chunk_frames, intrinsics, overwrite, shrink_frames
+        )
+        run.collect(executor, pending, out_fmt, depth_scale)
     finally:
         bar.close()
         if executor is not None:
@@ -617,3 +556,135 @@ def run_batch(
         if rec.status == "failed":
             _drop_work(rec)  # chunks that were still running when it failed
     return BatchResult(recs)
+
+
+def _check_batch_options(
+    out: Path, output_format: str | None, workers: int | None, chunk_frames: int
+) -> str:
+    """Check the options of :func:`run_batch` (before any work); return the output format."""
+    if workers is not None and workers < 1:
+        raise InputError(f"--workers must be >= 1, got {workers}")
+    if chunk_frames < 0:
+        raise InputError(f"--chunk-frames must be >= 0, got {chunk_frames}")
+    if out.exists() and not out.is_dir():
+        raise InputError(f"--out {out} exists and is not a folder")
+    out_fmt = (output_format or "npy").lower()
+    if out_fmt not in _OUT_SUFFIX:
+        raise InputError(
+            f"cannot write {output_format!r} (output formats: {', '.join(_OUT_SUFFIX)})"
+        )
+    return out_fmt
+
+
+def _recordings(
+    inputs: Sequence[str | os.PathLike[str]], out: Path, suffix: str
+) -> list[Recording]:
+    """One :class:`Recording` per input, each with its own output name in ``out``."""
+    recs: list[Recording] = []
+    by_output: dict[Path, Path] = {}
+    for inp in inputs:
+        p = Path(inp)
+        dest = out / (output_name(p) + suffix)
+        if dest in by_output:
+            raise InputError(
+                f"{by_output[dest]} and {p} would both be written to {dest}: "
+                f"give the recordings different names or run them separately"
+            )
+        by_output[dest] = p
+        recs.append(Recording(p, dest))
+    return recs
+
+
+class _BatchRun:
+    """The recordings of one :func:`run_batch` call on their way through an executor."""
+
+    def __init__(
+        self,
+        recs: list[Recording],
+        config: UPSRConfig,
+        say: Callable[[str], None],
+        tick: Callable[[int], Any],
+    ) -> None:
+        self.recs, self.config, self.say, self.tick = recs, config, say, tick
+
+    def fail(self, rec: Recording, message: str, kind: str) -> None:
+        rec.status, rec.error, rec.error_kind = "failed", message, kind
+        _drop_work(rec)
+        self.say(f"failed: {rec.input}: {message}")
+
+    def submit_all(
+        self,
+        executor: Any,
+        read: dict[str, Any],
+        out_fmt: str,
+        chunk_frames: int,
+        intrinsics: str | None,
+        overwrite: bool,
+        shrink_frames: bool,
+    ) -> dict[Any, tuple[Recording, int]]:
+        """Skip finished outputs, plan the others and submit their chunks."""
+        from upsr.io import video as io
+
+        pending: dict[Any, tuple[Recording, int]] = {}
+        for rec in self.recs:
+            if os.path.lexists(rec.output) and not overwrite:
+                rec.status = "skipped"
+                self.say(f"skipped (output exists): {rec.output}")
+                self.tick(1)
+                continue
+            try:
+                io.check_output_path([rec.input], rec.output, True, fmt=out_fmt)
+                rec.chunks = _prepare(
+                    rec,
+                    self.config,
+                    read,
+                    chunk_frames,
+                    executor.workers,
+                    intrinsics,
+                    shrink_frames,
+                )
+            except InputError as e:
+                self.fail(rec, str(e), "input")
+                self.tick(1)
+                continue
+            for i, spec in enumerate(rec.chunks):
+                pending[executor.submit(spec)] = (rec, i)
+        return pending
+
+    def collect(
+        self,
+        executor: Any,
+        pending: dict[Any, tuple[Recording, int]],
+        out_fmt: str,
+        depth_scale: float,
+    ) -> None:
+        """Gather the finished chunks; assemble each recording once all its chunks are in."""
+        for fut in executor.as_completed(list(pending)):
+            rec, _ = pending.pop(fut)
+            if rec.status != "pending":
+                continue  # the recording failed already
+            try:
+                res = fut.result()
+            except Exception as e:  # a worker died, the cluster went away
+                res = {"error": f"{type(e).__name__}: {e}", "kind": "internal"}
+            if "error" in res:
+                self.fail(rec, res["error"], res["kind"])
+                for other, (r2, _) in pending.items():
+                    if r2 is rec:
+                        other.cancel()
+                self.tick(1)
+                continue
+            rec.done_chunks += 1
+            rec.seconds += float(res["seconds"])
+            if rec.done_chunks < len(rec.chunks):
+                continue
+            try:
+                _assemble(rec, rec.config or self.config, out_fmt, depth_scale)
+            except InputError as e:
+                self.fail(rec, str(e), "input")
+            except OSError as e:
+                self.fail(rec, f"cannot write {rec.output}: {e}", "input")
+            else:
+                rec.status = "done"
+                self.say(f"done: {rec.input} -> {rec.output} ({rec.n_frames} frames)")
+            self.tick(1)

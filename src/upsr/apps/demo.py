@@ -3,8 +3,8 @@
 Synthesises a short noisy low-res depth video of a non-rigidly moving object in front of a
 wall (:func:`upsr.research.synth.dynamic_scene`), super-resolves it with UP-SR
 (:func:`upsr.method.windowed.super_resolve`) and with the single-frame baselines of paper §7
-(:mod:`upsr.research.baselines`), scores all of them against the truth (:mod:`upsr.research.metrics`) and writes
-a picture and the numbers.
+(:mod:`upsr.research.baselines`), scores all of them against the truth
+(:mod:`upsr.research.metrics`) and writes a picture and the numbers.
 """
 
 from __future__ import annotations
@@ -178,19 +178,7 @@ def run_demo(
         motion_px=motion_px,
     )
     t1 = time.perf_counter()
-    estimates = {
-        "nearest": baselines.nearest(video.lowres, scale),
-        "bicubic": baselines.bicubic(video.lowres, scale),
-    }
-    t2 = time.perf_counter()
-    estimates["upsr"] = np.asarray(
-        super_resolve(video.lowres, scale, n_frames, progress=progress), np.float32
-    )
-    t3 = time.perf_counter()
-    if estimates["upsr"].shape != video.truth.shape:
-        raise RuntimeError(
-            f"super_resolve returned shape {estimates['upsr'].shape}, expected {video.truth.shape}"
-        )
+    estimates, (t2, t3) = _estimates(video, scale, n_frames, progress)
     mid = video.n_frames // 2
     middle = {m: evaluate(est[mid], video.truth[mid], scale) for m, est in estimates.items()}
     pooled = {m: evaluate(est, video.truth, scale) for m, est in estimates.items()}
@@ -201,13 +189,7 @@ def run_demo(
     )
     png = write_png(out / "demo.png", figure)
 
-    buf = io.StringIO()
-    writer = csv.writer(buf, lineterminator="\n")
-    writer.writerow(["method", "frames", *METRIC_COLUMNS])
-    for label, table in (("middle", middle), ("all", pooled)):
-        for method, res in table.items():
-            writer.writerow([method, label, *(f"{res[c]:.6g}" for c in METRIC_COLUMNS)])
-    write_text_atomic(out / "metrics.csv", buf.getvalue())
+    _write_metrics_csv(out / "metrics.csv", middle, pooled)
 
     result: dict[str, Any] = {
         "config": {
@@ -239,6 +221,42 @@ def run_demo(
         out / "metrics.json", json.dumps(_json_safe(result), indent=2, allow_nan=False) + "\n"
     )
     return result
+
+
+def _estimates(
+    video: Any, scale: int, n_frames: int, progress: bool
+) -> tuple[dict[str, np.ndarray], tuple[float, float]]:
+    """Nearest, bicubic and UP-SR of ``video.lowres`` (T, h, w) mm, each (T, r*h, r*w) mm.
+
+    Also returns the times (:func:`time.perf_counter`) when the baselines, then UP-SR, finished.
+    """
+    estimates = {
+        "nearest": baselines.nearest(video.lowres, scale),
+        "bicubic": baselines.bicubic(video.lowres, scale),
+    }
+    t2 = time.perf_counter()
+    estimates["upsr"] = np.asarray(
+        super_resolve(video.lowres, scale, n_frames, progress=progress), np.float32
+    )
+    t3 = time.perf_counter()
+    if estimates["upsr"].shape != video.truth.shape:
+        raise RuntimeError(
+            f"super_resolve returned shape {estimates['upsr'].shape}, expected {video.truth.shape}"
+        )
+    return estimates, (t2, t3)
+
+
+def _write_metrics_csv(
+    path: Path, middle: dict[str, dict[str, Any]], pooled: dict[str, dict[str, Any]]
+) -> None:
+    """Write ``metrics.csv``: one row per (method, frames: middle or all), METRIC_COLUMNS."""
+    buf = io.StringIO()
+    writer = csv.writer(buf, lineterminator="\n")
+    writer.writerow(["method", "frames", *METRIC_COLUMNS])
+    for label, table in (("middle", middle), ("all", pooled)):
+        for method, res in table.items():
+            writer.writerow([method, label, *(f"{res[c]:.6g}" for c in METRIC_COLUMNS)])
+    write_text_atomic(path, buf.getvalue())
 
 
 def format_metrics_table(metrics: dict[str, Any]) -> str:

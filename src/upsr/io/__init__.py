@@ -9,9 +9,20 @@ from upsr._lazy import attach
 
 __getattr__, __dir__, __all__ = attach(
     __name__,
-    submodules=["datasets", "exr", "pointcloud", "registry", "rosbag", "tiff"],
+    submodules=[
+        "datasets",
+        "exr",
+        "npy",
+        "npz",
+        "png",
+        "pointcloud",
+        "registry",
+        "rosbag",
+        "tiff",
+        "video",
+    ],
     names={
-        name: "_core"
+        name: "video"
         for name in (
             "FORMATS",
             "WRITE_FORMATS",

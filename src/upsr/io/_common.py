@@ -13,7 +13,7 @@ from pathlib import Path
 import numpy as np
 
 from upsr.errors import InputError
-from upsr.io._core import MAX_FRAME_PIXELS, _natural_key, _reading
+from upsr.io._base import MAX_FRAME_PIXELS, natural_key, reading
 
 __all__ = [
     "c_output_captured",
@@ -21,10 +21,7 @@ __all__ = [
     "frame_files",
     "mixed_size",
     "raw_to_mm",
-    "reading",
 ]
-
-reading = _reading
 
 
 def frame_files(path: Path, suffixes: tuple[str, ...], what: str) -> list[Path]:
@@ -50,7 +47,7 @@ def frame_files(path: Path, suffixes: tuple[str, ...], what: str) -> list[Path]:
     ]
     if not files:
         raise InputError(f"{path}: no {what} frames in this folder")
-    files.sort(key=lambda p: _natural_key(p.name))
+    files.sort(key=lambda p: natural_key(p.name))
     return files
 
 

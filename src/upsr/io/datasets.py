@@ -28,9 +28,9 @@ from pathlib import Path
 import numpy as np
 
 from upsr.errors import InputError
-from upsr.io import _core as _io
-from upsr.io._common import check_frame_size, frame_files, mixed_size, raw_to_mm, reading
-from upsr.io._core import VideoInfo
+from upsr.io import png
+from upsr.io._base import VideoInfo, reading
+from upsr.io._common import check_frame_size, frame_files, mixed_size, raw_to_mm
 from upsr.io.registry import ReadOptions
 from upsr.method.validation import as_depth_frame
 
@@ -156,13 +156,13 @@ def _read_pgm(file: Path, fmt: str, expect: tuple[int, int]) -> np.ndarray:
 def _files(path: Path, fmt: str) -> list[Path]:
     if fmt in ("nyu", "pgm"):
         return frame_files(path, (".pgm",), "PGM")
-    return _io._png_files(path)
+    return png.frame_files(path)
 
 
 def probe(path: Path, opts: ReadOptions, fmt: str) -> VideoInfo:
     """Describe a file or folder of ``fmt`` ("nyu", "pgm", "tum" or "sun") frames."""
     if fmt in ("tum", "sun"):
-        info = _io._probe_png(path)[0]
+        info = png.probe_files(path)[0]
         return VideoInfo(info.n_frames, info.height, info.width, info.dtype, fmt)
     files = _files(path, fmt)
     h, w, _ = _pgm_meta(files[0], fmt)
@@ -173,21 +173,28 @@ def probe(path: Path, opts: ReadOptions, fmt: str) -> VideoInfo:
     return VideoInfo(len(files), h, w, np.dtype(">u2"), fmt)
 
 
-def frames(path: Path, opts: ReadOptions, fmt: str) -> Iterator[np.ndarray]:
-    """Frames (float32 mm) of a file or folder of ``fmt`` frames."""
+def frames(
+    path: Path, opts: ReadOptions, fmt: str, start: int = 0, stop: int | None = None
+) -> Iterator[np.ndarray]:
+    """Frames ``start`` … ``stop - 1`` (float32 mm) of a file or folder of ``fmt`` frames.
+
+    Only the files of those frames are read (one frame per file).
+    """
     if fmt == "tum":
-        info, files = _io._probe_png(path)
-        yield from _io._frames_png(files, (info.height, info.width), TUM_DEPTH_SCALE)
+        info, files = png.probe_files(path)
+        yield from png.frames_of_files(
+            files[start:stop], (info.height, info.width), TUM_DEPTH_SCALE
+        )
         return
     if fmt == "sun":
-        info, files = _io._probe_png(path)
-        for file in files:
-            raw = _io._read_png(file, (info.height, info.width))
+        info, files = png.probe_files(path)
+        for file in files[start:stop]:
+            raw = png.read_frame(file, (info.height, info.width))
             yield as_depth_frame(sun_png_to_mm(raw), name=file.name)
         return
     files = _files(path, fmt)
     expect = _pgm_meta(files[0], fmt)[:2]
-    for file in files:
+    for file in files[start:stop]:
         raw = _read_pgm(file, fmt, expect)
         mm = nyu_disparity_to_mm(raw) if fmt == "nyu" else raw_to_mm(raw, opts.depth_scale)
         yield as_depth_frame(mm, name=file.name)

@@ -16,24 +16,23 @@ import contextlib
 import os
 from collections.abc import Iterator
 from pathlib import Path
-from typing import Any
+from typing import Any, BinaryIO
 
 import numpy as np
 
 from upsr.errors import InputError
+from upsr.io._base import VideoInfo, reading
 from upsr.io._common import (
     c_output_captured,
     check_frame_size,
     frame_files,
     mixed_size,
     raw_to_mm,
-    reading,
 )
-from upsr.io._core import VideoInfo
 from upsr.io.registry import ReadOptions, require
 from upsr.method.validation import as_depth_frame
 
-__all__ = ["DEPTH_CHANNELS", "FrameSink", "frames", "probe"]
+__all__ = ["DEPTH_CHANNELS", "FrameSink", "frames", "probe", "writes_folder"]
 
 #: Channel names tried in order when no ``key`` is given.
 DEPTH_CHANNELS = ("Z", "depth", "Depth", "D", "distance", "Y", "R")
@@ -130,13 +129,32 @@ def probe(path: Path, opts: ReadOptions, fmt: str = "exr") -> VideoInfo:
     return VideoInfo(total, first_hw[0], first_hw[1], np.dtype(np.float32), "exr", opts.key)
 
 
-def frames(path: Path, opts: ReadOptions, fmt: str = "exr") -> Iterator[np.ndarray]:
-    """Frames of an EXR file or folder (float32 mm)."""
+def frames(
+    path: Path,
+    opts: ReadOptions,
+    fmt: str = "exr",
+    start: int = 0,
+    stop: int | None = None,
+) -> Iterator[np.ndarray]:
+    """Frames ``start`` … ``stop - 1`` of an EXR file or folder (float32 mm).
+
+    Files wholly before ``start`` are only counted (their headers read), never decoded.
+    """
     files = frame_files(path, (".exr",), "EXR")
     first_hw: tuple[int, int] | None = None
+    t0 = 0  # frame number of the first part of the file
     for file in files:
+        if stop is not None and t0 >= stop:
+            return
+        if t0 < start:
+            n = len(_load(file, header_only=True))
+            if t0 + n <= start:
+                t0 += n
+                continue
         parts = _load(file, header_only=False)
         for i, (header, pixels) in enumerate(parts):
+            if t0 + i < start or (stop is not None and t0 + i >= stop):
+                continue
             label = f"{file}" if len(parts) == 1 else f"{file} part {i}"
             with reading(label):
                 h, w, name = _part_meta(header, opts.key, label)
@@ -148,27 +166,39 @@ def frames(path: Path, opts: ReadOptions, fmt: str = "exr") -> Iterator[np.ndarr
             elif (h, w) != first_hw:
                 raise mixed_size(label, (h, w), files[0].name, first_hw)
             yield as_depth_frame(raw_to_mm(raw, opts.depth_scale), name=label)
+        t0 += len(parts)
         del parts
+
+
+def writes_folder(dest: Path) -> bool:
+    """An EXR output is a folder of frames unless ``dest`` ends in ``.exr`` (one frame)."""
+    return dest.suffix.lower() != ".exr"
 
 
 class FrameSink:
     """Writes float32 ``Z`` EXR frames: into a folder, or one frame into one file.
 
-    Parameters
-    ----------
-    temp : pathlib.Path
-        Temporary folder (``is_folder``) or file path to write, renamed by the caller.
-    depth_scale : float
-        Written value = mm · depth_scale / 1000.
-    single : bool
-        The destination is one ``.exr`` file (a second frame is refused).
+    Constructed as every format's sink (:class:`upsr.io._base.FrameSink`): ``temp`` is a
+    folder, or the one file of a ``.exr`` destination (``fh`` is closed here: OpenEXR writes by
+    name, and a second frame is refused); the written value is mm · depth_scale / 1000.
     """
 
-    def __init__(self, temp: Path, depth_scale: float, single: bool) -> None:
+    def __init__(
+        self,
+        dest: Path,
+        temp: Path,
+        fh: BinaryIO | None,
+        *,
+        shape_px: tuple[int, int],
+        depth_scale: float = 1000.0,
+        n_frames: int | None = None,
+    ) -> None:
         self._exr = _exr()
+        if fh is not None:
+            fh.close()
         self._temp = temp
         self._scale = np.float32(depth_scale / 1000.0)
-        self.is_folder = not single
+        self.is_folder = writes_folder(dest)
 
     def write(self, frame_mm: np.ndarray, t: int) -> None:
         """Write frame ``t`` (float32 mm, 0 = no measurement)."""

@@ -1,5 +1,8 @@
 """Point clouds from depth frames: back-projection and coloured binary PLY files (plyfile).
 
+The colours are given per pixel (see :mod:`upsr.viz.pointcloud_colors` for colour-coded
+depth or a registered colour image).
+
 Points are in the camera frame of OpenCV / ROS (x right, y down, z forward), in **metres**
 (the unit point-cloud tools expect; depth itself stays in mm everywhere else): for the pixel
 (i, j) with depth Z, X = (j − cx)·Z/fx, Y = (i − cy)·Z/fy (SPEC §1 pixel centres). Pixels
@@ -12,7 +15,6 @@ import io as pyio
 import os
 from pathlib import Path
 
-import cv2
 import numpy as np
 import numpy.typing as npt
 
@@ -20,7 +22,7 @@ from upsr.errors import InputError
 from upsr.geometry.camera import PinholeCamera
 from upsr.method.validation import as_depth_frame
 
-__all__ = ["backproject", "color_for_depth", "ply_bytes", "write_ply"]
+__all__ = ["backproject", "ply_bytes", "write_ply"]
 
 
 def backproject(depth_mm: npt.ArrayLike, camera: PinholeCamera) -> tuple[np.ndarray, np.ndarray]:
@@ -52,41 +54,6 @@ def backproject(depth_mm: npt.ArrayLike, camera: PinholeCamera) -> tuple[np.ndar
     x = (jj - camera.cx) * z / camera.fx
     y = (ii - camera.cy) * z / camera.fy
     return np.stack([x, y, z], axis=1).astype(np.float32), valid
-
-
-def color_for_depth(
-    depth_mm: npt.ArrayLike,
-    color: npt.ArrayLike | None = None,
-    *,
-    vmin_mm: float | None = None,
-    vmax_mm: float | None = None,
-) -> np.ndarray:
-    """Per-pixel BGR colours (h, w, 3) uint8 for a depth frame.
-
-    ``color`` (a BGR or grey uint8/uint16 image, assumed registered to the depth, i.e. seen
-    from the same viewpoint) is resized to the depth's size (bilinear, SPEC §1 pixel
-    geometry); without it the depth is colour-coded (TURBO, ``vmin_mm``–``vmax_mm``).
-    """
-    from upsr.viz.colormaps import colorize_depth
-
-    d = as_depth_frame(depth_mm, name="depth")
-    if color is None:
-        return colorize_depth(d, vmin_mm, vmax_mm)
-    img = np.asarray(color)
-    if img.dtype == np.uint16:
-        img = (img >> 8).astype(np.uint8)
-    if img.dtype != np.uint8 or img.ndim not in (2, 3) or img.size == 0:
-        raise InputError(f"colour image: expected uint8 (h, w[, 3]), got {img.dtype} {img.shape}")
-    if img.ndim == 2:
-        img = cv2.cvtColor(img, cv2.COLOR_GRAY2BGR)
-    elif img.shape[2] == 4:
-        img = cv2.cvtColor(img, cv2.COLOR_BGRA2BGR)
-    elif img.shape[2] != 3:
-        raise InputError(f"colour image: expected 1, 3 or 4 channels, got {img.shape[2]}")
-    if img.shape[:2] != d.shape:
-        interp = cv2.INTER_LINEAR if img.shape[0] < d.shape[0] else cv2.INTER_AREA
-        img = cv2.resize(img, (d.shape[1], d.shape[0]), interpolation=interp)
-    return img
 
 
 def ply_bytes(points_m: npt.ArrayLike, colors_rgb: npt.ArrayLike | None = None) -> bytes:
@@ -133,7 +100,9 @@ def write_ply(
     camera : PinholeCamera
         Intrinsics at this resolution.
     colors_bgr : array_like (h, w, 3) uint8, optional
-        Per-pixel colours (OpenCV BGR order), e.g. from :func:`color_for_depth`.
+        Per-pixel colours (OpenCV BGR order), e.g. from
+        :func:`upsr.viz.pointcloud_colors.color_for_depth`; only those of the pixels with
+        depth are written.
 
     Returns
     -------

@@ -1,4 +1,4 @@
-"""Depth file formats beyond ``.npy``/``.npz``/PNG, registered behind :mod:`upsr.io`.
+"""The depth file formats of :mod:`upsr.io`: one module per format, registered here.
 
 Every command reads and writes depth through :func:`upsr.io.probe`, :func:`upsr.io.iter_frames`,
 :func:`upsr.io.read_video` and :class:`upsr.io.VideoWriter`; those dispatch to the modules of
@@ -6,13 +6,15 @@ this package for the formats below (see :data:`REGISTRY`). Each format module pr
 
 ``probe(path, opts) -> VideoInfo``
     Validate the container cheaply (headers only) and describe it.
-``frames(path, opts) -> Iterator[ndarray]``
-    The frames, one at a time, as float32 (h, w) depth in mm (0 = no measurement).
+``frames(path, opts, fmt, start=0, stop=None) -> Iterator[ndarray]``
+    The frames ``start`` … ``stop - 1``, one at a time, as float32 (h, w) depth in mm
+    (0 = no measurement), skipping the earlier frames as cheaply as the format allows.
 ``intrinsics(path, opts) -> PinholeCamera | None`` (optional)
     The camera intrinsics when the format carries them.
-``FrameSink`` (optional, writable formats)
-    Streams frames into a temporary file or folder that :class:`upsr.io.VideoWriter` renames
-    into place when the video is complete.
+``writes_folder(dest) -> bool`` and ``FrameSink`` (writable formats)
+    Whether an output is a folder, and the writer that streams frames into a temporary file
+    or folder that :class:`upsr.io.VideoWriter` renames into place when the video is complete
+    (one constructor signature for all formats: :class:`upsr.io._base.FrameSink`).
 
 The heavy libraries (tifffile, OpenEXR, rosbags) are optional: ``pip install 'upsr[io]'``.
 A format whose library is missing raises :class:`~upsr.errors.InputError` saying what to
@@ -92,10 +94,33 @@ class Format:
     folder: bool = True
 
 
-#: Formats handled by this package (``npy``, ``npz`` and ``png`` live in :mod:`upsr.io`).
+#: Every format, by name (the order of the help texts).
 REGISTRY: dict[str, Format] = {
     f.name: f
     for f in (
+        Format(
+            "npy",
+            "NumPy .npy, one (T, h, w) array of depth in mm (any integer or float dtype)",
+            (".npy",),
+            "npy",
+            writable=True,
+            folder=False,
+        ),
+        Format(
+            "npz",
+            "NumPy .npz, the first array (or --key) of depth in mm",
+            (".npz",),
+            "npz",
+            writable=True,
+            folder=False,
+        ),
+        Format(
+            "png",
+            "16-bit grayscale PNG frames (raw/depth-scale = m), a folder or one file",
+            (".png",),
+            "png",
+            writable=True,
+        ),
         Format(
             "tiff",
             "TIFF, one frame per page (float or 16-bit integer; raw/depth-scale = m), "

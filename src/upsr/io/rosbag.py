@@ -22,8 +22,8 @@ from typing import Any
 import numpy as np
 
 from upsr.errors import InputError
-from upsr.io._common import check_frame_size, reading
-from upsr.io._core import VideoInfo
+from upsr.io._base import VideoInfo, reading
+from upsr.io._common import check_frame_size
 from upsr.io.registry import ReadOptions, require
 from upsr.method.validation import as_depth_frame
 
@@ -223,8 +223,15 @@ def probe(path: Path, opts: ReadOptions, fmt: str = "rosbag") -> VideoInfo:
     return VideoInfo(count, frame.shape[0], frame.shape[1], dtype, "rosbag", topic=conn.topic)
 
 
-def frames(path: Path, opts: ReadOptions, fmt: str = "rosbag") -> Iterator[np.ndarray]:
-    """Depth frames (float32 mm) of the bag's depth topic, in time order."""
+def frames(
+    path: Path,
+    opts: ReadOptions,
+    fmt: str = "rosbag",
+    start: int = 0,
+    stop: int | None = None,
+) -> Iterator[np.ndarray]:
+    """Depth frames ``start`` … ``stop - 1`` (float32 mm) of the bag's depth topic, in time
+    order. Messages before ``start`` are skipped by index, never deserialised."""
     name = str(path)
     with _open(path) as reader:
         with reading(name):
@@ -232,9 +239,12 @@ def frames(path: Path, opts: ReadOptions, fmt: str = "rosbag") -> Iterator[np.nd
             units = _depth_units_mm(reader, conn.topic, name)
             conns = [c for c in reader.connections if c.topic == conn.topic]
             messages = reader.messages(connections=conns)
+            for _ in range(start):
+                if next(messages, None) is None:
+                    return
         shape = None
-        k = 0
-        while True:
+        k = start
+        while stop is None or k < stop:
             label = f"{name} {conn.topic} message {k}"
             with reading(label):
                 item = next(messages, None)

@@ -19,12 +19,12 @@ from typing import Any, BinaryIO
 import numpy as np
 
 from upsr.errors import InputError
-from upsr.io._common import check_frame_size, frame_files, mixed_size, raw_to_mm, reading
-from upsr.io._core import VideoInfo
+from upsr.io._base import VideoInfo, reading
+from upsr.io._common import check_frame_size, frame_files, mixed_size, raw_to_mm
 from upsr.io.registry import ReadOptions, require
 from upsr.method.validation import as_depth_frame
 
-__all__ = ["FrameSink", "frames", "probe"]
+__all__ = ["FrameSink", "frames", "probe", "writes_folder"]
 
 _SUFFIXES = (".tif", ".tiff")
 _OK_KINDS = "fui"
@@ -107,16 +107,29 @@ def probe(path: Path, opts: ReadOptions, fmt: str = "tiff") -> VideoInfo:
     return VideoInfo(total, first_hw[0], first_hw[1], dtype, "tiff")
 
 
-def frames(path: Path, opts: ReadOptions, fmt: str = "tiff") -> Iterator[np.ndarray]:
-    """Frames of a TIFF file or folder (float32 mm)."""
+def frames(
+    path: Path,
+    opts: ReadOptions,
+    fmt: str = "tiff",
+    start: int = 0,
+    stop: int | None = None,
+) -> Iterator[np.ndarray]:
+    """Frames ``start`` … ``stop - 1`` of a TIFF file or folder (float32 mm).
+
+    The pages before ``start`` are not decoded (files wholly before it are only counted).
+    """
     files = frame_files(path, _SUFFIXES, "TIFF")
     first_hw: tuple[int, int] | None = None
+    t0 = 0  # frame number of the first page of the file
     for file in files:
+        if stop is not None and t0 >= stop:
+            return
         name = str(file)
         with _open(file) as tif:
             with reading(name):
                 n = len(tif.pages)
-            for i in range(n):
+            last = n if stop is None else min(n, stop - t0)
+            for i in range(max(start - t0, 0), last):
                 label = f"{name} page {i}"
                 with reading(label):
                     page = tif.pages[i]
@@ -127,37 +140,38 @@ def frames(path: Path, opts: ReadOptions, fmt: str = "tiff") -> Iterator[np.ndar
                         raise mixed_size(label, hw, files[0].name, first_hw)
                     raw = page.asarray()
                 yield as_depth_frame(raw_to_mm(raw, opts.depth_scale), name=label)
+        t0 += n
+
+
+def writes_folder(dest: Path) -> bool:
+    """A TIFF output is one multi-page file."""
+    return False
 
 
 class FrameSink:
     """Streams float32 frames as pages of one TIFF file (used by :class:`upsr.io.VideoWriter`).
 
-    Parameters
-    ----------
-    temp : pathlib.Path
-        Temporary file to write (renamed into place by the caller).
-    fh : file object or None
-        An open handle of it, closed here (tifffile opens the file by name).
-    depth_scale : float
-        Written value = mm · depth_scale / 1000.
-    n_frames : int or None
-        Expected frames (chooses BigTIFF for videos over 2 GB).
+    Constructed as every format's sink (:class:`upsr.io._base.FrameSink`): ``fh`` is closed
+    here (tifffile opens ``temp`` by name); the written value is mm · depth_scale / 1000;
+    ``n_frames`` chooses BigTIFF for videos over 2 GB.
     """
 
     is_folder = False
 
     def __init__(
         self,
+        dest: Path,
         temp: Path,
         fh: BinaryIO | None,
-        depth_scale: float,
-        n_frames: int | None,
-        shape: Any,
+        *,
+        shape_px: tuple[int, int],
+        depth_scale: float = 1000.0,
+        n_frames: int | None = None,
     ) -> None:
         tf = _tifffile()
         if fh is not None:
             fh.close()
-        h, w = shape
+        h, w = shape_px
         big = n_frames is not None and n_frames * h * w * 4 > (1 << 31)
         self._temp = temp
         self._scale = np.float32(depth_scale / 1000.0)

@@ -5,9 +5,12 @@ step                      paper                  module
 ========================  =====================  ==========================================
 dense upsampling U        eq. 13–15              :mod:`upsr.method.upsampling`
 prefilter, flow           §4, §5.2, eq. 16–17    :mod:`upsr.method.motion`
+motion front-end          §4, §5.2, eq. 16–19    :mod:`upsr.method.frontend`
 cumulative registration   eq. 18–21              :mod:`upsr.method.registration`
 temporal median           eq. 26–28              :mod:`upsr.method.fusion`
 L1 + BTV deblurring       eq. 29–30              :mod:`upsr.method.deblurring`
+noise estimate            —                      :mod:`upsr.method.noise`
+surface smoothing         —                      :mod:`upsr.method.smoothing`
 speckle removal           —                      :mod:`upsr.method.outliers`
 sliding-window engine     Table 1                :mod:`upsr.method.windowed`
 ========================  =====================  ==========================================
@@ -22,10 +25,13 @@ __getattr__, __dir__, __all__ = attach(
     submodules=[
         "config",
         "deblurring",
+        "frontend",
         "fusion",
         "motion",
+        "noise",
         "outliers",
         "registration",
+        "smoothing",
         "upsampling",
         "validation",
         "windowed",
@@ -36,6 +42,8 @@ __getattr__, __dir__, __all__ = attach(
         "UPSRConfig": "config",
         "DeblurConfig": "config",
         "deblur": "deblurring",
+        "estimate_noise_mm": "noise",
+        "MotionFrontEnd": "frontend",
         "temporal_median": "fusion",
         "remove_speckles": "outliers",
         "upsample_nearest": "upsampling",

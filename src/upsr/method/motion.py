@@ -390,7 +390,12 @@ _DIS_PRESETS = {
 def _dis_factory(preset: str = "medium") -> FlowBackend:
     """OpenCV's DIS optical flow (Kroeger et al. 2016): pyramidal, patch-based, fast."""
     code = _DIS_PRESETS[preset]
-    finest = cv2.DISOpticalFlow_create(code).getFinestScale()
+    probe = cv2.DISOpticalFlow_create(code)
+    finest = probe.getFinestScale()
+    # DIS reads out of bounds (SIGSEGV) or raises when a side of the image at its finest
+    # pyramid level is shorter than one patch (e.g. 24×256 px with the fast presets, whose
+    # finest level is 1/4): such frames are padded to patch · 2^finest px by edge replication.
+    min_side = max(_MIN_FLOW_SIZE, probe.getPatchSize() << finest)
     # One OpenCV object per thread (one object must not compute two pairs at once), kept:
     # allocating a fresh one costs a third of a 192×168 px call. Its only state: on an image
     # too small for the preset's finest pyramid level, ``calc`` lowers that level for good,
@@ -404,10 +409,10 @@ def _dis_factory(preset: str = "medium") -> FlowBackend:
             dis = local.dis = cv2.DISOpticalFlow_create(code)
         dis.setFinestScale(finest)
         h, w = first.shape[:2]
-        if min(h, w) >= _MIN_FLOW_SIZE:
+        if min(h, w) >= min_side:
             return dis.calc(first, second, None)
-        # DIS needs images of at least 12 px: pad tiny frames by edge replication, then crop
-        ph, pw = max(_MIN_FLOW_SIZE - h, 0), max(_MIN_FLOW_SIZE - w, 0)
+        # too small for the pyramid: pad by edge replication, then crop
+        ph, pw = max(min_side - h, 0), max(min_side - w, 0)
         a, b = (
             cv2.copyMakeBorder(im, 0, ph, 0, pw, cv2.BORDER_REPLICATE) for im in (first, second)
         )

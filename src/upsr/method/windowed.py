@@ -5,14 +5,17 @@ For each reference frame t0 (every frame of the video):
 1. dense upsampling (eq. 13–15) by s ≤ r for motion (the flow grid,
    :meth:`UPSRConfig.flow_grid_scale <upsr.method.config.UPSRConfig.flow_grid_scale>`),
    :mod:`upsr.method.upsampling`;
-2. bilateral prefilter and fixed 8-bit mapping, for motion only (§5.2), :mod:`upsr.method.motion`;
-3. optical flow between consecutive upsampled frames (§4, eq. 16–17), :mod:`upsr.method.motion`;
-4. cumulative motion to t0 by composition, with eq. 19 re-estimation, :mod:`upsr.method.registration`;
+2. bilateral prefilter and fixed 8-bit mapping, for motion only (§5.2), and
+3. optical flow between consecutive upsampled frames (§4, eq. 16–17), both by the motion
+   front-end :class:`upsr.method.frontend.MotionFrontEnd` (:mod:`upsr.method.motion`);
+4. cumulative motion to t0 by composition, with eq. 19 re-estimation,
+   :mod:`upsr.method.registration`;
 5. nearest-neighbour warping of y_t↑ = U y_t to t0 (eq. 20) and 6. the invalid-aware temporal
    median (eq. 28), in one compiled pass on the r·h × r·w grid that reads the samples from the
    low-res frames (:func:`upsr.method.fusion.register_and_fuse`);
 7. L1 + BTV deblurring (eq. 29–30), then (beyond the paper) an edge-preserving smoothing of
-   each surface that turns the staircase of dense upsampling into ramps, :mod:`upsr.method.deblurring`.
+   each surface that turns the staircase of dense upsampling into ramps,
+   :mod:`upsr.method.deblurring`.
 
 Windows: N frames with the reference in the middle (``(N-1)//2`` before it); near the ends of a
 video the window is shifted inwards so that it still holds N frames. Each consecutive flow (both
@@ -36,19 +39,12 @@ import numpy as np
 import numpy.typing as npt
 
 from upsr.errors import InputError
-from upsr.method._parallel import both, window_pool
+from upsr.method._parallel import window_pool
 from upsr.method.config import UPSRConfig
-from upsr.method.deblurring import deblur, estimate_noise_mm
+from upsr.method.deblurring import deblur
+from upsr.method.frontend import MotionFrontEnd
 from upsr.method.fusion import register_and_fuse, splat_points
-from upsr.method.motion import (
-    FlowBackend,
-    bilateral_prefilter_nearest,
-    depth_range,
-    depth_to_u8,
-    flow_backend_is_thread_safe,
-    make_flow_backend,
-    suppress_spurious_motion,
-)
+from upsr.method.motion import FlowBackend, flow_backend_is_thread_safe, make_flow_backend
 from upsr.method.outliers import remove_speckles
 from upsr.method.registration import (
     advance_positions,
@@ -168,7 +164,9 @@ class UPSR:
         wait(pending.values())  # none still reads the frames of this video
         cfg = self.config
         self._flow = self._custom_flow or make_flow_backend(cfg.flow, cfg.flow_preset)
-        self._residual_flow: FlowBackend | None = self._custom_flow  # set by the first frame
+        # prefilter, 8-bit mapping and flows of this video (the residual flow backend of
+        # eq. 19 too, unless one is given), made by the first frame
+        self._front: MotionFrontEnd | None = None
         # flows on two threads at once only with a built-in backend (others may keep state)
         self._parallel = self._custom_flow is None and flow_backend_is_thread_safe(cfg.flow)
         self._s = 1  # upsampling factor of the flow grid, set by the first frame
@@ -177,9 +175,6 @@ class UPSR:
         self._next_out = 0
         self._next_submit = 0
         self._any_valid = False
-        self._range: tuple[float, float] | None = self.config.depth_range_mm
-        self._noise_mm = self.config.noise_mm
-        self._edge_mm = self._edge_for(self._noise_mm or 0.0)
         # temporal noise of static pixels (std, estimator), fixed from the first window
         self._temporal_mm = 0.0
         est = self.config.fusion_estimator
@@ -220,83 +215,44 @@ class UPSR:
         t = self._count
         cfg = self.config
         f = as_depth_frame(frame, name=f"frame {t}")
-        if self._shape is None:
+        if self._front is None:
             self._shape = f.shape
-            self._s = cfg.flow_grid_scale(f.shape[1])
-            if self._residual_flow is None:
-                preset = cfg.residual_flow_preset(self._s * f.shape[1])
-                self._residual_flow = make_flow_backend(cfg.flow, preset)
+            self._front = MotionFrontEnd(
+                cfg, f.shape[1], flow_backend=self._flow, residual_flow_backend=self._custom_flow
+            )
+            self._s = self._front.grid_scale
         elif f.shape != self._shape:
             raise InputError(
                 f"frame {t}: shape {f.shape} differs from the first frame's {self._shape}"
             )
         self._any_valid = self._any_valid or bool((f > 0).any())
-        s = self._s
+        front = self._front
         self._lowres[t] = f
         with self._timed("prefilter"):
-            self._pre[t] = bilateral_prefilter_nearest(
-                f,
-                s,
-                cfg.prefilter_sigma_mm,
-                cfg.spatial_sigma_px * s / cfg.scale,
-            )
+            self._pre[t] = front.prefilter(f)
         self._count = t + 1
         if self._count == cfg.n_frames:
             # per-video statistics, fixed once from the first window (never per frame)
-            first = [self._lowres[k] for k in sorted(self._lowres)]
-            if self._range is None:
-                self._range = depth_range(np.stack(first))
-            if self._noise_mm is None:
-                self._noise_mm = float(np.median([estimate_noise_mm(f) for f in first]))
-                self._edge_mm = self._edge_for(self._noise_mm)
-            kurtosis, temporal_mm = noise_shape(np.stack(first), self._edge_mm)
+            front.fix_statistics(self._lowres[k] for k in sorted(self._lowres))
+            first = np.stack([self._lowres[k] for k in sorted(self._lowres)])
+            kurtosis, temporal_mm = noise_shape(first, front.edge_mm)
             if cfg.noise_mm is None:  # a given noise is the noise (chunks of a video)
                 self._temporal_mm = temporal_mm
             if cfg.fusion_estimator == "auto":
                 self._estimator = choose_estimator(kurtosis)
-        if self._range is not None and self._noise_mm is not None:
+        if front.ready:
             for k in sorted(self._pre):
                 if k not in self._guide:
-                    self._guide[k] = depth_to_u8(self._pre[k], *self._range)
+                    self._guide[k] = front.guide(self._pre[k])
                     if k - 1 in self._guide:
                         with self._timed("flow"):
-                            self._fwd[k - 1], self._bwd[k] = both(
-                                lambda k=k: self._consecutive_flow(k - 1, k),
-                                lambda k=k: self._consecutive_flow(k, k - 1),
-                                enabled=self._parallel,
+                            self._fwd[k - 1], self._bwd[k] = front.flow_pair(
+                                self._pre[k - 1],
+                                self._pre[k],
+                                self._guide[k - 1],
+                                self._guide[k],
+                                parallel=self._parallel,
                             )
-
-    def _edge_for(self, noise_mm: float) -> float:
-        """Depth step (mm) that separates surfaces: ``edge_mm``, at least 4× the noise."""
-        return max(self.config.edge_mm, 4.0 * noise_mm)
-
-    def _consecutive_flow(self, a: int, b: int) -> np.ndarray:
-        """Flow from frame a to frame b (eq. 17), without motion the depth does not support."""
-        flow = self._flow(self._guide[a], self._guide[b])
-        return self._supported_flow(self._pre[a], self._pre[b], flow, units_per_mm=1.0)
-
-    def _refine_flow(self, first: np.ndarray, second: np.ndarray) -> np.ndarray:
-        """Residual flow between registered guide images (eq. 19), spurious motion removed."""
-        near, far = self._range  # type: ignore[misc]
-        flow = self._residual_flow(first, second)  # type: ignore[misc]
-        return self._supported_flow(first, second, flow, units_per_mm=254.0 / max(far - near, 1e-6))
-
-    def _supported_flow(
-        self, first: np.ndarray, second: np.ndarray, flow: np.ndarray, units_per_mm: float
-    ) -> np.ndarray:
-        """:func:`~upsr.method.motion.suppress_spurious_motion` on images in mm × ``units_per_mm``."""
-        if self.config.zero_motion_tolerance is None:
-            return flow
-        return suppress_spurious_motion(
-            first,
-            second,
-            flow,
-            window_px=2 * self._s + 1,
-            tolerance=self.config.zero_motion_tolerance,
-            noise_mm=self._noise_mm * units_per_mm,
-            edge_mm=self._edge_mm * units_per_mm,
-            edge_window_px=4 * self._s + 1,
-        )
 
     def _finish(self, t: int, n_total: int) -> np.ndarray:
         cfg = self.config
@@ -315,7 +271,7 @@ class UPSR:
                 backward,
                 forward,
                 self._guide[t].shape,
-                refine=self._refine_flow if cfg.refine else None,
+                refine=self._front.residual_flow if cfg.refine else None,  # type: ignore[union-attr]
                 guides=[self._guide[k] for k in idx],
                 parallel=self._parallel,
                 out=maps,
@@ -324,10 +280,10 @@ class UPSR:
             lowres = np.stack([self._lowres[k] for k in idx])
             if cfg.remove_mixed:
                 # mixed (flying) input pixels: no measurement, the other frames fill them
-                lowres = remove_mixed_pixels(lowres, self._edge_mm)
+                lowres = remove_mixed_pixels(lowres, self._front.edge_mm)
             noise = cfg.trust_noise_mm
             if noise is None:
-                noise = max(self._noise_mm or 0.0, self._temporal_mm)
+                noise = max(self._front.noise_mm or 0.0, self._temporal_mm)
             offsets = None
             if cfg.radial_compensation and cfg.n_frames > 1:
                 offsets = radial_offsets(
@@ -336,12 +292,14 @@ class UPSR:
                     r,
                     ref,
                     sigma_mm=noise,
-                    edge_mm=self._edge_mm,
+                    edge_mm=self._front.edge_mm,
                     radius_px=cfg.radial_radius_px,
                 )
             anchor = tolerance = None
             if cfg.trust_k is not None:
-                anchor, tolerance = reference_anchor(lowres[ref], noise, cfg.trust_k, self._edge_mm)
+                anchor, tolerance = reference_anchor(
+                    lowres[ref], noise, cfg.trust_k, self._front.edge_mm
+                )
             guide = None
             if cfg.splat_radius_px and cfg.n_frames > 1:
                 # where each sample lands in the reference (upsr.method.registration.
@@ -360,7 +318,7 @@ class UPSR:
                 weight_floor=cfg.edge_weight_floor,
                 guide=guide,
                 min_valid_fraction=cfg.min_valid_fraction,
-                edge_mm=self._edge_mm,
+                edge_mm=self._front.edge_mm,  # type: ignore[union-attr]
                 measured_only=True,  # never invent depth where no frame measured anything
                 anchor=anchor,
                 tolerance=tolerance,
@@ -373,7 +331,7 @@ class UPSR:
             if anchor is not None:
                 # the speckle filter never erases what the reference measured on a surface
                 # (a thin fast part kept by its anchor is an island, not noise)
-                keep = surface_support(lowres[ref], self._edge_mm)
+                keep = surface_support(lowres[ref], self._front.edge_mm)
                 lost = np.repeat(np.repeat(keep, r, axis=0), r, axis=1) & (out == 0) & (fused > 0)
                 if lost.any():
                     out = np.where(lost, fused, out)

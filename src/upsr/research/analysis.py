@@ -545,7 +545,8 @@ def run_analysis(
     Cramér–Rao bound, Monte-Carlo estimate and the printed eq. (35)–(37) (parity swapped to
     its evident intent). Sweep 2: σ = 0, 5, …, 100 mm at N = 9. Files in ``out``:
     ``analysis_vs_n.csv``, ``analysis_vs_sigma.csv``, ``analysis_vs_n.png``,
-    ``analysis_vs_sigma.png``, each written atomically after all computations are done.
+    ``analysis_vs_sigma.png`` (each figure with an ``.svg`` twin), each written atomically after
+    all computations are done.
 
     Parameters
     ----------
@@ -566,6 +567,45 @@ def run_analysis(
         ``vs_n`` and ``vs_sigma`` (lists of row dicts), ``files`` (name → path) and the
         parameters.
     """
+    s, n_max, n_trials, seed, out_dir = _check_analysis(sigma, max_frames, trials, seed, out)
+    rng_n, rng_s = (np.random.default_rng(c) for c in np.random.SeedSequence(seed).spawn(2))
+    vs_n = _sweep_frames(s, n_max, n_trials, rng_n)
+    vs_sigma = _sweep_sigma(n_trials, rng_s)
+    from upsr.research._analysis_figures import analysis_plots
+    from upsr.viz.figures import write_figure
+
+    plot_n, plot_s = analysis_plots(vs_n, vs_sigma, s, n_trials, N_FRAMES_VS_SIGMA)
+
+    out_dir.mkdir(parents=True, exist_ok=True)
+    files = {
+        "vs_n_csv": out_dir / "analysis_vs_n.csv",
+        "vs_sigma_csv": out_dir / "analysis_vs_sigma.csv",
+        "vs_n_png": out_dir / "analysis_vs_n.png",
+        "vs_sigma_png": out_dir / "analysis_vs_sigma.png",
+        "vs_n_svg": out_dir / "analysis_vs_n.svg",
+        "vs_sigma_svg": out_dir / "analysis_vs_sigma.svg",
+    }
+    write_text_atomic(files["vs_n_csv"], _csv(list(vs_n[0]), [list(row.values()) for row in vs_n]))
+    write_text_atomic(
+        files["vs_sigma_csv"], _csv(list(vs_sigma[0]), [list(row.values()) for row in vs_sigma])
+    )
+    write_figure(files["vs_n_png"], plot_n)
+    write_figure(files["vs_sigma_png"], plot_s)
+    return {
+        "sigma_mm": s,
+        "max_frames": n_max,
+        "trials": n_trials,
+        "seed": seed,
+        "vs_n": vs_n,
+        "vs_sigma": vs_sigma,
+        "files": {k: str(v) for k, v in files.items()},
+    }
+
+
+def _check_analysis(
+    sigma: Any, max_frames: Any, trials: Any, seed: Any, out: str | os.PathLike[str]
+) -> tuple[float, int, int, int, Path]:
+    """The checked parameters of :func:`run_analysis` (InputError on a bad one)."""
     try:
         s = float(sigma)
     except (TypeError, ValueError):
@@ -582,12 +622,17 @@ def run_analysis(
     out_dir = Path(out)
     if out_dir.exists() and not out_dir.is_dir():
         raise InputError(f"{out_dir} exists and is not a folder")
+    return s, n_max, n_trials, seed, out_dir
 
-    rng_n, rng_s = (np.random.default_rng(c) for c in np.random.SeedSequence(seed).spawn(2))
+
+def _sweep_frames(
+    s: float, n_max: int, n_trials: int, rng: np.random.Generator
+) -> list[dict[str, Any]]:
+    """Sweep 1 of :func:`run_analysis`: N = 1 … ``n_max`` at σ = ``s`` mm."""
     vs_n: list[dict[str, Any]] = []
     for n in range(1, n_max + 1):
         var = float(median_variance(n, s))
-        mc = float(monte_carlo_median_variance(n, s, n_trials, rng_n))
+        mc = float(monte_carlo_median_variance(n, s, n_trials, rng))
         vs_n.append(
             {
                 "n_frames": n,
@@ -600,12 +645,17 @@ def run_analysis(
                 "variance_factor": median_variance_factor(n),
             }
         )
+    return vs_n
+
+
+def _sweep_sigma(n_trials: int, rng: np.random.Generator) -> list[dict[str, Any]]:
+    """Sweep 2 of :func:`run_analysis`: σ over ``SIGMA_GRID_MM`` at N = ``N_FRAMES_VS_SIGMA``."""
     sig = np.array(SIGMA_GRID_MM)
     n9 = N_FRAMES_VS_SIGMA
     var_s = median_variance(n9, sig)
     crb_s = cramer_rao_bound(n9, sig)
-    mc_s = monte_carlo_median_variance(n9, sig, n_trials, rng_s)
-    vs_sigma = [
+    mc_s = monte_carlo_median_variance(n9, sig, n_trials, rng)
+    return [
         {
             "sigma_mm": float(sig[i]),
             "n_frames": n9,
@@ -616,64 +666,6 @@ def run_analysis(
         }
         for i in range(sig.size)
     ]
-
-    from upsr.viz.colormaps import write_png
-    from upsr.viz.figures import PALETTE, Series, line_plot
-
-    ns = np.arange(1, n_max + 1)
-    col = {k: np.array([row[k] for row in vs_n]) for k in vs_n[0]}
-    size = (820, 540)
-    mc_label = f"Monte-Carlo ({n_trials} trials)"
-    img_n = line_plot(
-        [
-            Series(
-                ns, col["paper_printed_mm2"], "paper eq. 35-37 as printed", PALETTE[3], "dashed"
-            ),
-            Series(ns, col["crb_mm2"], "Cramer-Rao bound sigma^2/(2N)", PALETTE[2], "dashed"),
-            Series(ns, col["variance_mm2"], "exact variance (theory)", PALETTE[0], "solid"),
-            Series(ns, col["mc_variance_mm2"], mc_label, PALETTE[1], "markers"),
-        ],
-        title=f"Median of N Laplace samples, sigma = {s:g} mm",
-        xlabel="number of frames N",
-        ylabel="variance [mm^2]",
-        size=size,
-        log_y=True,
-    )
-    img_s = line_plot(
-        [
-            Series(sig, crb_s, "Cramer-Rao bound sigma^2/(2N)", PALETTE[2], "dashed"),
-            Series(sig, var_s, "exact variance (theory)", PALETTE[0], "solid"),
-            Series(sig, mc_s, mc_label, PALETTE[1], "markers"),
-        ],
-        title=f"Median of N = {n9} Laplace samples",
-        xlabel="noise standard deviation sigma [mm]",
-        ylabel="variance [mm^2]",
-        size=size,
-        legend="upper left",
-    )
-
-    out_dir.mkdir(parents=True, exist_ok=True)
-    files = {
-        "vs_n_csv": out_dir / "analysis_vs_n.csv",
-        "vs_sigma_csv": out_dir / "analysis_vs_sigma.csv",
-        "vs_n_png": out_dir / "analysis_vs_n.png",
-        "vs_sigma_png": out_dir / "analysis_vs_sigma.png",
-    }
-    write_text_atomic(files["vs_n_csv"], _csv(list(vs_n[0]), [list(row.values()) for row in vs_n]))
-    write_text_atomic(
-        files["vs_sigma_csv"], _csv(list(vs_sigma[0]), [list(row.values()) for row in vs_sigma])
-    )
-    write_png(files["vs_n_png"], img_n)
-    write_png(files["vs_sigma_png"], img_s)
-    return {
-        "sigma_mm": s,
-        "max_frames": n_max,
-        "trials": n_trials,
-        "seed": seed,
-        "vs_n": vs_n,
-        "vs_sigma": vs_sigma,
-        "files": {k: str(v) for k, v in files.items()},
-    }
 
 
 def format_analysis_table(result: dict[str, Any]) -> str:

@@ -4,7 +4,7 @@ These are "the straightforward path": vectorised NumPy versions of
 
 * :func:`upsr.method.fusion.temporal_median` (:func:`temporal_median_numpy`),
 * :func:`upsr.method.deblurring.btv_subgradient` (:func:`btv_subgradient_numpy`),
-* :func:`upsr.method.deblurring.estimate_noise_mm` (:func:`estimate_noise_mm_numpy`),
+* :func:`upsr.method.noise.estimate_noise_mm` (:func:`estimate_noise_mm_numpy`),
 * :func:`upsr.method.deblurring.deblur` with B = I (:func:`deblur_numpy`),
 * :func:`upsr.super_resolve` with nothing shared between windows, flows at the full r and
   the kernels above (:func:`super_resolve_straightforward`),
@@ -21,8 +21,8 @@ import numpy as np
 import numpy.typing as npt
 
 from upsr.method.config import DeblurConfig, UPSRConfig
-from upsr.method.deblurring import smooth_surfaces
 from upsr.method.outliers import remove_speckles
+from upsr.method.smoothing import smooth_surfaces
 
 __all__ = [
     "btv_subgradient_numpy",
@@ -83,6 +83,35 @@ def temporal_median_numpy(
     -------
     ndarray float32 (H, W): the fused depth, 0 where nothing is known.
     """
+    arr, ref, wts, g = _fusion_inputs(stack, ref, weights, guide)
+    edge = np.float64(edge_mm)
+    valid = arr > 0
+    known, w_valid, nv, ref_value = _validity_vote(arr, valid, wts, ref, min_valid_fraction)
+    vals, ws, in_sorted = _sorted_valid_samples(arr, valid, wts, nv)
+    lo, hi = _winning_surface(
+        vals,
+        ws,
+        in_sorted,
+        nv,
+        known & ~_one_surface(vals, nv, edge),
+        g,
+        w_valid,
+        ref_value,
+        edge=edge,
+        guide_bonus=guide_bonus,
+    )
+    med = _median_of_range(vals, lo, hi)
+    return np.where(known, med, np.float32(0.0)).astype(np.float32)
+
+
+def _fusion_inputs(
+    stack: npt.ArrayLike,
+    ref: int | None,
+    weights: npt.ArrayLike | None,
+    guide: npt.ArrayLike | None,
+) -> tuple[np.ndarray, int, np.ndarray, np.ndarray]:
+    """The checked inputs of :func:`temporal_median_numpy`: the stack (N, H, W) float32, the
+    reference index, the weights (N, H, W) float32 and the guide (H, W) float64 (0: none)."""
     arr = np.asarray(stack, dtype=np.float32)
     if arr.ndim != 3:
         raise ValueError(f"stack must be (N, H, W), got shape {arr.shape}")
@@ -98,37 +127,72 @@ def temporal_median_numpy(
         g = np.zeros(arr.shape[1:], np.float64)
     else:
         g = np.asarray(guide, dtype=np.float32).astype(np.float64)
-    edge = np.float64(edge_mm)
-    mvf = np.float64(min_valid_fraction)
+    return arr, ref, wts, g
 
-    # validity vote: float64 sums of the float32 weights, in sample order (as the kernel)
+
+def _validity_vote(
+    arr: np.ndarray, valid: np.ndarray, wts: np.ndarray, ref: int, min_valid_fraction: float
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Which pixels are known (weighted share of valid samples among the in-frame ones above
+    ``min_valid_fraction``; equal: the reference sample decides), with the valid weight
+    (float64 sums of the float32 weights, in sample order, as the kernel), the number of
+    valid samples and the reference sample (float64, 0 if invalid)."""
     inside = ~np.isnan(arr)
-    valid = arr > 0
     w_in = np.zeros(arr.shape[1:], np.float64)
     w_valid = np.zeros(arr.shape[1:], np.float64)
-    for k in range(n):
+    for k in range(arr.shape[0]):
         w_in += np.where(inside[k], wts[k], np.float32(0.0))
         w_valid += np.where(valid[k], wts[k], np.float32(0.0))
     nv = valid.sum(axis=0)
     r = arr[ref]
     ref_value = np.where(r > 0, r, np.float32(0.0)).astype(np.float64)
+    mvf = np.float64(min_valid_fraction)
     with np.errstate(divide="ignore", invalid="ignore"):
         frac = w_valid / w_in
     known = (nv > 0) & ~((frac < mvf) | ((frac == mvf) & (ref_value == 0.0)))
+    return known, w_valid, nv, ref_value
 
-    # sort the valid samples (invalid ones as +inf, last), weights alongside
+
+def _sorted_valid_samples(
+    arr: np.ndarray, valid: np.ndarray, wts: np.ndarray, nv: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The samples of each pixel sorted (invalid ones as +inf, last), their weights alongside
+    (0 for the invalid ones) and the mask of the first ``nv`` (the valid ones)."""
+    n = arr.shape[0]
     keys = np.where(valid, arr, np.float32(np.inf))
     order = np.argsort(keys, axis=0, kind="stable")
     vals = np.take_along_axis(keys, order, axis=0)
     ws = np.take_along_axis(np.where(valid, wts, np.float32(0.0)), order, axis=0)
-    pos = np.arange(n).reshape(n, 1, 1)
-    in_sorted = pos < nv  # the first nv sorted samples are the valid ones
-    last = np.maximum(nv - 1, 0)
-    vmin = vals[0]
-    vmax = _take(vals, last)
-    with np.errstate(invalid="ignore"):  # inf - inf where no sample is valid
-        single = (vmax - vmin).astype(np.float64) <= edge
+    in_sorted = np.arange(n).reshape(n, 1, 1) < nv
+    return vals, ws, in_sorted
 
+
+def _one_surface(vals: np.ndarray, nv: np.ndarray, edge: np.float64) -> np.ndarray:
+    """Whether the valid samples of a pixel span at most ``edge`` (one surface)."""
+    vmin = vals[0]
+    vmax = _take(vals, np.maximum(nv - 1, 0))
+    with np.errstate(invalid="ignore"):  # inf - inf where no sample is valid
+        return (vmax - vmin).astype(np.float64) <= edge
+
+
+def _winning_surface(
+    vals: np.ndarray,
+    ws: np.ndarray,
+    in_sorted: np.ndarray,
+    nv: np.ndarray,
+    several: np.ndarray,
+    g: np.ndarray,
+    w_valid: np.ndarray,
+    ref_value: np.ndarray,
+    *,
+    edge: np.float64,
+    guide_bonus: float,
+) -> tuple[np.ndarray, np.ndarray]:
+    """The sorted range [lo, hi) of the winning surface of each pixel (all its valid samples
+    where ``several`` is false): surfaces split at gaps > ``edge``, each votes with the sum of
+    its weights plus ``guide_bonus`` × the valid weight if it holds the guide depth; the
+    largest vote wins (a later equal one only if it holds the reference sample)."""
+    n = vals.shape[0]
     # surfaces: labels by the cumulative count of gaps > edge_mm in the sorted valid samples
     gaps = np.zeros(vals.shape, bool)
     if n > 1:
@@ -136,10 +200,9 @@ def temporal_median_numpy(
             step = (vals[1:] - vals[:-1]).astype(np.float64)
         gaps[1:] = in_sorted[1:] & (step > edge)
     labels = np.cumsum(gaps, axis=0)
-    best_lo = np.zeros(arr.shape[1:], np.int64)
+    best_lo = np.zeros(vals.shape[1:], np.int64)
     best_hi = nv.astype(np.int64)
-    best_w = np.full(arr.shape[1:], -np.inf)
-    several = known & ~single
+    best_w = np.full(vals.shape[1:], -np.inf)
     n_labels = int(labels[:, several].max()) + 1 if several.any() else 0
     for c in range(n_labels):
         member = in_sorted & (labels == c)
@@ -158,19 +221,23 @@ def temporal_median_numpy(
         best_w = np.where(better, acc, best_w)
         best_lo = np.where(better, lo, best_lo)
         best_hi = np.where(better, hi, best_hi)
+    return best_lo, best_hi
 
-    # the median of the winning surface (float32: mean of the two middle values if even)
-    mid = best_lo + (best_hi - best_lo) // 2
+
+def _median_of_range(vals: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
+    """The median of the sorted samples lo..hi−1 of each pixel (float32: the mean of the two
+    middle values if their number is even)."""
+    n = vals.shape[0]
+    mid = lo + (hi - lo) // 2
     upper = _take(vals, np.clip(mid, 0, n - 1))
     lower = _take(vals, np.clip(mid - 1, 0, n - 1))
-    odd = (best_hi - best_lo) % 2 == 1
+    odd = (hi - lo) % 2 == 1
     with np.errstate(invalid="ignore", over="ignore"):
-        med = np.where(odd, upper, np.float32(0.5) * (lower + upper))
-    return np.where(known, med, np.float32(0.0)).astype(np.float32)
+        return np.where(odd, upper, np.float32(0.5) * (lower + upper))
 
 
 def estimate_noise_mm_numpy(z: npt.ArrayLike, lag_px: int = 1) -> float:
-    """:func:`upsr.method.deblurring.estimate_noise_mm` with NumPy: 1.4826·MAD/√2 of the valid
+    """:func:`upsr.method.noise.estimate_noise_mm` with NumPy: 1.4826·MAD/√2 of the valid
     same-surface (|Δ| < 100 mm) differences ``lag_px`` apart, horizontally and vertically."""
     z = np.asarray(z, np.float32)
     diffs = []
@@ -250,7 +317,7 @@ def deblur_numpy(
     x₀ = z; x_{k+1} = x_k − β_k / norm · (sign(x_k − z) + λ ∂Γ_BTV(x_k)) on the pixels valid
     in z (0 elsewhere), β₀ = ``cfg.step_mm`` or max(0.5, noise of z), β_{k+1} = β_k ·
     ``cfg.step_decay``, norm = 1 + 2λ((Σ_k α^|k|)² − 1); then x ≥ 10⁻³ mm on the valid pixels
-    and :func:`upsr.method.deblurring.smooth_surfaces` if ``cfg.smooth_sigma_mm`` is set.
+    and :func:`upsr.method.smoothing.smooth_surfaces` if ``cfg.smooth_sigma_mm`` is set.
 
     Parameters
     ----------
@@ -326,14 +393,9 @@ def super_resolve_straightforward(frames: npt.ArrayLike, config: UPSRConfig) -> 
     -------
     ndarray float32 (T, r·h, r·w)
     """
+    from upsr.method.frontend import MotionFrontEnd
     from upsr.method.fusion import splat_nearest
-    from upsr.method.motion import (
-        bilateral_prefilter,
-        depth_range,
-        depth_to_u8,
-        make_flow_backend,
-        suppress_spurious_motion,
-    )
+    from upsr.method.motion import make_flow_backend
     from upsr.method.registration import (
         cumulative_flows,
         flows_to_reference,
@@ -348,48 +410,27 @@ def super_resolve_straightforward(frames: npt.ArrayLike, config: UPSRConfig) -> 
     video = as_depth_video(frames)
     t_total, h, w = video.shape
     r, n = cfg.scale, cfg.n_frames
-    first = video[:n]
-    near, far = cfg.depth_range_mm or depth_range(first)
-    noise = cfg.noise_mm
-    if noise is None:
-        noise = float(np.median([estimate_noise_mm_numpy(f) for f in first]))
-    edge_mm = max(cfg.edge_mm, 4.0 * noise)
+    # UP-SR's motion front-end on the full r grid, DIS flow_preset everywhere, the prefilter
+    # on the upsampled frames (OpenCV) and the NumPy noise estimate
     flow = make_flow_backend(cfg.flow, cfg.flow_preset)
-
-    def supported(a: np.ndarray, b: np.ndarray, f: np.ndarray, units: float) -> np.ndarray:
-        if cfg.zero_motion_tolerance is None:
-            return f
-        return suppress_spurious_motion(
-            a,
-            b,
-            f,
-            window_px=2 * r + 1,
-            tolerance=cfg.zero_motion_tolerance,
-            noise_mm=noise * units,
-            edge_mm=edge_mm * units,
-            edge_window_px=4 * r + 1,
-        )
-
-    units_u8 = 254.0 / max(far - near, 1e-6)
-
-    def refine(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-        return supported(a.astype(np.float32), b.astype(np.float32), flow(a, b), units_u8)
-
+    front = MotionFrontEnd(
+        cfg, w, grid_scale=r, flow_backend=flow, residual_flow_backend=flow, blockwise=False
+    )
+    front.fix_statistics(video[:n], estimate_noise=estimate_noise_mm_numpy)
+    edge_mm = front.edge_mm
     out = np.empty((t_total, h * r, w * r), np.float32)
     for t in range(t_total):
         s = window_start(t, t_total, cfg)
         ref = t - s
         up = [upsample_nearest(video[k], r) for k in range(s, s + n)]
-        pre = [bilateral_prefilter(u, cfg.prefilter_sigma_mm, cfg.spatial_sigma_px) for u in up]
-        guides = [depth_to_u8(p, near, far) for p in pre]
+        pre = [front.prefilter(video[k]) for k in range(s, s + n)]
+        guides = [front.guide(p) for p in pre]
         fwd: list[np.ndarray | None] = [None] * n
         bwd: list[np.ndarray | None] = [None] * n
         for j in range(n - 1):
-            fwd[j] = supported(pre[j], pre[j + 1], flow(guides[j], guides[j + 1]), 1.0)
-            bwd[j + 1] = supported(pre[j + 1], pre[j], flow(guides[j + 1], guides[j]), 1.0)
-        maps = cumulative_flows(
-            ref, bwd, fwd, (h * r, w * r), refine=refine if cfg.refine else None, guides=guides
-        )
+            fwd[j], bwd[j + 1] = front.flow_pair(pre[j], pre[j + 1], guides[j], guides[j + 1])
+        refine = front.residual_flow if cfg.refine else None
+        maps = cumulative_flows(ref, bwd, fwd, (h * r, w * r), refine=refine, guides=guides)
         stack = np.stack([warp_nearest(u, m) for u, m in zip(up, maps, strict=True)])
         weights = None
         if cfg.edge_weight_px:

@@ -1,137 +1,62 @@
-"""A small animated-GIF writer (NumPy + numba, no Pillow): streamed, atomic, per-frame palettes.
+"""Animations streamed frame by frame and published atomically: GIF (Pillow) and MP4 (H.264).
 
-Each frame gets its own 256-colour palette (a GIF local colour table): the exact colours when a
-frame has at most 256, else the 256 most frequent colours at 5 bits per channel (each one the
-mean of its pixels) with every other colour mapped to the nearest of them. Colour-mapped depth
-pictures (a few hundred distinct colours) come out nearly exact. LZW compression follows the
-GIF89a specification (variable code width, clear code when the 4096-entry table is full).
+:class:`Mp4Writer` pipes the frames to the ffmpeg of ``imageio-ffmpeg`` (libx264, yuv420p,
+``+faststart`` so that browsers start playing before the download ends); odd frame sizes are
+padded with white to even ones, as yuv420p needs.
+
+
+Each frame gets its own adaptive 256-colour palette (a GIF local colour table, median cut) and
+is mapped onto it with Floyd–Steinberg dithering; a frame with at most 256 colours keeps them
+exactly, undithered. Frames are encoded and written
+to a hidden temporary file as they arrive (constant memory); the GIF appears at its path only
+when :meth:`GifWriter.close` succeeds.
 """
 
 from __future__ import annotations
 
 import contextlib
 import os
-import struct
 from pathlib import Path
-from typing import Any
+from typing import IO, Any
 
 import numpy as np
 import numpy.typing as npt
-from numba import njit
 
-from upsr._atomic import AtomicWriter
+from upsr._atomic import AtomicWriter, new_temp_file, remove
 from upsr.errors import InputError
+from upsr.viz._optional import require
 
-__all__ = ["GifWriter", "lzw_encode", "quantize"]
-
-
-@njit(cache=True)
-def _lzw(indices: np.ndarray, out: np.ndarray) -> int:  # pragma: no cover - numba
-    clear, eoi = 256, 257
-    table = np.full(4096 * 256, -1, np.int16)
-    gen = np.zeros(4096 * 256, np.int32)
-    g = 1
-    code_size = 9
-    next_code = 258
-    acc = 0
-    nbits = 0
-    pos = 0
-    # clear code first
-    acc |= clear << nbits
-    nbits += code_size
-    while nbits >= 8:
-        out[pos] = acc & 0xFF
-        pos += 1
-        acc >>= 8
-        nbits -= 8
-    prefix = np.int64(indices[0])
-    for i in range(1, indices.size):
-        k = np.int64(indices[i])
-        key = prefix * 256 + k
-        if gen[key] == g:
-            prefix = table[key]
-            continue
-        acc |= prefix << nbits
-        nbits += code_size
-        while nbits >= 8:
-            out[pos] = acc & 0xFF
-            pos += 1
-            acc >>= 8
-            nbits -= 8
-        table[key] = next_code
-        gen[key] = g
-        next_code += 1
-        if next_code > (1 << code_size) and code_size < 12:
-            code_size += 1
-        if next_code == 4096:
-            acc |= clear << nbits
-            nbits += code_size
-            while nbits >= 8:
-                out[pos] = acc & 0xFF
-                pos += 1
-                acc >>= 8
-                nbits -= 8
-            g += 1
-            code_size = 9
-            next_code = 258
-        prefix = k
-    acc |= prefix << nbits
-    nbits += code_size
-    # the decoder adds an entry after the last code: it may widen the code for EOI
-    if next_code == (1 << code_size) and code_size < 12:
-        code_size += 1
-    acc |= eoi << nbits
-    nbits += code_size
-    while nbits > 0:
-        out[pos] = acc & 0xFF
-        pos += 1
-        acc >>= 8
-        nbits -= 8
-    return pos
+__all__ = ["GifWriter", "Mp4Writer", "to_palette_image"]
 
 
-def lzw_encode(indices: npt.ArrayLike) -> bytes:
-    """GIF LZW code stream (minimum code size 8) of palette indices, without sub-blocks."""
-    idx = np.ascontiguousarray(np.asarray(indices, dtype=np.uint8).reshape(-1))
-    if idx.size == 0:
-        raise InputError("cannot encode an empty image")
-    out = np.empty(idx.size * 2 + 16, np.uint8)
-    n = _lzw(idx, out)
-    return out[:n].tobytes()
+def _pil() -> tuple[Any, Any]:
+    image = require("PIL.Image", "writing GIF files")
+    gif = require("PIL.GifImagePlugin", "writing GIF files")
+    return image, gif
 
 
-def quantize(image_bgr: npt.ArrayLike) -> tuple[np.ndarray, np.ndarray]:
-    """Palette (256, 3) RGB uint8 and indices (h, w) uint8 of a BGR uint8 image."""
+def to_palette_image(image_bgr: npt.ArrayLike) -> Any:
+    """A BGR uint8 image as a Pillow ``P`` image: adaptive 256-colour palette, dithered.
+
+    Parameters
+    ----------
+    image_bgr : array_like (h, w, 3) uint8
+        Blue-green-red picture (OpenCV order).
+
+    Returns
+    -------
+    PIL.Image.Image
+        Mode ``"P"``; at most 256 palette entries.
+    """
     img = np.asarray(image_bgr)
     if img.dtype != np.uint8 or img.ndim != 3 or img.shape[2] != 3 or img.size == 0:
         raise InputError(f"expected a BGR uint8 image (h, w, 3), got {img.dtype} {img.shape}")
-    rgb = img[..., ::-1].reshape(-1, 3)
-    packed = (rgb[:, 0].astype(np.int64) << 16) | (rgb[:, 1].astype(np.int64) << 8) | rgb[:, 2]
-    colours, inverse = np.unique(packed, return_inverse=True)
-    palette = np.zeros((256, 3), np.uint8)
-    if colours.size <= 256:
-        palette[: colours.size, 0] = colours >> 16
-        palette[: colours.size, 1] = (colours >> 8) & 0xFF
-        palette[: colours.size, 2] = colours & 0xFF
-        return palette, inverse.reshape(img.shape[:2]).astype(np.uint8)
-    r5, g5, b5 = (rgb[:, c].astype(np.int64) >> 3 for c in range(3))
-    q = (r5 << 10) | (g5 << 5) | b5
-    counts = np.bincount(q, minlength=1 << 15)
-    top = np.argsort(counts, kind="stable")[::-1][:256]
-    top = top[counts[top] > 0]
-    sums = np.stack(
-        [np.bincount(q, weights=rgb[:, c], minlength=1 << 15) for c in range(3)], axis=1
-    )
-    centres = sums[top] / counts[top, None]
-    palette[: len(top)] = np.clip(np.rint(centres), 0, 255).astype(np.uint8)
-    used = np.nonzero(counts)[0]
-    cols = np.stack([(used >> 10) & 31, (used >> 5) & 31, used & 31], axis=1) * 8.0 + 4.0
-    pal = palette[: len(top)].astype(np.float64)
-    d2 = (cols**2).sum(1)[:, None] - 2.0 * cols @ pal.T + (pal**2).sum(1)[None, :]
-    lut = np.zeros(1 << 15, np.uint8)
-    lut[used] = np.argmin(d2, axis=1).astype(np.uint8)
-    lut[top] = np.arange(len(top), dtype=np.uint8)
-    return palette, lut[q].reshape(img.shape[:2])
+    image, _ = _pil()
+    rgb = image.fromarray(np.ascontiguousarray(img[..., ::-1]), "RGB")
+    palette = rgb.quantize(256, method=image.Quantize.MEDIANCUT, dither=image.Dither.NONE)
+    if rgb.getcolors(256) is not None:  # few colours: the palette holds them all, exactly
+        return palette
+    return rgb.quantize(palette=palette, dither=image.Dither.FLOYDSTEINBERG)
 
 
 class GifWriter(AtomicWriter):
@@ -151,45 +76,34 @@ class GifWriter(AtomicWriter):
         if not (np.isfinite(fps) and fps > 0):
             raise InputError(f"fps must be > 0, got {fps!r}")
         self.path = Path(path)
-        self._delay = max(1, round(100.0 / fps))
+        self._duration_ms = 10 * max(1, round(100.0 / fps))
         self._loop = int(loop)
         self._size: tuple[int, int] | None = None
-        self._fh: Any = None
+        self._fh: IO[bytes] | None = None
         self._temp: Path | None = None
         self.frames_written = 0
-
-    def _start(self, h: int, w: int) -> None:
-        if h > 65535 or w > 65535:
-            raise InputError(f"a GIF frame is at most 65535x65535 px, got {w}x{h}")
-        self.path.parent.mkdir(parents=True, exist_ok=True)
-        self._temp = self.path.with_name(f".{self.path.name}.{os.getpid()}.part")
-        self._fh = open(self._temp, "wb")  # closed in close() / abort()
-        self._fh.write(b"GIF89a" + struct.pack("<HHBBB", w, h, 0, 0, 0))
-        # NETSCAPE2.0 looping extension
-        self._fh.write(b"\x21\xff\x0bNETSCAPE2.0\x03\x01" + struct.pack("<H", self._loop) + b"\0")
-        self._size = (h, w)
 
     def write(self, image_bgr: npt.ArrayLike) -> None:
         """Append one BGR uint8 frame (all frames must have the first one's size)."""
         img = np.asarray(image_bgr)
-        if self._size is None:
-            if img.ndim != 3:
-                raise InputError(f"expected a BGR image (h, w, 3), got shape {img.shape}")
-            self._start(img.shape[0], img.shape[1])
-        elif img.shape[:2] != self._size:
+        if img.ndim != 3:
+            raise InputError(f"expected a BGR image (h, w, 3), got shape {img.shape}")
+        if self._size is not None and img.shape[:2] != self._size:
             raise InputError(f"GIF frame of {img.shape[:2]} differs from the first {self._size}")
-        palette, idx = quantize(img)
-        h, w = idx.shape
-        f = self._fh
-        f.write(b"\x21\xf9\x04\x04" + struct.pack("<H", self._delay) + b"\x00\x00")
-        f.write(b"\x2c" + struct.pack("<HHHH", 0, 0, w, h) + b"\x87")  # local table, 256 colours
-        f.write(palette.tobytes())
-        data = lzw_encode(idx)
-        f.write(b"\x08")
-        for i in range(0, len(data), 255):
-            block = data[i : i + 255]
-            f.write(bytes([len(block)]) + block)
-        f.write(b"\x00")
+        if img.shape[0] > 65535 or img.shape[1] > 65535:
+            h, w = img.shape[:2]
+            raise InputError(f"a GIF frame is at most 65535x65535 px, got {w}x{h}")
+        frame = to_palette_image(img)
+        _, gif = _pil()
+        chunks: list[bytes] = []
+        if self._fh is None:
+            self.path.parent.mkdir(parents=True, exist_ok=True)
+            self._temp, self._fh = new_temp_file(self.path, "part")
+            self._size = img.shape[:2]
+            header, _ = gif.getheader(frame, None, {"loop": self._loop, "duration": 1})
+            chunks += header
+        chunks += gif.getdata(frame, duration=self._duration_ms, include_color_table=True)
+        self._fh.write(b"".join(chunks))
         self.frames_written += 1
 
     def close(self) -> Path:
@@ -197,13 +111,14 @@ class GifWriter(AtomicWriter):
         if self._fh is None:
             raise InputError(f"{self.path}: no frames written")
         try:
-            self._fh.write(b"\x3b")
+            self._fh.write(b";")  # GIF trailer
             self._fh.flush()
             os.fsync(self._fh.fileno())
             self._fh.close()
             self._fh = None
             assert self._temp is not None
             os.replace(self._temp, self.path)
+            self._temp = None
         except BaseException:
             self.abort()
             raise
@@ -216,5 +131,103 @@ class GifWriter(AtomicWriter):
                 self._fh.close()
             self._fh = None
         if self._temp is not None:
-            with contextlib.suppress(OSError):
-                self._temp.unlink()
+            remove(self._temp)
+            self._temp = None
+
+
+class Mp4Writer(AtomicWriter):
+    """Write an H.264 MP4 (yuv420p, faststart) frame by frame; it appears only on :meth:`close`.
+
+    Parameters
+    ----------
+    path : path-like
+        Destination ``.mp4`` (parent folders are created).
+    fps : float
+        Frames per second.
+    crf : int
+        libx264 constant rate factor (0 lossless … 51 worst; 18 is visually lossless).
+
+    Notes
+    -----
+    Frames are BGR uint8 ``(h, w, 3)``; all take the first one's size (smaller ones are padded,
+    larger ones cropped, with white). An odd width or height is padded by one pixel.
+    """
+
+    def __init__(self, path: str | os.PathLike[str], fps: float = 5.0, crf: int = 18) -> None:
+        if not (np.isfinite(fps) and fps > 0):
+            raise InputError(f"fps must be > 0, got {fps!r}")
+        if not 0 <= int(crf) <= 51:
+            raise InputError(f"crf must be in [0, 51], got {crf!r}")
+        self.path = Path(path)
+        self.fps = float(fps)
+        self.crf = int(crf)
+        self._gen: Any = None
+        self._temp: Path | None = None
+        self._size: tuple[int, int] | None = None
+        self.frames_written = 0
+
+    def _start(self, h: int, w: int) -> None:
+        ffmpeg = require("imageio_ffmpeg", "writing MP4 files")
+        self._size = (h + h % 2, w + w % 2)
+        self.path.parent.mkdir(parents=True, exist_ok=True)
+        self._temp, fh = new_temp_file(self.path, "part.mp4")  # ffmpeg overwrites it
+        fh.close()
+        self._gen = ffmpeg.write_frames(
+            str(self._temp),
+            (self._size[1], self._size[0]),
+            fps=self.fps,
+            codec="libx264",
+            pix_fmt_in="bgr24",
+            pix_fmt_out="yuv420p",
+            quality=None,
+            macro_block_size=1,
+            ffmpeg_log_level="error",
+            output_params=["-crf", str(self.crf), "-movflags", "+faststart", "-f", "mp4"],
+        )
+        self._gen.send(None)
+
+    def write(self, image_bgr: npt.ArrayLike) -> None:
+        """Append one BGR uint8 frame."""
+        img = np.asarray(image_bgr)
+        if img.dtype != np.uint8 or img.ndim != 3 or img.shape[2] != 3 or img.size == 0:
+            raise InputError(f"expected a BGR uint8 image (h, w, 3), got {img.dtype} {img.shape}")
+        h, w = img.shape[:2]
+        try:
+            if self._gen is None:
+                self._start(h, w)
+            assert self._size is not None
+            frame = np.full((*self._size, 3), 255, np.uint8)
+            hh, ww = min(h, self._size[0]), min(w, self._size[1])
+            frame[:hh, :ww] = img[:hh, :ww]
+            self._gen.send(frame)
+        except BaseException:
+            self.abort()
+            raise
+        self.frames_written += 1
+
+    def close(self) -> Path:
+        """Finish the video and move it into place. Returns its path."""
+        if self._gen is None:
+            raise InputError(f"{self.path}: no frames written")
+        try:
+            gen, self._gen = self._gen, None
+            gen.close()  # ffmpeg finishes the file (moov atom first) and exits
+            assert self._temp is not None
+            if not self._temp.is_file() or self._temp.stat().st_size == 0:
+                raise OSError(f"{self.path}: ffmpeg wrote no MP4 data")
+            os.replace(self._temp, self.path)
+            self._temp = None
+        except BaseException:
+            self.abort()
+            raise
+        return self.path
+
+    def abort(self) -> None:
+        """Stop ffmpeg and discard the partial file."""
+        if self._gen is not None:
+            with contextlib.suppress(Exception):
+                self._gen.close()
+            self._gen = None
+        if self._temp is not None:
+            remove(self._temp)
+            self._temp = None

@@ -6,17 +6,16 @@ blocks), bicubic interpolation, UP-SR, and optionally the ground truth and the e
 = blue); pixels without depth are black in every panel (no colour of the maps is black), and
 in the error map a pixel where the output or the truth has no depth is black too.
 :class:`ComparisonWriter` streams such frames into a PNG (one frame), an animated GIF
-(:mod:`upsr.viz.animation`) or an MP4 (OpenCV, ``mp4v``), atomically.
+or an H.264 MP4 (both :mod:`upsr.viz.animation`), atomically.
 
 :func:`render_view` renders a depth frame as a shaded 3-D surface seen from a rotated viewpoint
 (like Fig. 3 of the paper): the pixels become a triangle mesh (no triangle spans a depth jump
 larger than ``edge_mm``, so foreground and background stay apart), rendered with the z-buffer
-rasteriser of :mod:`upsr.research.synth.render` and lit from the viewer.
+rasteriser of :mod:`upsr.geometry.rendering` and lit from the viewer.
 """
 
 from __future__ import annotations
 
-import contextlib
 import math
 import os
 from pathlib import Path
@@ -166,8 +165,6 @@ class ComparisonWriter(AtomicWriter):
             raise InputError(f"fps must be > 0, got {fps!r}")
         self.fps = float(fps)
         self._impl: Any = None
-        self._temp: Path | None = None
-        self._size: tuple[int, int] | None = None
         self.frames_written = 0
 
     def write(self, image_bgr: np.ndarray) -> None:
@@ -176,34 +173,14 @@ class ComparisonWriter(AtomicWriter):
             if self.frames_written:
                 raise InputError(f"{self.path}: a PNG holds one picture (use .gif or .mp4)")
             self._impl = image_bgr
-        elif self.kind == "gif":
-            if self._impl is None:
-                from upsr.viz.animation import GifWriter
-
-                self._impl = GifWriter(self.path, fps=self.fps)
-            self._impl.write(image_bgr)
         else:
-            self._write_mp4(image_bgr)
-        self.frames_written += 1
+            if self._impl is None:
+                from upsr.viz.animation import GifWriter, Mp4Writer
 
-    def _write_mp4(self, img: np.ndarray) -> None:
-        h, w = img.shape[:2]
-        if self._impl is None:
-            self._size = (h + h % 2, w + w % 2)  # codecs want even sizes
-            self.path.parent.mkdir(parents=True, exist_ok=True)
-            self._temp = self.path.with_name(f".{self.path.name}.{os.getpid()}.part.mp4")
-            fourcc = cv2.VideoWriter_fourcc(*"mp4v")
-            self._impl = cv2.VideoWriter(
-                str(self._temp), fourcc, self.fps, (self._size[1], self._size[0])
-            )
-            if not self._impl.isOpened():
-                self.abort()
-                raise InputError(f"{self.path}: OpenCV cannot write MP4 (mp4v) here")
-        assert self._size is not None
-        frame = np.full((*self._size, 3), 255, np.uint8)
-        hh, ww = min(h, self._size[0]), min(w, self._size[1])
-        frame[:hh, :ww] = img[:hh, :ww]
-        self._impl.write(frame)
+                kind = GifWriter if self.kind == "gif" else Mp4Writer
+                self._impl = kind(self.path, fps=self.fps)
+            self._impl.write(image_bgr)
+        self.frames_written += 1
 
     def close(self) -> Path:
         """Finish and move the picture into place."""
@@ -211,29 +188,15 @@ class ComparisonWriter(AtomicWriter):
             raise InputError(f"{self.path}: no frames to write")
         if self.kind == "png":
             write_png(self.path, self._impl)
-        elif self.kind == "gif":
-            self._impl.close()
         else:
-            self._impl.release()
-            assert self._temp is not None
-            if not self._temp.is_file() or self._temp.stat().st_size == 0:
-                self.abort()
-                raise InputError(f"{self.path}: OpenCV wrote no MP4 data")
-            os.replace(self._temp, self.path)
+            self._impl.close()
         self._impl = None
         return self.path
 
     def abort(self) -> None:
         """Discard everything written."""
-        if self.kind == "gif" and self._impl is not None:
+        if self.kind != "png" and self._impl is not None:
             self._impl.abort()
-        elif self.kind == "mp4":
-            if self._impl is not None:
-                with contextlib.suppress(Exception):
-                    self._impl.release()
-            if self._temp is not None:
-                with contextlib.suppress(OSError):
-                    self._temp.unlink()
         self._impl = None
 
 

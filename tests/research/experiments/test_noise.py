@@ -50,6 +50,7 @@ def test_command_writes_every_method(
     _, search = read_csv(out / "noise_deblur_search.csv")
     assert sum(r["chosen"] == "True" for r in search) == 2  # one choice per sigma
     assert cv2.imread(str(out / "noise.png")) is not None
+    assert "MSE [mm²]" in (out / "noise.svg").read_text()
     assert "held-out" in (out / "summary.md").read_text()
     assert list((out / "cache").glob("samba_*.npz"))  # renders are cached
 

@@ -6,8 +6,8 @@
 * ``factors`` — Fig. 7, MSE vs noise for r = 1, 2, 4 with the model of §6: :func:`run_factors`
 * ``all`` — all of them and ``REPORT.md``: :func:`run_all`
 
-Every run writes a CSV, PNG plot(s) (:mod:`upsr.viz.figures`) and ``summary.md`` into its output
-folder and returns an :class:`ExperimentResult`.
+Every run writes a CSV, plots as PNG + SVG (:mod:`upsr.viz.figures`) and ``summary.md`` into its
+output folder and returns an :class:`ExperimentResult`.
 """
 
 from __future__ import annotations

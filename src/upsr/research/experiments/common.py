@@ -1,9 +1,9 @@
 """Shared plumbing of the experiments: results, CSV / Markdown / PNG output, logging.
 
 Every experiment returns an :class:`ExperimentResult` and writes, into its output folder,
-``<name>.csv`` (one row per measurement), one or more ``<name>*.png`` plots drawn with
-:mod:`upsr.viz.figures`, and ``summary.md`` (what was done, the table, the reading). Files are
-written atomically (:func:`upsr.io.write_text_atomic`, :func:`upsr.viz.colormaps.write_png`).
+``<name>.csv`` (one row per measurement), one or more ``<name>*.png`` plots (each with an
+``.svg`` twin) drawn with :mod:`upsr.viz.figures`, and ``summary.md`` (what was done, the
+table, the reading). Files are written atomically (:mod:`upsr._atomic`).
 """
 
 from __future__ import annotations
@@ -19,7 +19,7 @@ import numpy as np
 
 from upsr._atomic import write_text_atomic
 from upsr.errors import InputError
-from upsr.viz.colormaps import write_png
+from upsr.viz.figures import LinePlot, write_figure
 
 __all__ = [
     "DEFAULT_DATA",
@@ -160,9 +160,9 @@ def markdown_table(
     return "\n".join(lines)
 
 
-def write_plot(path: str | Path, image: np.ndarray) -> Path:
-    """Write a plot image (uint8 BGR) as a PNG."""
-    return write_png(path, image)
+def write_plot(path: str | Path, plot: LinePlot) -> Path:
+    """Write a plot as ``path`` (PNG) and its ``.svg`` twin; returns the PNG's path."""
+    return write_figure(path, plot)[0]
 
 
 def write_summary(path: str | Path, text: str) -> Path:

@@ -73,7 +73,7 @@ from upsr.research.experiments.common import (
 from upsr.research.experiments.data import render_samba, samba_mesh_paths
 from upsr.research.metrics import evaluate
 from upsr.research.synth import add_laplacian_noise, dynamic_scene
-from upsr.viz.figures import PALETTE, Series, line_plot
+from upsr.viz.figures import PALETTE, LinePlot, Series, line_plot
 
 __all__ = [
     "VARIANTS",
@@ -296,8 +296,8 @@ def _load(
             return add_laplacian_noise(scene.lowres_clean, sigma, rng)
 
         desc = (
-            f"synthetic dynamic scene (upsr.research.synth.dynamic_scene, no background, blob moving "
-            f"1.5 low-res px/frame), {QUICK_SHAPE[1]}x{QUICK_SHAPE[0]} -> "
+            "synthetic dynamic scene (upsr.research.synth.dynamic_scene, no background, blob "
+            f"moving 1.5 low-res px/frame), {QUICK_SHAPE[1]}x{QUICK_SHAPE[0]} -> "
             f"{QUICK_SHAPE[1] * SCALE}x{QUICK_SHAPE[0] * SCALE}, {QUICK_N_TOTAL} frames"
         )
         return scene.truth, noisy, desc
@@ -328,7 +328,7 @@ def _load(
 
 def _plots(
     rows: list[dict[str, Any]], dist_rows: list[dict[str, Any]], sigma_d: float
-) -> tuple[np.ndarray, np.ndarray]:
+) -> tuple[LinePlot, LinePlot]:
     variants = list(dict.fromkeys(row["variant"] for row in rows))
     s1, s2 = [], []
     for k, v in enumerate(variants):
@@ -357,15 +357,15 @@ def _plots(
     img1 = line_plot(
         s1,
         title="Fused frame error vs noise, by registration strategy",
-        xlabel="noise sigma [mm]",
+        xlabel="noise σ [mm]",
         ylabel="RMSE of the fused frame [mm]",
         size=(860, 540),
         legend="upper left",
     )
     img2 = line_plot(
         s2,
-        title=f"Registered frames on the wrong surface (sigma = {sigma_d:g} mm)",
-        xlabel="temporal distance |t - t0| [frames]",
+        title=f"Registered frames on the wrong surface (σ = {sigma_d:g} mm)",
+        xlabel="temporal distance |t − t₀| [frames]",
         ylabel="misregistered pixels [%]",
         size=(860, 540),
         legend="upper left",

@@ -20,11 +20,12 @@ largest r) from any depth discontinuity of the truth (``surface_mse``, the same 
 every r). The plot shows ``surface_mse``: the model of §6 describes the noise and the
 upsampling blur, not the misregistration of occluded pixels at depth edges.
 
-Model (:mod:`upsr.research.analysis`): per pixel, MSE(σ) = var(σ) + (r² − 1)·ρ², var(σ) the exact
-variance of the median of N = 9 Laplace samples (:func:`upsr.research.analysis.median_variance`) and ρ the
-mean error per upsampled pixel (eq. 34), fitted once per r with
-:func:`upsr.research.analysis.estimate_rho` on the noise-free run (σ = 0) and then *predicted* for every
-σ (the model's bias does not depend on σ). For r = 1 the model has no bias: MSE = var(σ).
+Model (:mod:`upsr.research.analysis`): per pixel, MSE(σ) = var(σ) + (r² − 1)·ρ², var(σ) the
+exact variance of the median of N = 9 Laplace samples
+(:func:`upsr.research.analysis.median_variance`) and ρ the mean error per upsampled pixel
+(eq. 34), fitted once per r with :func:`upsr.research.analysis.estimate_rho` on the noise-free
+run (σ = 0) and then *predicted* for every σ (the model's bias does not depend on σ). For r = 1
+the model has no bias: MSE = var(σ).
 """
 
 from __future__ import annotations
@@ -56,7 +57,7 @@ from upsr.research.experiments.common import (
 from upsr.research.experiments.data import render_samba, samba_mesh_paths
 from upsr.research.metrics import near_discontinuity
 from upsr.research.synth import add_laplacian_noise
-from upsr.viz.figures import PALETTE, Series, line_plot
+from upsr.viz.figures import PALETTE, LinePlot, Series, line_plot
 
 __all__ = ["FACTORS", "run_factors"]
 
@@ -245,7 +246,7 @@ def _one_factor(
     return rows
 
 
-def _plot(rows: list[dict[str, Any]], rs: Sequence[int], pipeline: str) -> np.ndarray:
+def _plot(rows: list[dict[str, Any]], rs: Sequence[int], pipeline: str) -> LinePlot:
     series = []
     mine_all = [row for row in rows if row["pipeline"] == pipeline]
     for k, r in enumerate(rs):
@@ -267,9 +268,9 @@ def _plot(rows: list[dict[str, Any]], rs: Sequence[int], pipeline: str) -> np.nd
                 [row["sigma"] for row in fus],
                 [row["theory_mse"] for row in fus],
                 f"r = {r}, model" + (" (variance)" if r == 1 else " (var + bias)"),
-                (0, 0, 0) if r == 1 else color,
+                "black" if r == 1 else color,
                 "solid",
-                1,
+                1.0,
             )
         )
     what = (
@@ -280,8 +281,8 @@ def _plot(rows: list[dict[str, Any]], rs: Sequence[int], pipeline: str) -> np.nd
     return line_plot(
         series,
         title=f"Surface MSE vs noise for SR factors ({what}, N = 9)",
-        xlabel="noise sigma [mm]",
-        ylabel="MSE [mm^2]",
+        xlabel="noise σ [mm]",
+        ylabel="surface MSE [mm²]",
         size=(900, 600),
         legend="upper left",
     )

@@ -92,7 +92,7 @@ from upsr.research.experiments.common import (
     write_summary,
 )
 from upsr.research.experiments.data import load_middlebury_art
-from upsr.viz.figures import PALETTE, Series, line_plot
+from upsr.viz.figures import PALETTE, LinePlot, Series, line_plot
 
 __all__ = [
     "ESTIMATORS",
@@ -409,7 +409,7 @@ def _summary(rows: list[dict[str, Any]], selected: str, shape: tuple[int, int], 
     return "\n".join(lines)
 
 
-def _plot(rows: list[dict[str, Any]]) -> np.ndarray:
+def _plot(rows: list[dict[str, Any]]) -> LinePlot:
     names = list(dict.fromkeys(row["estimator"] for row in rows))
     series = []
     for k, name in enumerate(names):
@@ -430,7 +430,7 @@ def _plot(rows: list[dict[str, Any]]) -> np.ndarray:
             list(PAPER_ERROR_PX),
             list(PAPER_ERROR_PX.values()),
             "paper, Table 2",
-            (0, 0, 0),
+            "black",
             "dashed",
         )
     )
@@ -440,7 +440,7 @@ def _plot(rows: list[dict[str, Any]]) -> np.ndarray:
         ylim=(0.01, 2.0 * top),
         title="Motion error vs upsampling factor (Middlebury Art, 1 px shift)",
         xlabel="upsampling factor r",
-        ylabel="error at scale R [px]",
+        ylabel="motion error at scale R [px]",
         log_y=True,
         size=(860, 540),
         legend="lower left",

@@ -6,8 +6,8 @@ r = 4, ``SPEC.md`` §1 pixel geometry), as in ``benchmarks/samba_eval.py``; no b
 (depth 0). Laplacian noise of standard deviation σ = 0, 10, …, 100 mm is added to the valid
 input pixels. Every method super-resolves the 9-frame clip (multi-frame methods with N = 9:
 each output frame fuses all nine frames, reference in the window, as UP-SR does) and is scored
-on all nine output frames pooled (:func:`upsr.research.metrics.evaluate`: MSE over the pixels valid in
-both truth and output, and the other SPEC §6 metrics).
+on all nine output frames pooled (:func:`upsr.research.metrics.evaluate`: MSE over the pixels
+valid in both truth and output, and the other SPEC §6 metrics).
 
 Methods: ``nearest``, ``bicubic``, ``bicubic_noflying`` (flying pixels removed with a fixed
 100 mm threshold), ``shift_add`` (dynamic median Shift & Add), ``lidarboost``, ``sisr``
@@ -57,7 +57,7 @@ from upsr.research.experiments.common import (
 from upsr.research.experiments.data import render_samba, samba_mesh_paths
 from upsr.research.metrics import evaluate
 from upsr.research.synth import add_laplacian_noise
-from upsr.viz.figures import PALETTE, Series, line_plot
+from upsr.viz.figures import PALETTE, LinePlot, Series, line_plot
 
 __all__ = ["DEBLUR_GRID", "METHODS", "run_noise", "search_deblur"]
 
@@ -141,7 +141,8 @@ def search_deblur(
 
 
 def _deblur_frame(fused: np.ndarray, cfg: DeblurConfig, r: int) -> np.ndarray:
-    """UP-SR's last steps on a fused frame (:func:`upsr.method.windowed.finish_fused`) with ``cfg``."""
+    """UP-SR's last steps on a fused frame with ``cfg``
+    (:func:`upsr.method.windowed.finish_fused`)."""
     return finish_fused(fused, UPSRConfig(scale=r, deblur=cfg))
 
 
@@ -162,8 +163,8 @@ def run_noise(
     """Run the Fig. 6 experiment and write its files into ``out``.
 
     Files: ``noise.csv`` (long form: method, sigma, mse and the SPEC §6 metrics, the chosen
-    deblurring parameters, seconds), ``noise_deblur_search.csv``, ``noise.png`` (MSE vs σ, log
-    scale), ``summary.md``.
+    deblurring parameters, seconds), ``noise_deblur_search.csv``, ``noise.png`` and ``noise.svg``
+    (MSE vs σ, log scale), ``summary.md``.
 
     Parameters
     ----------
@@ -197,7 +198,6 @@ def run_noise(
     )
     truth, clean = render.truth[:n], render.lowres[r][:n]
     truth_h, clean_h = render.truth[n:], render.lowres[r][n:]
-    centre = (n - 1) // 2
     grid = QUICK_DEBLUR_GRID if quick else DEBLUR_GRID
     sig = tuple(sigmas) if sigmas is not None else (QUICK_SIGMAS if quick else SIGMAS)
     sisr_model = baselines.train_patch_sisr(r, n_examples=2000 if quick else 60000, seed=seed)
@@ -209,69 +209,20 @@ def run_noise(
     rows: list[dict[str, Any]] = []
     search_rows: list[dict[str, Any]] = []
     for sigma in sig:
-        sigma = float(sigma)
-        lowres = add_laplacian_noise(
-            clean, sigma, np.random.default_rng([seed, round(sigma * 1000), 0])
+        level_rows, level_search = _noise_level(
+            float(sigma),
+            (clean, truth),
+            (clean_h, truth_h),
+            r=r,
+            n=n,
+            grid=grid,
+            methods=methods,
+            sisr_model=sisr_model,
+            seed=seed,
+            log=log,
         )
-        held = add_laplacian_noise(
-            clean_h, sigma, np.random.default_rng([seed, round(sigma * 1000), 1])
-        )
-        cache: dict[str, Any] = {}
-
-        def fused_video(lowres: np.ndarray = lowres, cache: dict[str, Any] = cache) -> np.ndarray:
-            if "fused" not in cache:
-                cache["fused"] = super_resolve(lowres, r, n, deblur=False)
-            return cache["fused"]  # type: ignore[no-any-return]
-
-        def flows(lowres: np.ndarray = lowres, cache: dict[str, Any] = cache) -> Any:
-            if "flows" not in cache:
-                cache["flows"] = baselines.upsampled_flows(lowres, r)
-            return cache["flows"]
-
-        best: DeblurConfig | None = None
-        if "upsr" in methods:
-            t0 = time.perf_counter()
-            fused_h = super_resolve(held, r, n, deblur=False)[centre]
-            best, srows = search_deblur(fused_h, truth_h[centre], r, grid)
-            for row in srows:
-                search_rows.append({"sigma": sigma, **row})
-            log(
-                f"sigma {sigma:g}: held-out search -> lam {best.lam:g}, smoothing "
-                f"{best.smooth_sigma_mm if best.smooth_sigma_mm is not None else 'off'} "
-                f"({time.perf_counter() - t0:.1f} s)"
-            )
-        runners: dict[str, Callable[[], np.ndarray]] = {
-            "nearest": lambda lowres=lowres: baselines.nearest(lowres, r),
-            "bicubic": lambda lowres=lowres: baselines.bicubic(lowres, r),
-            "bicubic_noflying": lambda lowres=lowres: baselines.bicubic_noflying(lowres, r),
-            "shift_add": lambda lowres=lowres: baselines.shift_add(lowres, r, n, flows=flows()),
-            "lidarboost": lambda lowres=lowres: baselines.lidarboost(lowres, r, n, flows=flows()),
-            "sisr": lambda lowres=lowres: baselines.patch_sisr(lowres, r, model=sisr_model),
-            "upsr_fused": fused_video,
-            "upsr": lambda best=best: _deblur_video(fused_video(), best, r),  # type: ignore[arg-type]
-            "upsr_default": lambda: _deblur_video(fused_video(), DeblurConfig(), r),
-        }
-        for method in METHODS:
-            if method not in methods:
-                continue
-            t0 = time.perf_counter()
-            estimate = runners[method]()
-            seconds = time.perf_counter() - t0
-            scores = evaluate(estimate, truth, r)
-            row: dict[str, Any] = {"method": method, "sigma": sigma}
-            row.update({k: float(scores[k]) for k in METRICS})
-            if method == "upsr" and best is not None:
-                row["deblur_lam"] = best.lam
-                row["deblur_smooth_mm"] = (
-                    best.smooth_sigma_mm if best.smooth_sigma_mm is not None else "off"
-                )
-            elif method == "upsr_default":
-                d = DeblurConfig()
-                row["deblur_lam"] = d.lam
-                row["deblur_smooth_mm"] = d.smooth_sigma_mm
-            row["seconds"] = seconds
-            rows.append(row)
-            log(f"sigma {sigma:g}: {method:16s} mse {row['mse']:10.1f} mm^2 ({seconds:.1f} s)")
+        rows += level_rows
+        search_rows += level_search
     summary = _summary(rows, search_rows, paths, n, (width, height), clean.shape[1:], quick)
     files = {
         "csv": write_csv(out_dir / "noise.csv", rows, CSV_COLUMNS),
@@ -290,10 +241,101 @@ def run_noise(
     )
 
 
-_COLORS = (*PALETTE, (0, 0, 0), (200, 200, 0))
+def _noise_level(
+    sigma: float,
+    clip: tuple[np.ndarray, np.ndarray],
+    held_out: tuple[np.ndarray, np.ndarray],
+    *,
+    r: int,
+    n: int,
+    grid: Any,
+    methods: Sequence[str],
+    sisr_model: Any,
+    seed: int,
+    log: Logger,
+) -> tuple[list[dict[str, Any]], list[dict[str, Any]]]:
+    """One noise level of :func:`run_noise`: the deblurring search on the held-out clip, then
+    every method on the noisy clip. ``clip`` and ``held_out`` are (clean low-res, truth).
+
+    Returns
+    -------
+    (rows, search_rows)
+    """
+    clean, truth = clip
+    clean_h, truth_h = held_out
+    centre = (n - 1) // 2
+    rows: list[dict[str, Any]] = []
+    search_rows: list[dict[str, Any]] = []
+    sigma = float(sigma)
+    lowres = add_laplacian_noise(
+        clean, sigma, np.random.default_rng([seed, round(sigma * 1000), 0])
+    )
+    held = add_laplacian_noise(
+        clean_h, sigma, np.random.default_rng([seed, round(sigma * 1000), 1])
+    )
+    cache: dict[str, Any] = {}
+
+    def fused_video(lowres: np.ndarray = lowres, cache: dict[str, Any] = cache) -> np.ndarray:
+        if "fused" not in cache:
+            cache["fused"] = super_resolve(lowres, r, n, deblur=False)
+        return cache["fused"]  # type: ignore[no-any-return]
+
+    def flows(lowres: np.ndarray = lowres, cache: dict[str, Any] = cache) -> Any:
+        if "flows" not in cache:
+            cache["flows"] = baselines.upsampled_flows(lowres, r)
+        return cache["flows"]
+
+    best: DeblurConfig | None = None
+    if "upsr" in methods:
+        t0 = time.perf_counter()
+        fused_h = super_resolve(held, r, n, deblur=False)[centre]
+        best, srows = search_deblur(fused_h, truth_h[centre], r, grid)
+        for row in srows:
+            search_rows.append({"sigma": sigma, **row})
+        log(
+            f"sigma {sigma:g}: held-out search -> lam {best.lam:g}, smoothing "
+            f"{best.smooth_sigma_mm if best.smooth_sigma_mm is not None else 'off'} "
+            f"({time.perf_counter() - t0:.1f} s)"
+        )
+    runners: dict[str, Callable[[], np.ndarray]] = {
+        "nearest": lambda lowres=lowres: baselines.nearest(lowres, r),
+        "bicubic": lambda lowres=lowres: baselines.bicubic(lowres, r),
+        "bicubic_noflying": lambda lowres=lowres: baselines.bicubic_noflying(lowres, r),
+        "shift_add": lambda lowres=lowres: baselines.shift_add(lowres, r, n, flows=flows()),
+        "lidarboost": lambda lowres=lowres: baselines.lidarboost(lowres, r, n, flows=flows()),
+        "sisr": lambda lowres=lowres: baselines.patch_sisr(lowres, r, model=sisr_model),
+        "upsr_fused": fused_video,
+        "upsr": lambda best=best: _deblur_video(fused_video(), best, r),  # type: ignore[arg-type]
+        "upsr_default": lambda: _deblur_video(fused_video(), DeblurConfig(), r),
+    }
+    for method in METHODS:
+        if method not in methods:
+            continue
+        t0 = time.perf_counter()
+        estimate = runners[method]()
+        seconds = time.perf_counter() - t0
+        scores = evaluate(estimate, truth, r)
+        row: dict[str, Any] = {"method": method, "sigma": sigma}
+        row.update({k: float(scores[k]) for k in METRICS})
+        if method == "upsr" and best is not None:
+            row["deblur_lam"] = best.lam
+            row["deblur_smooth_mm"] = (
+                best.smooth_sigma_mm if best.smooth_sigma_mm is not None else "off"
+            )
+        elif method == "upsr_default":
+            d = DeblurConfig()
+            row["deblur_lam"] = d.lam
+            row["deblur_smooth_mm"] = d.smooth_sigma_mm
+        row["seconds"] = seconds
+        rows.append(row)
+        log(f"sigma {sigma:g}: {method:16s} mse {row['mse']:10.1f} mm^2 ({seconds:.1f} s)")
+    return rows, search_rows
 
 
-def _plot(rows: list[dict[str, Any]]) -> np.ndarray:
+_COLORS = (*PALETTE, "black", "tab:cyan")
+
+
+def _plot(rows: list[dict[str, Any]]) -> LinePlot:
     series = []
     for k, method in enumerate(dict.fromkeys(row["method"] for row in rows)):
         mine = [row for row in rows if row["method"] == method]
@@ -314,8 +356,8 @@ def _plot(rows: list[dict[str, Any]]) -> np.ndarray:
     return line_plot(
         series,
         title="Samba, r = 4, N = 9: MSE vs noise",
-        xlabel="noise sigma [mm]",
-        ylabel="MSE [mm^2]",
+        xlabel="noise σ [mm]",
+        ylabel="MSE [mm²]",
         log_y=True,
         ylim=ylim,
         size=(900, 640),

@@ -20,7 +20,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from upsr.errors import InputError
-from upsr.io import _core as io
+from upsr.io import video as io
 
 T, H, W = 5, 12, 16
 

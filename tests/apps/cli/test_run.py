@@ -1,80 +1,34 @@
-"""The ``upsr`` command line: success paths, every kind of bad input, exit codes, no debris."""
+"""``upsr run``: success paths, options, every kind of bad input, exit codes, no debris."""
 
 from __future__ import annotations
 
-import hashlib
+import json
 import os
-import signal
-import subprocess
-import sys
-import types
-from collections.abc import Callable, Iterator
+from collections.abc import Callable
 from pathlib import Path
 
 import cv2
 import numpy as np
 import pytest
-from typer.testing import CliRunner
 
 import upsr
-from upsr.apps.cli import main as cli
+from tests.apps._util import (
+    H,
+    T,
+    W,
+    assert_user_error,
+    digest,
+    listing,
+    png_folder,
+    run_cli,
+    scene,
+    video,
+)
+from upsr.apps.cli.main import main
+from upsr.io import video as io
 from upsr.method import windowed as pipeline
 
-BIN = Path(sys.executable).parent / "upsr"
-T, H, W = 5, 12, 16
 
-
-def video(seed: int = 0, t: int = T, h: int = H, w: int = W) -> np.ndarray:
-    rng = np.random.default_rng(seed)
-    _yy, xx = np.mgrid[0:h, 0:w]
-    frames = []
-    for k in range(t):  # a foreground square moving right over a slanted background
-        d = 2000.0 + 10.0 * xx + rng.normal(0, 5, (h, w))
-        d[3:9, 2 + k : 8 + k] = 1000.0
-        frames.append(d)
-    return np.round(np.array(frames)).astype(np.float32)
-
-
-def png_folder(folder: Path, v: np.ndarray, dtype: type = np.uint16) -> Path:
-    folder.mkdir(parents=True, exist_ok=True)
-    for i, frame in enumerate(v):
-        ok, buf = cv2.imencode(".png", frame.astype(dtype))
-        assert ok
-        (folder / f"{i:03d}.png").write_bytes(buf.tobytes())
-    return folder
-
-
-def digest(path: Path) -> str:
-    h = hashlib.sha256()
-    for p in sorted([path] if path.is_file() else path.rglob("*")):
-        h.update(str(p.relative_to(path.parent)).encode())
-        if p.is_file():
-            h.update(p.read_bytes())
-    return h.hexdigest()
-
-
-def listing(folder: Path) -> list[str]:
-    return sorted(str(p.relative_to(folder)) for p in folder.rglob("*"))
-
-
-def run_cli(capsys: pytest.CaptureFixture[str], *args: object) -> tuple[int, str, str]:
-    rc = cli.main([str(a) for a in args])
-    out, err = capsys.readouterr()
-    return rc, out, err
-
-
-def assert_user_error(rc: int, out: str, err: str, match: str = "") -> None:
-    assert rc == 2, (rc, out, err)
-    lines = err.strip().splitlines()
-    assert len(lines) == 1, err
-    assert lines[0].startswith("upsr: error: "), err
-    assert "Traceback" not in err and out == ""
-    assert match.lower() in lines[0].lower(), (match, lines[0])
-
-
-# ---------------------------------------------------------------------------------------------
-# success paths
-# ---------------------------------------------------------------------------------------------
 @pytest.fixture(params=["npy", "npz", "png"])
 def video_input(request: pytest.FixtureRequest, tmp_path: Path) -> Path:
     v = video()
@@ -240,9 +194,6 @@ def test_progress_bar_on_stderr(capsys: pytest.CaptureFixture[str], tmp_path: Pa
     assert "frame" in err and len(out.strip().splitlines()) == 1
 
 
-# ---------------------------------------------------------------------------------------------
-# bad inputs: exit 2, one line on stderr, no traceback, no output
-# ---------------------------------------------------------------------------------------------
 def _npy(arr: np.ndarray) -> Callable[[Path], Path]:
     def make(d: Path) -> Path:
         np.save(d / "in.npy", arr, allow_pickle=arr.dtype == object)
@@ -364,6 +315,8 @@ BAD_INPUTS: dict[str, tuple[Callable[[Path], Path], str]] = {
     "nonexistent": (_missing, "no such file"),
     "unknown_suffix": (_wrong_suffix, "unknown input format"),
 }
+
+
 if os.geteuid() != 0:  # root can read anything
     BAD_INPUTS["unreadable"] = (_unreadable, "cannot read")
 
@@ -464,223 +417,6 @@ def test_output_is_input_or_exists(capsys: pytest.CaptureFixture[str], tmp_path:
     assert digest(tmp_path) == before
 
 
-def test_interrupt_leaves_no_output(
-    capsys: pytest.CaptureFixture[str], tmp_path: Path, monkeypatch: pytest.MonkeyPatch
-) -> None:
-    np.save(tmp_path / "in.npy", video())
-
-    def interrupted(self: object, frames: object) -> Iterator[np.ndarray]:
-        yield np.ones((2 * H, 2 * W), np.float32)
-        raise KeyboardInterrupt
-
-    monkeypatch.setattr(pipeline.UPSR, "process", interrupted)
-    rc, _out, err = run_cli(
-        capsys, "run", tmp_path / "in.npy", "-o", tmp_path / "new" / "o.npy", "-r", 2, "-n", 3, "-q"
-    )
-    assert rc == 130 and "interrupted" in err and "Traceback" not in err
-    assert listing(tmp_path) == ["in.npy"]
-
-
-def test_internal_error(
-    capsys: pytest.CaptureFixture[str], tmp_path: Path, monkeypatch: pytest.MonkeyPatch
-) -> None:
-    np.save(tmp_path / "in.npy", video())
-
-    def broken(self: object, frames: object) -> Iterator[np.ndarray]:
-        yield np.ones((2 * H, 2 * W), np.float32)
-        raise ZeroDivisionError("oops")
-
-    monkeypatch.setattr(pipeline.UPSR, "process", broken)
-    args = ["run", tmp_path / "in.npy", "-o", tmp_path / "o.npy", "-r", 2, "-n", 3, "-q"]
-    rc, _, err = run_cli(capsys, *args)
-    assert rc == 1
-    assert err.strip() == (
-        "upsr: internal error: ZeroDivisionError: oops (rerun with --debug for a traceback)"
-    )
-    assert listing(tmp_path) == ["in.npy"]
-    rc, _, err = run_cli(capsys, "--debug", *args)
-    assert rc == 1 and "Traceback" in err and "ZeroDivisionError" in err
-    rc, _out, err = run_cli(
-        capsys, "--debug", "run", tmp_path / "nothere.npy", "-o", tmp_path / "o.npy", "-r", 2
-    )
-    assert rc == 2 and "Traceback" in err and err.strip().endswith("no such file or folder")
-
-
-def test_warnings_are_one_line(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
-    np.save(tmp_path / "in.npy", video() * 40)  # up to ~100 m: does not fit 16-bit mm PNGs
-    rc, _out, err = run_cli(
-        capsys,
-        "run",
-        tmp_path / "in.npy",
-        "-o",
-        tmp_path / "o",
-        "-r",
-        1,
-        "-n",
-        1,
-        "--no-deblur",
-        "-q",
-    )
-    assert rc == 0
-    assert err.startswith("upsr: warning: ") and "clipped" in err
-    assert len(err.strip().splitlines()) == 1
-
-
-# ---------------------------------------------------------------------------------------------
-# help, version, demo
-# ---------------------------------------------------------------------------------------------
-def test_help_texts() -> None:
-    runner = CliRunner()
-    res = runner.invoke(cli.app, ["run", "--help"])
-    assert res.exit_code == 0
-    text = " ".join(res.output.split())
-    for needle in (
-        "--scale",
-        "--frames",
-        "[default: 9, or all the frames of a shorter video]",
-        "mm",
-        "--depth-scale",
-        "TUM",
-        "5000",
-        "--no-deblur",
-        "--overwrite",
-        "Examples:",
-        "upsr run video.npy",
-    ):
-        assert needle in text, needle
-    res = runner.invoke(cli.app, ["--help"])
-    assert res.exit_code == 0 and "run" in res.output and "demo" in res.output
-    res = runner.invoke(cli.app, ["demo", "--help"])
-    assert res.exit_code == 0 and "--seed" in res.output
-
-
-def test_no_arguments_prints_help(capsys: pytest.CaptureFixture[str]) -> None:
-    rc, out, _err = run_cli(capsys)
-    assert rc == 0 and "Usage" in out and "run" in out
-
-
-def test_version(capsys: pytest.CaptureFixture[str]) -> None:
-    rc, out, _ = run_cli(capsys, "--version")
-    assert rc == 0 and out.strip() == f"upsr {upsr.__version__}"
-
-
-def test_demo_command(
-    capsys: pytest.CaptureFixture[str], tmp_path: Path, monkeypatch: pytest.MonkeyPatch
-) -> None:
-    try:
-        import upsr.apps.demo as demo_module
-    except ImportError:  # being written by someone else: stand in for it
-        demo_module = types.ModuleType("upsr.apps.demo")
-        monkeypatch.setitem(sys.modules, "upsr.apps.demo", demo_module)
-        monkeypatch.setattr(upsr, "demo", demo_module, raising=False)
-    calls = {}
-
-    def run_demo(out_dir: Path, *, seed: int = 0, progress: bool = True) -> dict:
-        calls.update(out_dir=Path(out_dir), seed=seed, progress=progress)
-        return {"upsr": {"rmse": 1.0}}
-
-    monkeypatch.setattr(demo_module, "run_demo", run_demo, raising=False)
-    monkeypatch.setattr(
-        demo_module, "format_metrics_table", lambda m: f"TABLE {sorted(m)}", raising=False
-    )
-    rc, out, err = run_cli(capsys, "demo", "--out", tmp_path / "d", "--seed", 3, "-q")
-    assert rc == 0, err
-    assert calls == {"out_dir": tmp_path / "d", "seed": 3, "progress": False}
-    assert "TABLE ['upsr']" in out and str(tmp_path / "d") in out
-
-
-# ---------------------------------------------------------------------------------------------
-# the installed console script, in a real process
-# ---------------------------------------------------------------------------------------------
-def _proc(*args: object, **kw: object) -> subprocess.CompletedProcess[str]:
-    return subprocess.run(
-        [str(BIN), *map(str, args)], capture_output=True, text=True, timeout=300, **kw
-    )  # type: ignore[call-overload]
-
-
-@pytest.mark.skipif(not BIN.exists(), reason="console script not installed")
-def test_console_script_success_and_errors(tmp_path: Path) -> None:
-    np.save(tmp_path / "in.npy", video())
-    p = _proc("run", tmp_path / "in.npy", "-o", tmp_path / "o.npz", "-r", 2, "-n", 3)
-    assert p.returncode == 0, p.stderr
-    assert len(p.stdout.strip().splitlines()) == 1 and "frames/s" in p.stdout
-    assert np.load(tmp_path / "o.npz")["depth"].shape == (T, 2 * H, 2 * W)
-
-    np.save(tmp_path / "bad.npy", video().astype(object), allow_pickle=True)
-    p = _proc("run", tmp_path / "bad.npy", "-o", tmp_path / "o2.npy", "-r", 2, "-n", 3)
-    assert p.returncode == 2 and p.stdout == ""
-    assert p.stderr.strip().splitlines() == [
-        f"upsr: error: {tmp_path / 'bad.npy'}: object arrays are refused (they would need "
-        f"unpickling); save depth as a numeric array"
-    ]
-    p = _proc("run", tmp_path / "in.npy", "-o", tmp_path / "o3.npy", "--scale", "0")
-    assert p.returncode == 2 and len(p.stderr.strip().splitlines()) == 1
-    p = _proc("--version")
-    assert p.returncode == 0 and p.stdout.strip() == f"upsr {upsr.__version__}"
-    assert sorted(x.name for x in tmp_path.iterdir()) == ["bad.npy", "in.npy", "o.npz"]
-
-
-_SLOW_RUN = """
-import signal, sys, time
-import numpy as np
-from upsr.apps.cli import main as cli
-from upsr.method import windowed
-
-# the test sends SIGINT: give the child Python's own handler whatever the parent inherited
-signal.signal(signal.SIGINT, signal.default_int_handler)
-signal.signal(signal.SIGTERM, signal.SIG_DFL)
-
-def slow(self, frames):
-    for f in frames:
-        time.sleep(0.3)
-        print("frame", flush=True, file=sys.stderr)
-        yield np.repeat(np.repeat(f, 2, 0), 2, 1)
-
-windowed.UPSR.process = slow
-sys.exit(cli.main(sys.argv[1:]))
-"""
-
-
-@pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM], ids=["SIGINT", "SIGTERM"])
-def test_signal_leaves_no_output(tmp_path: Path, sig: int) -> None:
-    np.save(tmp_path / "in.npy", np.ones((40, H, W), np.float32))
-    proc = subprocess.Popen(
-        [
-            sys.executable,
-            "-c",
-            _SLOW_RUN,
-            "run",
-            str(tmp_path / "in.npy"),
-            "-o",
-            str(tmp_path / "out" / "o.npy"),
-            "-r",
-            "2",
-            "-n",
-            "3",
-            "-q",
-        ],
-        stderr=subprocess.PIPE,
-        stdout=subprocess.PIPE,
-        text=True,
-    )
-    assert proc.stderr is not None
-    seen = 0
-    while seen < 2:  # wait until it is writing
-        line = proc.stderr.readline()
-        assert line, "the child exited early"
-        seen += line.strip() == "frame"
-    assert (tmp_path / "out").exists()
-    proc.send_signal(sig)
-    try:
-        _, err = proc.communicate(timeout=60)
-    finally:
-        proc.kill()
-    assert proc.returncode == (130 if sig == signal.SIGINT else 143), err
-    assert ("interrupted" if sig == signal.SIGINT else "terminated") in err
-    assert "Traceback" not in err
-    assert listing(tmp_path) == ["in.npy"]
-
-
 def test_default_window_shrinks_to_a_short_video_but_explicit_n_does_not(
     capsys: pytest.CaptureFixture[str], tmp_path: Path
 ) -> None:
@@ -694,3 +430,37 @@ def test_default_window_shrinks_to_a_short_video_but_explicit_n_does_not(
     rc, stdout, err = run_cli(capsys, "run", src, "-o", tmp_path / "o2.npy", "-r", 2, "-n", 9)
     assert_user_error(rc, stdout, err, "N=9 > 4 frames")
     assert not (tmp_path / "o2.npy").exists()
+
+
+def test_run_writes_scaled_intrinsics(tmp_path: Path) -> None:
+    np.save(tmp_path / "in.npy", scene())
+    args = ["run", str(tmp_path / "in.npy"), "-o", str(tmp_path / "out.npy"), "-r", "2", "-q"]
+    assert main([*args, "-n", "3", "--intrinsics", "20,21,7.5,5.5"]) == 0
+    d = json.loads((tmp_path / "out.npy.intrinsics.json").read_text())
+    assert (d["fx"], d["fy"], d["cx"], d["cy"], d["width"], d["height"]) == (
+        40,
+        42,
+        15.5,
+        11.5,
+        32,
+        24,
+    )
+    assert d["scale"] == 2 and d["input"]["cx"] == 7.5
+    # the output's intrinsics are found next to it by the next command
+    assert io.read_intrinsics(tmp_path / "out.npy").fx == 40
+    assert main([*args, "--overwrite", "--intrinsics", "1,2"]) == 2  # bad, nothing written
+    assert (tmp_path / "out.npy.intrinsics.json").exists()
+
+
+def test_run_bag_intrinsics(tmp_path: Path) -> None:
+    pytest.importorskip("rosbags")
+    from tests.io import bagtools
+
+    bag = bagtools.ros1_bag(
+        tmp_path / "r.bag", scene(h=6, w=8).astype(np.uint16), k=bagtools.K_DEFAULT
+    )
+    out = tmp_path / "o"
+    assert main(["run", str(bag), "-o", str(out), "-r", "2", "-n", "3", "-q"]) == 0
+    assert io.probe(out).shape == (3, 12, 16)
+    d = json.loads((tmp_path / "o.intrinsics.json").read_text())
+    assert (d["fx"], d["cx"], d["cy"]) == (1000, 7.5, 5.5)

@@ -1,4 +1,4 @@
-"""Single-frame baselines of paper §7: nearest, naive bicubic and patch-based SISR."""
+"""Patch-based single-image SR after Mac Aodha et al. 2012 (upsr.research.baselines.learned)."""
 
 from __future__ import annotations
 
@@ -6,89 +6,43 @@ import numpy as np
 import pytest
 
 from upsr.errors import InputError
-from upsr.method.upsampling import upsample_nearest
-from upsr.research.baselines import PatchSISR, bicubic, nearest, patch_sisr, train_patch_sisr
-
-FG, BG = 1000.0, 2500.0
-
-
-def step_video(t: int = 2, h: int = 8, w: int = 10) -> np.ndarray:
-    v = np.full((t, h, w), BG, np.float32)
-    v[:, :, : w // 2] = FG
-    return v
-
-
-@pytest.mark.parametrize("method", [nearest, bicubic])
-def test_shapes_and_dtype(method):
-    v = step_video()
-    out = method(v, 3)
-    assert out.shape == (2, 24, 30) and out.dtype == np.float32
-    single = method(v[0].astype(np.float64), 3)
-    assert single.shape == (24, 30) and single.dtype == np.float32
-    np.testing.assert_allclose(single, out[0])
-    np.testing.assert_array_equal(method(v, 1), v)
+from upsr.geometry.camera import PinholeCamera
+from upsr.geometry.rendering import render_depth
+from upsr.research import metrics
+from upsr.research.baselines import (
+    PatchSISR,
+    nearest,
+    patch_sisr,
+    train_patch_sisr,
+)
+from upsr.research.synth import dynamic_scene
+from upsr.research.synth.degradation import add_laplacian_noise
 
 
-@pytest.mark.parametrize("method", [nearest, bicubic])
-def test_constant_image_preserved(method):
-    v = np.full((2, 7, 9), 1234.5, np.float32)
-    np.testing.assert_allclose(method(v, 4), 1234.5, rtol=1e-6)
+def _box(centre, size, angle):
+    corners = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)], float)
+    ca, sa = np.cos(angle), np.sin(angle)
+    rot = np.array([[ca, 0, sa], [0, 1, 0], [-sa, 0, ca]])
+    faces = np.array(
+        "0 1 3 0 3 2 4 6 7 4 7 5 0 4 5 0 5 1 2 3 7 2 7 6 0 2 6 0 6 4 1 5 7 1 7 3".split(), int
+    ).reshape(-1, 3)
+    return (corners * 0.5 * np.asarray(size)) @ rot.T + np.asarray(centre), faces
 
 
-def test_nearest_is_dense_upsampling():
-    rng = np.random.default_rng(0)
-    v = rng.uniform(500, 3000, (3, 5, 6)).astype(np.float32)
-    v[0, 1, 1] = 0.0
-    np.testing.assert_array_equal(nearest(v, 4), upsample_nearest(v, 4))
-
-
-def test_bicubic_creates_flying_pixels_nearest_does_not():
-    v = step_video()
-
-    def between(a):
-        return (a > FG + 150) & (a < BG - 150)
-
-    assert between(bicubic(v, 4)).any()
-    assert not between(nearest(v, 4)).any()
-    # nearest creates no new values at all
-    assert set(np.unique(nearest(v, 4))) == {FG, BG}
-
-
-def test_bicubic_uses_half_pixel_geometry():
-    # SPEC §1: low-res pixel j sits at high-res coordinate (j + 0.5)·r − 0.5.
-    row = np.full((5, 12), 1000.0, np.float32)
-    row[:, 5] = 2000.0
-    out4 = bicubic(row, 4)[8]  # an impulse at j = 5 is centred at 21.5 for r = 4
-    np.testing.assert_allclose(out4[21 - np.arange(8)], out4[22 + np.arange(8)], rtol=1e-6)
-    out3 = bicubic(row, 3)[7]  # ... and exactly on high-res pixel 16 for r = 3
-    assert out3.argmax() == 16 and out3[16] == pytest.approx(2000.0)
-    np.testing.assert_allclose(out3[16 - np.arange(6)], out3[16 + np.arange(6)], rtol=1e-6)
-
-
-def test_bicubic_interpolates_holes_as_zero_and_clips_negative():
-    v = np.full((1, 9, 9), 2000.0, np.float32)
-    v[0, 4, 4] = 0.0  # a hole
-    v[0, 0, :3] = np.nan  # NaN is a hole too
-    out = bicubic(v, 4)
-    assert (out >= 0).all()
-    # the naive interpolation pulls the neighbourhood of the hole towards 0 ...
-    assert out[0, 17:19, 17:19].max() < 500.0
-    assert ((out > 100) & (out < 1800)).any()
-    # ... while nearest keeps the hole exactly the size of one low-res pixel
-    n = nearest(v, 4)
-    assert (n[0, 16:20, 16:20] == 0).all() and (n == 0).sum() == 16 * 4
-
-
-@pytest.mark.parametrize("method", [nearest, bicubic])
-def test_bad_input_raises(method):
-    with pytest.raises(InputError, match="scale"):
-        method(step_video(), 0)
-    with pytest.raises(InputError, match="scale"):
-        method(step_video(), 2.0)
-    with pytest.raises(InputError, match="shape"):
-        method(np.ones((2, 2, 2, 2)), 2)
-    with pytest.raises(InputError, match="negative"):
-        method(-step_video(), 2)
+def _planar_scene(r: int):
+    """A held-out piecewise-planar scene (three boxes before a slanted wall): (low-res, truth)."""
+    cam = PinholeCamera.from_fov(40, 32, 55.0)
+    parts = [
+        _box((-0.35, 0.1, 1.8), (0.5, 0.7, 0.4), 0.5),
+        _box((0.4, -0.15, 2.3), (0.6, 0.4, 0.5), -0.3),
+        _box((0.05, 0.35, 1.4), (0.3, 0.2, 0.3), 0.9),
+    ]
+    verts = np.concatenate([p[0] for p in parts])
+    faces = np.concatenate([p[1] + 8 * i for i, p in enumerate(parts)])
+    wall = (np.array([0.2, -0.1, 1.0]), 3000.0)
+    lr = render_depth(verts, faces, cam, background_mm=wall)
+    hr = render_depth(verts, faces, cam.scaled(r), background_mm=wall)
+    return lr, hr
 
 
 # ----------------------------------------------------------------------------------- patch SISR
@@ -192,3 +146,50 @@ def test_patch_sisr_bad_guard_parameters(small_model):
         PatchSISR(4, lo, hi, guard_connect_mm=float("nan"))
     with pytest.raises(InputError, match="guard_margin_mm"):
         train_patch_sisr(4, n_examples=10, guard_margin_mm=float("inf"))
+
+
+# ----------------------------------------------------------------------------------- patch SISR
+@pytest.fixture(scope="module")
+def model():
+    return train_patch_sisr(4, n_examples=30000, seed=0)
+
+
+def test_patch_sisr_shape_and_determinism(model):
+    assert isinstance(model, PatchSISR) and model.scale == 4 and model.n_examples == 30000
+    again = train_patch_sisr(4, n_examples=30000, seed=0)
+    np.testing.assert_array_equal(again.lowres_patches, model.lowres_patches)
+    np.testing.assert_array_equal(again.highres_patches, model.highres_patches)
+    other = train_patch_sisr(4, n_examples=30000, seed=1)
+    assert not np.array_equal(other.lowres_patches, model.lowres_patches)
+    v = dynamic_scene(n_frames=2, lowres_shape=(12, 16), scale=4, noise_sigma_mm=10, seed=0)
+    out = patch_sisr(v.lowres, 4, model=model)
+    assert out.shape == (2, 48, 64) and out.dtype == np.float32
+    np.testing.assert_array_equal(out, patch_sisr(v.lowres, 4, model=again))
+    np.testing.assert_array_equal(out[1], model(v.lowres[1]))
+    with pytest.raises(InputError, match="r = 4"):
+        patch_sisr(v.lowres, 2, model=model)
+
+
+def test_patch_sisr_beats_nearest_on_a_held_out_planar_scene(model):
+    lr, truth = _planar_scene(4)
+    for sigma in (0.0, 20.0):
+        x = add_laplacian_noise(lr, sigma, np.random.default_rng(1))
+        m_ps = metrics.evaluate(patch_sisr(x, 4, model=model), truth, 4)
+        m_nn = metrics.evaluate(nearest(x, 4), truth, 4)
+        assert m_ps["surface_rmse"] < 0.7 * m_nn["surface_rmse"]
+        assert m_ps["rmse"] < m_nn["rmse"]
+        assert m_ps["flying_pixels"] < 0.02 and m_ps["missing"] == 0.0
+
+
+def test_patch_sisr_keeps_holes():
+    lr, _ = _planar_scene(2)
+    lr = lr.copy()
+    lr[10:14, 5:9] = 0.0
+    out = patch_sisr(lr, 2, model=train_patch_sisr(2, n_examples=5000, seed=0))
+    assert (out[20:28, 10:18] == 0).all()
+    assert ((out > 0) == (nearest(lr, 2) > 0)).all()
+
+
+def test_train_patch_sisr_bad_input():
+    with pytest.raises(InputError, match="n_examples"):
+        train_patch_sisr(2, n_examples=0)

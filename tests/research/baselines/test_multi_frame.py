@@ -1,6 +1,5 @@
-"""Baselines of paper §7 beyond nearest/bicubic: bicubic without flying pixels, dynamic Shift &
-Add (Farsiu et al. 2004), LidarBoost (Schuon et al. 2009), joint bilateral upsampling (Kopf et
-al. 2007) and patch-based single-image SR (after Mac Aodha et al. 2012)."""
+"""Multi-frame baselines of paper §7 (upsr.research.baselines.multi_frame): UP-SR's motion
+(upsampled_flows), dynamic Shift & Add (Farsiu et al. 2004) and LidarBoost (Schuon et al. 2009)."""
 
 from __future__ import annotations
 
@@ -10,19 +9,11 @@ import numpy as np
 import pytest
 
 from upsr.errors import InputError
-from upsr.geometry.camera import PinholeCamera
-from upsr.geometry.rendering import render_depth
 from upsr.research import metrics
 from upsr.research.baselines import (
-    PatchSISR,
-    bicubic,
-    bicubic_noflying,
-    joint_bilateral_upsampling,
     lidarboost,
     nearest,
-    patch_sisr,
     shift_add,
-    train_patch_sisr,
     upsampled_flows,
 )
 from upsr.research.synth import dynamic_scene
@@ -69,67 +60,6 @@ def static_shifted():
 @pytest.fixture(scope="module")
 def noisy_video():
     return dynamic_scene(n_frames=5, lowres_shape=(20, 26), scale=4, noise_sigma_mm=30, seed=3)
-
-
-def _box(centre, size, angle):
-    corners = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)], float)
-    ca, sa = np.cos(angle), np.sin(angle)
-    rot = np.array([[ca, 0, sa], [0, 1, 0], [-sa, 0, ca]])
-    faces = np.array(
-        "0 1 3 0 3 2 4 6 7 4 7 5 0 4 5 0 5 1 2 3 7 2 7 6 0 2 6 0 6 4 1 5 7 1 7 3".split(), int
-    ).reshape(-1, 3)
-    return (corners * 0.5 * np.asarray(size)) @ rot.T + np.asarray(centre), faces
-
-
-def _planar_scene(r: int):
-    """A held-out piecewise-planar scene (three boxes before a slanted wall): (low-res, truth)."""
-    cam = PinholeCamera.from_fov(40, 32, 55.0)
-    parts = [
-        _box((-0.35, 0.1, 1.8), (0.5, 0.7, 0.4), 0.5),
-        _box((0.4, -0.15, 2.3), (0.6, 0.4, 0.5), -0.3),
-        _box((0.05, 0.35, 1.4), (0.3, 0.2, 0.3), 0.9),
-    ]
-    verts = np.concatenate([p[0] for p in parts])
-    faces = np.concatenate([p[1] + 8 * i for i, p in enumerate(parts)])
-    wall = (np.array([0.2, -0.1, 1.0]), 3000.0)
-    lr = render_depth(verts, faces, cam, background_mm=wall)
-    hr = render_depth(verts, faces, cam.scaled(r), background_mm=wall)
-    return lr, hr
-
-
-# ------------------------------------------------------------------------ bicubic, no flying
-def test_noflying_removes_the_flying_pixels_of_bicubic():
-    clean = dynamic_scene(n_frames=2, lowres_shape=(24, 32), scale=4, noise_sigma_mm=0, seed=1)
-    assert metrics.flying_pixels(bicubic(clean.lowres, 4), clean.truth, 4) > 0.05
-    out = bicubic_noflying(clean.lowres, 4)
-    assert out.shape == clean.truth.shape and out.dtype == np.float32
-    assert metrics.flying_pixels(out, clean.truth, 4) == 0.0
-    # only edge pixels go: the surfaces keep their bicubic values
-    assert metrics.missing(out, clean.truth) < 0.08
-    kept = out > 0
-    np.testing.assert_array_equal(out[kept], bicubic(clean.lowres, 4)[kept])
-    noisy = dynamic_scene(n_frames=2, lowres_shape=(24, 32), scale=4, noise_sigma_mm=30, seed=1)
-    fly_bicubic = metrics.flying_pixels(bicubic(noisy.lowres, 4), noisy.truth, 4)
-    assert metrics.flying_pixels(bicubic_noflying(noisy.lowres, 4), noisy.truth, 4) < (
-        0.1 * fly_bicubic
-    )
-
-
-def test_noflying_threshold_rule():
-    step = np.full((6, 8), 2500.0, np.float32)
-    step[:, :4] = 1000.0
-    b = bicubic(step, 4)
-    out = bicubic_noflying(step, 4, threshold_mm=100.0)
-    between = (b > 1100) & (b < 2400)
-    assert between.any() and (out[between] == 0).all()
-    kept = out[out > 0]
-    assert (np.minimum(np.abs(kept - 1000.0), np.abs(kept - 2500.0)) <= 100.0).all()
-    # a larger threshold keeps more, a constant image is kept whole
-    assert (bicubic_noflying(step, 4, threshold_mm=1000.0) > 0).sum() > (out > 0).sum()
-    const = np.full((5, 5), 1500.0, np.float32)
-    np.testing.assert_allclose(bicubic_noflying(const, 3), 1500.0, rtol=1e-6)
-    with pytest.raises(InputError, match="threshold"):
-        bicubic_noflying(step, 4, threshold_mm=0.0)
 
 
 # ------------------------------------------------------------------------------ Shift & Add
@@ -235,84 +165,6 @@ def test_lidarboost_without_regulariser_fits_the_samples():
     np.testing.assert_allclose(out, frame, atol=0.05)
 
 
-# ------------------------------------------------------------------------------------------ JBU
-@pytest.mark.parametrize("edge", [18, 21, 22, 23])
-def test_jbu_snaps_edges_to_the_guide(edge):
-    r, fg, bg = 4, 1000.0, 2500.0
-    cols = np.arange(12 * r)
-    lowres = np.where((np.arange(12) + 0.5) * r - 0.5 < edge, fg, bg)
-    lowres = np.repeat(lowres[None, :], 8, axis=0).astype(np.float32)
-    guide = np.where(cols < edge, 50, 200).astype(np.uint8)
-    guide = np.repeat(guide[None, :], 8 * r, axis=0)
-    out = joint_bilateral_upsampling(lowres, r, guide, sigma_spatial_px=4.0, sigma_range=10.0)
-    assert out.shape == (8 * r, 12 * r) and out.dtype == np.float32
-    np.testing.assert_allclose(out[:, :edge], fg, atol=1.0)
-    np.testing.assert_allclose(out[:, edge:], bg, atol=1.0)
-    # nearest upsampling puts the edge on the low-res block border instead
-    if edge % r:
-        assert np.abs(nearest(lowres, r) - np.where(cols < edge, fg, bg)).max() > 1000
-    # without a guide edge, the depth edge is blurred (weighted average across it)
-    flat = joint_bilateral_upsampling(lowres, r, np.zeros_like(guide), sigma_spatial_px=4.0)
-    assert ((flat > fg + 150) & (flat < bg - 150)).any()
-
-
-def test_jbu_invalid_samples_have_no_weight_and_video_works():
-    lowres = np.full((2, 6, 6), 2000.0, np.float32)
-    lowres[0, 3, 3] = 0.0
-    lowres[1] = 0.0
-    guide = np.random.default_rng(0).uniform(0, 1, (2, 18, 18, 3))
-    out = joint_bilateral_upsampling(lowres, 3, guide)
-    assert out.shape == (2, 18, 18)
-    np.testing.assert_allclose(out[0], 2000.0, rtol=1e-6)  # the hole is not pulled to 0
-    assert (out[1] == 0).all()  # nothing valid: unknown
-    with pytest.raises(InputError, match="guide"):
-        joint_bilateral_upsampling(lowres[0], 3, guide[0, :17])
-    with pytest.raises(InputError, match="2 guide images"):
-        joint_bilateral_upsampling(lowres, 3, guide[0, ..., 0])
-
-
-# ----------------------------------------------------------------------------------- patch SISR
-@pytest.fixture(scope="module")
-def model():
-    return train_patch_sisr(4, n_examples=30000, seed=0)
-
-
-def test_patch_sisr_shape_and_determinism(model):
-    assert isinstance(model, PatchSISR) and model.scale == 4 and model.n_examples == 30000
-    again = train_patch_sisr(4, n_examples=30000, seed=0)
-    np.testing.assert_array_equal(again.lowres_patches, model.lowres_patches)
-    np.testing.assert_array_equal(again.highres_patches, model.highres_patches)
-    other = train_patch_sisr(4, n_examples=30000, seed=1)
-    assert not np.array_equal(other.lowres_patches, model.lowres_patches)
-    v = dynamic_scene(n_frames=2, lowres_shape=(12, 16), scale=4, noise_sigma_mm=10, seed=0)
-    out = patch_sisr(v.lowres, 4, model=model)
-    assert out.shape == (2, 48, 64) and out.dtype == np.float32
-    np.testing.assert_array_equal(out, patch_sisr(v.lowres, 4, model=again))
-    np.testing.assert_array_equal(out[1], model(v.lowres[1]))
-    with pytest.raises(InputError, match="r = 4"):
-        patch_sisr(v.lowres, 2, model=model)
-
-
-def test_patch_sisr_beats_nearest_on_a_held_out_planar_scene(model):
-    lr, truth = _planar_scene(4)
-    for sigma in (0.0, 20.0):
-        x = add_laplacian_noise(lr, sigma, np.random.default_rng(1))
-        m_ps = metrics.evaluate(patch_sisr(x, 4, model=model), truth, 4)
-        m_nn = metrics.evaluate(nearest(x, 4), truth, 4)
-        assert m_ps["surface_rmse"] < 0.7 * m_nn["surface_rmse"]
-        assert m_ps["rmse"] < m_nn["rmse"]
-        assert m_ps["flying_pixels"] < 0.02 and m_ps["missing"] == 0.0
-
-
-def test_patch_sisr_keeps_holes():
-    lr, _ = _planar_scene(2)
-    lr = lr.copy()
-    lr[10:14, 5:9] = 0.0
-    out = patch_sisr(lr, 2, model=train_patch_sisr(2, n_examples=5000, seed=0))
-    assert (out[20:28, 10:18] == 0).all()
-    assert ((out > 0) == (nearest(lr, 2) > 0)).all()
-
-
 # ----------------------------------------------------------------------------------- bad input
 def test_multiframe_bad_input():
     video = np.full((3, 6, 6), 1500.0, np.float32)
@@ -327,5 +179,20 @@ def test_multiframe_bad_input():
         lidarboost(video, 2, lam=-1.0)
     with pytest.raises(InputError, match="scale"):
         shift_add(video, 0)
-    with pytest.raises(InputError, match="n_examples"):
-        train_patch_sisr(2, n_examples=0)
+
+
+def test_upsampled_flows_are_the_engines_consecutive_flows():
+    """The baselines' motion is UP-SR's own (one motion front-end): with the flow grid at r the
+    engine's consecutive flows, to the bit (range and noise fixed from the first window)."""
+    from upsr.method.config import UPSRConfig
+    from upsr.method.windowed import UPSR
+
+    scene = dynamic_scene(n_frames=6, lowres_shape=(16, 20), scale=3, noise_sigma_mm=20, seed=3)
+    cfg = UPSRConfig(scale=3, n_frames=5, flow_scale=3)
+    fwd, bwd = upsampled_flows(scene.lowres, 3, config=cfg)
+    engine = UPSR(config=cfg, workers=0)
+    for f in scene.lowres:
+        engine._ingest(f)  # the per-frame work only: every consecutive flow of the video
+    for k in range(len(scene.lowres) - 1):
+        np.testing.assert_array_equal(fwd[k], engine._fwd[k])
+        np.testing.assert_array_equal(bwd[k], engine._bwd[k + 1])

@@ -1,0 +1,51 @@
+"""The camera (intrinsics) of an input video: one look-up for every command.
+
+``--intrinsics FX,FY,CX,CY`` when given, else the intrinsics the input carries (a bag's
+``sensor_msgs/CameraInfo``, RealSense's camera info, or an ``INPUT.intrinsics.json``), else
+none. Used by ``upsr run``, ``upsr view``, ``upsr export-ply`` and
+:func:`upsr.apps.batch.run_batch`.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+from upsr.errors import InputError
+
+__all__ = ["input_camera"]
+
+
+def input_camera(
+    path: Path, info: Any, intrinsics: str | None, *, fmt: str | None, topic: str | None
+) -> Any:
+    """The :class:`~upsr.geometry.camera.PinholeCamera` of the video at ``path``, or None.
+
+    Parameters
+    ----------
+    path : pathlib.Path
+        The input video.
+    info : upsr.io.VideoInfo
+        What :func:`upsr.io.probe` found (``width``, ``height`` in px).
+    intrinsics : str or None
+        ``"fx,fy,cx,cy"`` in px (``--intrinsics``); it wins over what the input carries.
+    fmt, topic : str or None
+        Read options of the input (``--input-format``, ``--topic``).
+
+    Raises
+    ------
+    InputError
+        Bad ``intrinsics``, or carried intrinsics made for another image size.
+    """
+    from upsr.geometry.intrinsics import parse_intrinsics
+    from upsr.io import video as io
+
+    if intrinsics is not None:
+        return parse_intrinsics(intrinsics, info.width, info.height)
+    cam = io.read_intrinsics(path, fmt=fmt, topic=topic)
+    if cam is not None and cam.shape != (info.height, info.width):
+        raise InputError(
+            f"{path}: its intrinsics are for {cam.width}x{cam.height} images, the frames are "
+            f"{info.width}x{info.height}"
+        )
+    return cam

@@ -1,0 +1,250 @@
+"""What every depth format shares: :class:`VideoInfo`, the reader/writer protocols and checks.
+
+Each format module of :mod:`upsr.io` (``npy``, ``npz``, ``png``, ``tiff``, ``exr``, ``rosbag``,
+``datasets``) implements :class:`FormatReader`; the writable ones (``npy``, ``npz``, ``png``,
+``tiff``, ``exr``) also implement :class:`FormatWriter`, whose ``FrameSink`` has the one
+constructor signature of :class:`FrameSink`. :mod:`upsr.io.video` dispatches to them through
+:mod:`upsr.io.registry`.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import math
+import os
+import re
+from collections.abc import Iterator
+from dataclasses import dataclass
+from pathlib import Path
+from typing import TYPE_CHECKING, Any, BinaryIO, Protocol
+
+import numpy as np
+
+from upsr.errors import InputError
+
+if TYPE_CHECKING:
+    from upsr.io.registry import ReadOptions
+
+__all__ = [
+    "FORMATS",
+    "MAX_FRAME_PIXELS",
+    "WRITE_FORMATS",
+    "FormatReader",
+    "FormatWriter",
+    "FrameSink",
+    "PathLike",
+    "VideoInfo",
+    "check_array_meta",
+    "check_depth_scale",
+    "check_fmt",
+    "check_frame_range",
+    "natural_key",
+    "reading",
+]
+
+PathLike = str | os.PathLike
+
+#: Container formats understood by the readers (see :mod:`upsr.io.registry`).
+FORMATS = ("npy", "npz", "png", "tiff", "exr", "rosbag", "nyu", "pgm", "tum", "sun")
+#: Formats the writer can produce.
+WRITE_FORMATS = ("npy", "npz", "png", "tiff", "exr")
+
+#: Largest frame accepted (pixels): guards against decompression bombs and absurd headers.
+MAX_FRAME_PIXELS = 1 << 28
+
+
+@dataclass(frozen=True)
+class VideoInfo:
+    """What :func:`upsr.io.probe` learns about a depth video without reading its frames.
+
+    Attributes
+    ----------
+    n_frames, height, width : int
+        T, h, w.
+    dtype : numpy.dtype
+        Stored element type (``uint16`` for PNG frames).
+    format : str
+        Container format (one of :data:`FORMATS`).
+    key : str or None
+        The ``.npz`` member (or EXR channel) read (None for other formats).
+    topic : str or None
+        The ROS bag topic read (None for other formats).
+    """
+
+    n_frames: int
+    height: int
+    width: int
+    dtype: np.dtype
+    format: str
+    key: str | None = None
+    topic: str | None = None
+
+    @property
+    def shape(self) -> tuple[int, int, int]:
+        """(T, h, w)."""
+        return (self.n_frames, self.height, self.width)
+
+
+class FormatReader(Protocol):
+    """A readable format module (``upsr.io.npy``, ``upsr.io.tiff``, …)."""
+
+    def probe(self, path: Path, opts: ReadOptions, fmt: str) -> VideoInfo:
+        """Validate the container cheaply (headers only) and describe it."""
+        ...
+
+    def frames(
+        self, path: Path, opts: ReadOptions, fmt: str, start: int = 0, stop: int | None = None
+    ) -> Iterator[np.ndarray]:
+        """Frames ``start`` to ``stop - 1`` (float32 (h, w) mm), skipping what comes before
+        ``start`` as cheaply as the format allows. The range is checked by the caller."""
+        ...
+
+
+class FrameSink(Protocol):
+    """Streams the frames of one output into a temporary file or folder.
+
+    Every writable format's ``FrameSink`` is built as
+    ``FrameSink(dest, temp, fh, shape_px=(h, w), depth_scale=…, n_frames=…)``:
+
+    dest : pathlib.Path
+        The final output (for messages).
+    temp : pathlib.Path
+        The temporary file or folder (``writes_folder(dest)``) that :class:`upsr.io.VideoWriter`
+        renames to ``dest`` once :meth:`close` returns.
+    fh : binary file or None
+        An open handle of a temporary file (None for a folder); the sink closes it.
+    shape_px : (int, int)
+        (h, w) of every frame.
+    depth_scale : float
+        Raw units per metre of formats storing raw numbers (see :class:`upsr.io.VideoWriter`).
+    n_frames : int or None
+        Frames announced (None: unknown).
+    """
+
+    def write(self, frame_mm: np.ndarray, t: int) -> None:
+        """Append frame ``t`` (float32 (h, w) mm, 0 = no measurement)."""
+        ...
+
+    def close(self) -> None:
+        """Finish the temporary (complete and synced to disk)."""
+        ...
+
+    def abort(self) -> None:
+        """Stop writing; the caller removes the temporary."""
+        ...
+
+
+class FormatWriter(Protocol):
+    """A writable format module."""
+
+    def writes_folder(self, dest: Path) -> bool:
+        """Whether the output at ``dest`` is a folder of frame files."""
+        ...
+
+    def FrameSink(  # the class of the module, called as a constructor
+        self,
+        dest: Path,
+        temp: Path,
+        fh: BinaryIO | None,
+        *,
+        shape_px: tuple[int, int],
+        depth_scale: float,
+        n_frames: int | None,
+    ) -> FrameSink:
+        """Open a sink (see :class:`FrameSink`)."""
+        ...
+
+
+def check_fmt(fmt: str) -> str:
+    """``fmt`` normalised (lower case, no dot); InputError if not one of :data:`FORMATS`."""
+    f = str(fmt).lower().lstrip(".")
+    if f not in FORMATS:
+        raise InputError(f"unknown format {fmt!r} (expected one of: {', '.join(FORMATS)})")
+    return f
+
+
+def check_depth_scale(depth_scale: float) -> float:
+    """``depth_scale`` (raw units per metre) as a finite float > 0, else InputError."""
+    try:
+        s = float(depth_scale)
+    except (TypeError, ValueError):
+        raise InputError(f"depth_scale must be a number, got {depth_scale!r}") from None
+    if not (math.isfinite(s) and s > 0):
+        raise InputError(
+            f"depth_scale must be a finite number > 0 (raw units per metre), got {depth_scale!r}"
+        )
+    return s
+
+
+def check_frame_range(start: Any, stop: Any, n_frames: int, name: str) -> tuple[int, int]:
+    """``(start, stop)`` of a frame range of a video of ``n_frames`` frames, checked.
+
+    Parameters
+    ----------
+    start : int
+        First frame read, ``0 <= start < n_frames``.
+    stop : int or None
+        One past the last frame read, ``start < stop <= n_frames``; None: ``n_frames``.
+    n_frames : int
+        T, frames of the video.
+    name : str
+        The video, for messages.
+
+    Raises
+    ------
+    InputError
+        Not integers, or an empty range or one beyond the video.
+    """
+    for label, v in (("start", start), ("stop", stop)):
+        if v is not None and (isinstance(v, bool) or not isinstance(v, (int, np.integer))):
+            raise InputError(f"{label} must be an integer frame index, got {v!r}")
+    first = int(start)
+    last = n_frames if stop is None else int(stop)
+    if first < 0 or last > n_frames or first >= last:
+        raise InputError(
+            f"{name}: frames [{first}, {last}) are not a non-empty range of the "
+            f"{n_frames} frame(s) of the video (0 <= start < stop <= {n_frames})"
+        )
+    return first, last
+
+
+def natural_key(name: str) -> tuple[Any, ...]:
+    """Sort key of file names in natural order (``frame2`` before ``frame10``)."""
+    # re.split with a capturing group alternates text, digits, text, ...: same types compare
+    parts = re.split(r"([0-9]+)", name)
+    return (*(int(p) if i % 2 else p.casefold() for i, p in enumerate(parts)), name)
+
+
+@contextlib.contextmanager
+def reading(name: str) -> Iterator[None]:
+    """Turn any failure of the parsing libraries into one readable InputError."""
+    try:
+        yield
+    except InputError:
+        raise
+    except OSError as e:
+        raise InputError(f"{name}: cannot read ({e.strerror or e})") from None
+    except Exception as e:  # zipfile/zlib/numpy header parsing: all the user's data
+        raise InputError(f"{name}: corrupt or unreadable ({type(e).__name__}: {e})") from None
+
+
+def check_array_meta(name: str, shape: tuple[int, ...], dtype: np.dtype) -> None:
+    """Refuse arrays that are not a non-empty numeric (T, h, w) video of sane frame size."""
+    if dtype.hasobject:
+        raise InputError(
+            f"{name}: object arrays are refused (they would need unpickling); "
+            f"save depth as a numeric array"
+        )
+    if dtype.kind not in "iuf":
+        raise InputError(
+            f"{name}: depth must be a numeric (integer or float) array, got dtype {dtype}"
+        )
+    if len(shape) != 3:
+        hint = " (a single frame? save it with shape (1, h, w))" if len(shape) == 2 else ""
+        raise InputError(
+            f"{name}: expected a depth video of shape (T, h, w), got shape {tuple(shape)}{hint}"
+        )
+    if 0 in shape:
+        raise InputError(f"{name}: empty depth video of shape {tuple(shape)}")
+    if shape[1] * shape[2] > MAX_FRAME_PIXELS:
+        raise InputError(f"{name}: frames of {shape[1]}x{shape[2]} pixels are too large")

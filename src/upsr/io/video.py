@@ -1,0 +1,615 @@
+"""Depth video input/output, streamed frame by frame: the entry points of :mod:`upsr.io`.
+
+:func:`probe`, :func:`iter_frames` (a whole video or a frame range ``start``/``stop``),
+:func:`read_video` and :class:`VideoWriter` choose the format by the path (or ``fmt=``) and
+dispatch to its module (:mod:`upsr.io.npy`, :mod:`upsr.io.npz`, :mod:`upsr.io.png`,
+:mod:`upsr.io.tiff`, :mod:`upsr.io.exr`, :mod:`upsr.io.rosbag`, :mod:`upsr.io.datasets`)
+through :mod:`upsr.io.registry`; every module has the reader functions and, when writable,
+the ``FrameSink`` of :mod:`upsr.io._base`. The three basic containers:
+
+``.npy`` (``fmt="npy"``)
+    One (T, h, w) array of depth in mm, any integer or float dtype. Read through a memory map
+    (``np.load(mmap_mode="r", allow_pickle=False)``): frames are read one at a time.
+``.npz`` (``fmt="npz"``)
+    The first array of the archive, or the one named ``key``. Frames are decompressed one at a
+    time. Written with the key ``"depth"``.
+a folder of PNG files (``fmt="png"``)
+    One 16-bit single-channel (grayscale) PNG per frame, in natural name order
+    (``frame2.png`` before ``frame10.png``). A raw value v means ``v / depth_scale`` metres,
+    i.e. ``v * 1000 / depth_scale`` mm: ``depth_scale=1000`` (the default) for PNGs in mm,
+    ``5000`` for the TUM RGB-D benchmark. A single ``.png`` file is read as a 1-frame video.
+    Written as ``000000.png``, ``000001.png``, ….
+
+``depth_scale`` applies to PNG frames only: ``.npy``/``.npz`` arrays always hold mm.
+Depth 0 or NaN means "no measurement" (``SPEC.md`` §1).
+
+More formats are registered in :mod:`upsr.io.registry` and read through the same functions:
+``tiff`` (``.tif``/``.tiff``, multi-page or a folder), ``exr`` (``.exr`` or a folder),
+``rosbag`` (ROS 1 / RealSense ``.bag``, ROS 2 bag folders with ``metadata.yaml``; ``topic=``),
+``nyu`` (``.pgm`` raw Kinect), ``pgm``, ``tum`` and ``sun`` (dataset PNG conventions); ``tiff``
+and ``exr`` can also be written. :func:`read_intrinsics` returns the camera intrinsics a format
+carries (ROS CameraInfo) or that a ``<path>.intrinsics.json`` file next to it holds.
+
+Safety
+------
+Nothing is ever unpickled (object arrays are refused). Every problem with an input file —
+missing, unreadable, truncated, corrupt, wrong dtype, shape or bit depth, ±inf or negative
+depth — raises :class:`~upsr.errors.InputError` with a message naming the file (and the frame).
+
+:class:`VideoWriter` never leaves a partial output: it writes into a hidden temporary file or
+folder next to the output and renames it into place only when the whole video has been
+written; on an exception (KeyboardInterrupt included) the temporary is removed. Missing parent
+folders of the output are created (and removed again if the writing fails).
+:func:`check_output_path` refuses an output that would overwrite an input.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import weakref
+from collections.abc import Iterable, Iterator, Sequence
+from pathlib import Path
+from typing import Any, BinaryIO
+
+import numpy as np
+import numpy.typing as npt
+
+from upsr._atomic import (
+    AtomicWriter,
+    new_temp_dir,
+    new_temp_file,
+    remove,
+    temp_name,
+    write_bytes_atomic,
+    write_text_atomic,
+)
+from upsr.errors import InputError
+from upsr.io._base import (
+    FORMATS,
+    WRITE_FORMATS,
+    PathLike,
+    VideoInfo,
+    check_depth_scale,
+    check_fmt,
+    check_frame_range,
+)
+from upsr.method.validation import as_depth_frame
+
+__all__ = [
+    "FORMATS",
+    "WRITE_FORMATS",
+    "VideoInfo",
+    "VideoWriter",
+    "check_output_path",
+    "intrinsics_path",
+    "iter_frames",
+    "probe",
+    "read_intrinsics",
+    "read_video",
+    "write_bytes_atomic",
+    "write_text_atomic",
+    "write_video",
+]
+
+
+def _format_module(fmt: str) -> Any:
+    """The module implementing ``fmt`` (:mod:`upsr.io.npy`, :mod:`upsr.io.tiff`, …)."""
+    from upsr.io import registry
+
+    return registry.module(fmt)
+
+
+def _input_format(path: Path, fmt: str | None) -> str:
+    try:
+        exists = path.exists()
+        is_dir = path.is_dir()
+    except OSError as e:
+        raise InputError(f"{path}: cannot access ({e.strerror or e})") from None
+    if not exists:
+        raise InputError(f"{path}: no such file or folder")
+    from upsr.io import registry as formats
+
+    if fmt is not None:
+        f = check_fmt(fmt)
+    elif is_dir:
+        f = formats.detect_folder(path) or "png"
+    else:
+        suffix = path.suffix.lower()
+        f = suffix[1:] if suffix in (".npy", ".npz", ".png") else formats.detect_file(path)
+        if f is None:
+            raise InputError(
+                f"{path}: unknown input format {path.suffix or '(no suffix)'!r}: "
+                f"expected a .npy or .npz file, a folder of 16-bit PNG frames, or another "
+                f"format (--input-format / fmt=: {', '.join(FORMATS[3:])})"
+            )
+    if f in ("npy", "npz") and is_dir:
+        raise InputError(f"{path}: is a folder, not a .{f} file")
+    return f
+
+
+def _output_format(path: Path, fmt: str | None) -> str:
+    if fmt is not None:
+        f = check_fmt(fmt)
+        if f not in WRITE_FORMATS:
+            raise InputError(f"cannot write {f} (output formats: {', '.join(WRITE_FORMATS)})")
+        return f
+    suffix = path.suffix.lower()
+    if suffix in (".npy", ".npz"):
+        return suffix[1:]
+    if suffix in (".tif", ".tiff"):
+        return "tiff"
+    if suffix == ".exr":
+        return "exr"
+    if suffix == "" or path.is_dir():
+        return "png"
+    raise InputError(
+        f"{path}: unknown output format {path.suffix!r}: use a .npy, .npz, .tif or .exr file "
+        f"or a folder name (no suffix) for 16-bit PNG frames (--format exr: EXR frames)"
+    )
+
+
+def _folder_output(fmt: str, path: Path) -> bool:
+    """Whether the output of format ``fmt`` at ``path`` is a folder of frame files."""
+    return bool(_format_module(fmt).writes_folder(path))
+
+
+# ---------------------------------------------------------------------------------------------
+# readers
+# ---------------------------------------------------------------------------------------------
+def probe(
+    path: PathLike,
+    *,
+    key: str | None = None,
+    fmt: str | None = None,
+    topic: str | None = None,
+) -> VideoInfo:
+    """Describe a depth video cheaply (headers only) and validate its container.
+
+    Parameters
+    ----------
+    path : str or path-like
+        ``.npy`` / ``.npz`` file, folder of 16-bit PNG frames, a single ``.png``, or a file or
+        folder of another format of :data:`FORMATS` (see :mod:`upsr.io.registry`).
+    key : str, optional
+        Array to read from a ``.npz`` (default: the first one); EXR: the channel.
+    fmt : str, optional
+        Force the format (one of :data:`FORMATS`) instead of guessing it from the path.
+    topic : str, optional
+        ROS bags: the depth image topic (default: the only one).
+
+    Returns
+    -------
+    VideoInfo
+
+    Raises
+    ------
+    InputError
+        Missing/unreadable path, unknown format, not a (T, h, w) numeric array, truncated file,
+        PNGs of the wrong bit depth or colour type or of different sizes, empty folder, ….
+    """
+    from upsr.io.registry import ReadOptions
+
+    p = Path(path)
+    f = _input_format(p, fmt)
+    _check_key_topic(f, key, topic)
+    return _format_module(f).probe(p, ReadOptions(key=key, topic=topic), f)  # type: ignore[no-any-return]
+
+
+def _check_key_topic(f: str, key: str | None, topic: str | None) -> None:
+    if key is not None and f not in ("npz", "exr"):
+        raise InputError(f"key={key!r} only applies to .npz input (or an EXR channel), not {f}")
+    if topic is not None and f != "rosbag":
+        raise InputError(f"topic={topic!r} only applies to ROS bags, not {f}")
+
+
+def iter_frames(
+    path: PathLike,
+    *,
+    key: str | None = None,
+    depth_scale: float = 1000.0,
+    fmt: str | None = None,
+    topic: str | None = None,
+    start: int = 0,
+    stop: int | None = None,
+) -> Iterator[np.ndarray]:
+    """Read a depth video, or the frames ``start`` … ``stop - 1`` of it, one frame at a time.
+
+    The container is validated (as by :func:`probe`) when this function is called; the frames
+    are read lazily. The frames before ``start`` are skipped as cheaply as the format allows:
+    ``.npy`` starts at their byte offset, ``.npz`` drops their decompressed bytes unconverted,
+    folders of PNG, PGM, TIFF or EXR frames open only the files of the range (multi-page TIFFs
+    and multi-part EXRs only count the pages before it), ROS bags skip messages by index
+    without deserialising them.
+
+    Parameters
+    ----------
+    path, key, fmt, topic
+        As for :func:`probe`.
+    depth_scale : float
+        PNG, TIFF, EXR and plain PGM frames: raw units per metre (1000: mm, TUM: 5000,
+        metres: 1); mm = raw · 1000 / depth_scale. Formats with fixed units ignore it.
+    start : int
+        First frame read (0 ≤ start < T).
+    stop : int, optional
+        One past the last frame read (start < stop ≤ T; default T).
+
+    Yields
+    ------
+    ndarray float32 (h, w)
+        Depth in mm, invalid pixels (0 or NaN) set to 0.
+
+    Raises
+    ------
+    InputError
+        As :func:`probe`; a range that is empty or not inside the video; while iterating:
+        ±inf or negative depths (naming the frame), corrupt data; after the last frame read:
+        no valid depth in any of the frames read.
+    """
+    from upsr.io.registry import ReadOptions
+
+    p = Path(path)
+    scale = check_depth_scale(depth_scale)
+    f = _input_format(p, fmt)
+    _check_key_topic(f, key, topic)
+    opts = ReadOptions(key=key, depth_scale=scale, topic=topic)
+    impl = _format_module(f)
+    info = impl.probe(p, opts, f)  # validate the container before the first frame is asked for
+    first, last = check_frame_range(start, stop, info.n_frames, str(p))
+    if (first, last) == (0, info.n_frames):
+        frames = impl.frames(p, opts, f)
+    else:
+        frames = impl.frames(p, opts, f, start=first, stop=last)
+    return _require_valid(frames, str(p))
+
+
+def _require_valid(frames: Iterator[np.ndarray], name: str) -> Iterator[np.ndarray]:
+    any_valid = False
+    with contextlib.closing(frames):
+        for frame in frames:
+            any_valid = any_valid or bool((frame > 0).any())
+            yield frame
+    if not any_valid:
+        raise InputError(f"{name}: no valid depth in any frame (all pixels are 0 or NaN)")
+
+
+def read_video(
+    path: PathLike,
+    *,
+    key: str | None = None,
+    depth_scale: float = 1000.0,
+    fmt: str | None = None,
+    topic: str | None = None,
+) -> np.ndarray:
+    """Read a whole depth video: float32 (T, h, w) in mm (see :func:`iter_frames`)."""
+    info = probe(path, key=key, fmt=fmt, topic=topic)
+    out = np.empty(info.shape, np.float32)
+    frames = iter_frames(path, key=key, depth_scale=depth_scale, fmt=fmt, topic=topic)
+    t = -1
+    for t, frame in enumerate(frames):
+        if t >= info.n_frames:
+            raise InputError(f"{path}: more frames than the {info.n_frames} announced")
+        out[t] = frame
+    if t + 1 != info.n_frames:
+        raise InputError(f"{path}: {t + 1} frames read, {info.n_frames} announced")
+    return out
+
+
+def intrinsics_path(path: PathLike) -> Path:
+    """Where the intrinsics of a video at ``path`` are written: ``<path>.intrinsics.json``."""
+    p = Path(path)
+    return p.with_name(p.name.rstrip("/") + ".intrinsics.json")
+
+
+def read_intrinsics(path: PathLike, *, fmt: str | None = None, topic: str | None = None) -> Any:
+    """The camera intrinsics of a depth video, when known.
+
+    Looked up in this order: what the format carries (ROS ``CameraInfo``, RealSense bags), then
+    a ``<path>.intrinsics.json`` next to the video (as written by ``upsr run``).
+
+    Returns
+    -------
+    upsr.geometry.camera.PinholeCamera or None
+        fx, fy, cx, cy (px; pixel (i, j) centred at (u, v) = (j, i), SPEC §1), width, height.
+    """
+    p = Path(path)
+    f = _input_format(p, fmt)
+    _check_key_topic(f, None, topic)
+    impl = _format_module(f)
+    if hasattr(impl, "intrinsics"):
+        from upsr.io.registry import ReadOptions
+
+        cam = impl.intrinsics(p, ReadOptions(topic=topic), f)
+        if cam is not None:
+            return cam
+    side = intrinsics_path(p)
+    if side.is_file():
+        from upsr.geometry.intrinsics import load_intrinsics
+
+        return load_intrinsics(side)
+    return None
+
+
+# ---------------------------------------------------------------------------------------------
+# output
+# ---------------------------------------------------------------------------------------------
+def check_output_path(
+    input_paths: Iterable[PathLike] | PathLike,
+    output_path: PathLike,
+    overwrite: bool = False,
+    *,
+    fmt: str | None = None,
+) -> Path:
+    """Check that writing ``output_path`` is safe; return it as a :class:`~pathlib.Path`.
+
+    Refused (:class:`~upsr.errors.InputError`):
+
+    - an output that is one of the inputs (same path after resolving symlinks, or the same
+      file through a hard link), or a folder that contains an input;
+    - an existing output unless ``overwrite``; with ``overwrite``, an existing folder is only
+      replaced by PNG output and only if it holds nothing but PNG files, and a folder is never
+      replaced by a file or a file by a folder;
+    - an output whose nearest existing ancestor is not a writable folder.
+
+    Missing parent folders are allowed: :class:`VideoWriter` creates them.
+    """
+    out = Path(output_path)
+    if isinstance(input_paths, (str, os.PathLike)):
+        input_paths = [input_paths]
+    out_res = out.resolve()
+    for inp in input_paths:
+        inp = Path(inp)
+        in_res = inp.resolve()
+        same = out_res == in_res
+        if not same and os.path.exists(out) and os.path.exists(inp):
+            with contextlib.suppress(OSError):
+                same = os.path.samefile(out, inp)
+        if same:
+            raise InputError(f"output {out} is the input {inp}: choose another output path")
+        if out_res in in_res.parents:
+            raise InputError(
+                f"output folder {out} contains the input {inp}: choose another output path"
+            )
+    f = _output_format(out, fmt)
+    if os.path.lexists(out):
+        if not overwrite:
+            raise InputError(
+                f"output {out} already exists (use --overwrite / overwrite=True to replace it)"
+            )
+        is_dir = out.is_dir() and not out.is_symlink()
+        if _folder_output(f, out):
+            frame_suffix = f".{f}"
+            if not is_dir:
+                raise InputError(
+                    f"output {out} exists and is not a folder: refusing to replace "
+                    f"it by a folder of {f.upper()} frames"
+                )
+            try:
+                entries = list(os.scandir(out))
+            except OSError as e:
+                raise InputError(f"output {out}: cannot list ({e.strerror or e})") from None
+            other = [
+                e.name
+                for e in entries
+                if not (e.is_file(follow_symlinks=False) and e.name.lower().endswith(frame_suffix))
+            ]
+            if other:
+                raise InputError(
+                    f"refusing to replace folder {out}: it holds other things "
+                    f"than {f.upper()} frames (e.g. {other[0]!r})"
+                )
+        elif is_dir:
+            raise InputError(f"output {out} is a folder: refusing to replace it by a .{f} file")
+    anc = Path(os.path.abspath(out)).parent
+    while not anc.exists() and anc != anc.parent:
+        if os.path.lexists(anc):  # dangling symlink
+            raise InputError(f"cannot create {out}: {anc} is a broken link")
+        anc = anc.parent
+    if not anc.is_dir():
+        raise InputError(f"cannot create {out}: {anc} is not a folder")
+    if not os.access(anc, os.W_OK | os.X_OK):
+        raise InputError(f"cannot create {out}: no permission to write in {anc}")
+    return out
+
+
+def _cleanup(temps: list[Path], created_dirs: list[Path]) -> None:
+    for p in temps:
+        remove(p)
+    temps.clear()
+    for d in reversed(created_dirs):  # innermost first; only if still empty
+        with contextlib.suppress(OSError):
+            d.rmdir()
+    created_dirs.clear()
+
+
+class VideoWriter(AtomicWriter):
+    """Write a depth video frame by frame, atomically.
+
+    Parameters
+    ----------
+    path : str or path-like
+        ``.npy`` (float32 mm), ``.npz`` (float32 mm, key ``"depth"``), ``.tif``/``.tiff``
+        (float32, one page per frame), ``.exr`` (one float32 ``Z`` frame), or a folder name
+        without suffix (16-bit PNG frames ``000000.png``, …; EXR frames with ``fmt="exr"``).
+    n_frames : int, optional
+        Expected number of frames: writing more, or closing after fewer, raises InputError.
+    fmt : {"npy", "npz", "png", "tiff", "exr"}, optional
+        Force the format instead of guessing it from the path.
+    depth_scale : float
+        PNG: raw units per metre (1000: mm, TUM: 5000); raw = round(mm · depth_scale / 1000).
+        Values above 65535 are clipped (with one warning); valid depths never round to 0.
+        TIFF and EXR: the float value written is mm · depth_scale / 1000 (1000: mm, 1: m).
+    overwrite : bool
+        Replace an existing output (see :func:`check_output_path`).
+
+    Use it as a context manager: the output appears at ``path`` only when the block ends
+    without an exception; otherwise nothing is left behind. Every format streams to disk (the
+    memory used does not grow with the number of frames).
+
+    Examples
+    --------
+    >>> with VideoWriter("out.npy") as w:  # doctest: +SKIP
+    ...     for frame in frames:
+    ...         w.write(frame)
+    """
+
+    def __init__(
+        self,
+        path: PathLike,
+        *,
+        n_frames: int | None = None,
+        fmt: str | None = None,
+        depth_scale: float = 1000.0,
+        overwrite: bool = False,
+    ) -> None:
+        self.path = Path(path)
+        self.format = _output_format(self.path, fmt)
+        self.depth_scale = check_depth_scale(depth_scale)
+        if n_frames is not None and (isinstance(n_frames, bool) or int(n_frames) < 1):
+            raise InputError(f"n_frames must be >= 1, got {n_frames!r}")
+        self.n_frames = None if n_frames is None else int(n_frames)
+        self.overwrite = bool(overwrite)
+        check_output_path((), self.path, self.overwrite, fmt=self.format)
+        self.frames_written = 0
+        self._shape: tuple[int, int] | None = None
+        self._sink: Any = None
+        self._temp: Path | None = None
+        self._temps: list[Path] = []
+        self._created: list[Path] = []
+        self._closed = False
+        self._finalizer = weakref.finalize(self, _cleanup, self._temps, self._created)
+
+    # -- writing -------------------------------------------------------------------------------
+    def _open(self, shape_px: tuple[int, int]) -> None:
+        """Create the missing parent folders and the temporary; open the format's sink."""
+        parent = Path(os.path.abspath(self.path)).parent
+        missing = []
+        d = parent
+        while not d.exists():
+            missing.append(d)
+            d = d.parent
+        for d in reversed(missing):
+            os.mkdir(d)
+            self._created.append(d)
+        impl = _format_module(self.format)
+        fh: BinaryIO | None = None
+        if impl.writes_folder(self.path):
+            self._temp = new_temp_dir(self.path)
+        else:
+            self._temp, fh = new_temp_file(self.path)  # type: ignore[assignment]
+        self._temps.append(self._temp)
+        try:
+            self._sink = impl.FrameSink(
+                self.path,
+                self._temp,
+                fh,
+                shape_px=shape_px,
+                depth_scale=self.depth_scale,
+                n_frames=self.n_frames,
+            )
+        except BaseException:
+            if fh is not None:
+                with contextlib.suppress(OSError):
+                    fh.close()
+            raise
+
+    def write(self, frame: npt.ArrayLike) -> None:
+        """Append one (h, w) depth frame in mm (0 or NaN = no measurement)."""
+        if self._closed:
+            raise ValueError("write to a closed VideoWriter")
+        t = self.frames_written
+        f = as_depth_frame(frame, name=f"output frame {t}")
+        if self.n_frames is not None and t >= self.n_frames:
+            raise InputError(f"{self.path}: more than n_frames={self.n_frames} frames written")
+        if self._shape is None:
+            self._shape = f.shape
+            self._open(f.shape)
+        elif f.shape != self._shape:
+            raise InputError(
+                f"output frame {t}: shape {f.shape} differs from the first frame's {self._shape}"
+            )
+        self._sink.write(f, t)
+        self.frames_written = t + 1
+
+    # -- finishing -----------------------------------------------------------------------------
+    def close(self) -> None:
+        """Finish the video and move it into place (atomically). Idempotent."""
+        if self._closed:
+            return
+        try:
+            if self.frames_written == 0:
+                raise InputError(f"{self.path}: no frames written")
+            if self.n_frames is not None and self.frames_written != self.n_frames:
+                raise InputError(
+                    f"{self.path}: {self.frames_written} frames written, {self.n_frames} expected"
+                )
+            assert self._temp is not None and self._sink is not None
+            self._sink.close()
+            self._sink = None
+            self._install()
+        except BaseException:
+            self.abort()
+            raise
+        self._closed = True
+        self._finalizer.detach()
+
+    def _install(self) -> None:
+        tmp, dest = self._temp, self.path
+        assert tmp is not None
+        if os.path.lexists(dest):
+            if not self.overwrite:
+                raise InputError(
+                    f"output {dest} already exists (use --overwrite / overwrite=True to replace it)"
+                )
+            check_output_path((), dest, True, fmt=self.format)
+            if _folder_output(self.format, dest) and not dest.is_symlink():
+                trash = temp_name(dest, "old")
+                os.replace(dest, trash)
+                self._temps.append(trash)
+                os.replace(tmp, dest)
+                remove(trash)
+                self._temps.clear()
+                return
+        os.replace(tmp, dest)
+        self._temps.clear()
+
+    def abort(self) -> None:
+        """Discard everything written; nothing appears at the output path. Idempotent."""
+        if self._sink is not None:
+            with contextlib.suppress(Exception):
+                self._sink.abort()
+            self._sink = None
+        _cleanup(self._temps, self._created)
+        self._closed = True
+        self._finalizer.detach()
+
+    @property
+    def closed(self) -> bool:
+        """True once :meth:`close` or :meth:`abort` ran."""
+        return self._closed
+
+
+def write_video(
+    path: PathLike,
+    frames: npt.ArrayLike | Iterable[npt.ArrayLike],
+    *,
+    fmt: str | None = None,
+    depth_scale: float = 1000.0,
+    overwrite: bool = False,
+) -> Path:
+    """Write a (T, h, w) depth video (array or iterable of frames) atomically; return the path.
+
+    See :class:`VideoWriter` for the formats and options.
+    """
+    if isinstance(frames, np.ndarray):
+        if frames.ndim != 3:
+            raise InputError(f"expected a depth video of shape (T, h, w), got shape {frames.shape}")
+        n: int | None = frames.shape[0]
+    else:
+        n = len(frames) if isinstance(frames, Sequence) else None
+    with VideoWriter(
+        path, n_frames=n, fmt=fmt, depth_scale=depth_scale, overwrite=overwrite
+    ) as writer:
+        for frame in frames:  # type: ignore[union-attr]
+            writer.write(frame)
+    return writer.path

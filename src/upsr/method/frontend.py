@@ -1,0 +1,212 @@
+"""The motion front-end of UP-SR (paper §4, §5.2; steps 1–3 of Table 1), one object per video.
+
+The chain that turns low-res depth frames into the consecutive flows the registration chains:
+
+1. dense upsampling by s (the flow grid, :meth:`UPSRConfig.flow_grid_scale
+   <upsr.method.config.UPSRConfig.flow_grid_scale>`; s = r in the paper) and the bilateral
+   prefilter, for motion only (§5.2, :func:`upsr.method.motion.bilateral_prefilter_nearest`);
+2. one fixed 8-bit mapping of depth per video (:func:`upsr.method.motion.depth_to_u8`), its
+   range and the noise level fixed once from the first window (never per frame:
+   :meth:`MotionFrontEnd.fix_statistics`);
+3. optical flow between consecutive frames, both directions (eq. 16–17), with the motion that
+   the depth does not support zeroed (:func:`upsr.method.motion.suppress_spurious_motion`);
+   the same test for the residual flows of eq. 19 on the registered 8-bit guides.
+
+:class:`upsr.method.windowed.UPSR` (which caches what it computes, once per video), the
+multi-frame baselines (:func:`upsr.research.baselines.upsampled_flows`) and the NumPy oracle
+(:func:`upsr.research.oracle.super_resolve_straightforward`) all estimate motion with it.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Iterable
+
+import numpy as np
+import numpy.typing as npt
+
+from upsr.method._parallel import both
+from upsr.method.config import UPSRConfig
+from upsr.method.motion import (
+    FlowBackend,
+    bilateral_prefilter,
+    bilateral_prefilter_nearest,
+    depth_range,
+    depth_to_u8,
+    flow_backend_is_thread_safe,
+    make_flow_backend,
+    suppress_spurious_motion,
+)
+from upsr.method.noise import estimate_noise_mm
+from upsr.method.upsampling import upsample_nearest
+
+__all__ = ["MotionFrontEnd"]
+
+
+class MotionFrontEnd:
+    """Prefilter, fixed 8-bit mapping, consecutive flows and spurious-motion suppression.
+
+    Parameters
+    ----------
+    config : UPSRConfig
+        Prefilter (``prefilter_sigma_mm``, ``prefilter_sigma_px``), flow backend and presets,
+        ``flow_scale``, ``depth_range_mm``, ``noise_mm``, ``edge_mm`` and
+        ``zero_motion_tolerance``.
+    width_px : int
+        Width w of the low-res frames (it sets the flow grid and the residual flow preset).
+    grid_scale : int, optional
+        Upsampling factor s of the flow grid; default ``config.flow_grid_scale(width_px)``.
+    flow_backend : FlowBackend, optional
+        Flow estimator of the consecutive flows; default ``config.flow`` with
+        ``config.flow_preset``.
+    residual_flow_backend : FlowBackend, optional
+        Flow estimator of the eq. 19 residual flows; default ``config.flow`` with
+        ``config.residual_flow_preset(s·w)``.
+    blockwise : bool
+        Prefilter on the low-res grid (:func:`~upsr.method.motion.bilateral_prefilter_nearest`,
+        the engine's) or, ``False``, the upsampled frame with OpenCV
+        (:func:`~upsr.method.motion.bilateral_prefilter`, the straightforward path; equal up
+        to float rounding).
+
+    Attributes
+    ----------
+    grid_scale : int
+        s: the flows live on the (s·h, s·w) grid.
+    depth_range_mm : (float, float) or None
+        (near, far) of the 8-bit mapping; None until :meth:`fix_statistics`.
+    noise_mm : float or None
+        Noise std of the video (mm); None until :meth:`fix_statistics`.
+    edge_mm : float
+        Depth step that separates surfaces: ``config.edge_mm``, at least 4× the noise.
+    thread_safe : bool
+        Whether two flows may run at once (a built-in backend, not a given one).
+    """
+
+    def __init__(
+        self,
+        config: UPSRConfig,
+        width_px: int,
+        *,
+        grid_scale: int | None = None,
+        flow_backend: FlowBackend | None = None,
+        residual_flow_backend: FlowBackend | None = None,
+        blockwise: bool = True,
+    ) -> None:
+        cfg = config
+        self.config = cfg
+        self.grid_scale = (
+            int(grid_scale) if grid_scale is not None else cfg.flow_grid_scale(width_px)
+        )
+        s = self.grid_scale
+        self.thread_safe = flow_backend is None and flow_backend_is_thread_safe(cfg.flow)
+        self.flow_backend = flow_backend or make_flow_backend(cfg.flow, cfg.flow_preset)
+        self.residual_flow_backend = residual_flow_backend or make_flow_backend(
+            cfg.flow, cfg.residual_flow_preset(s * width_px)
+        )
+        self.blockwise = blockwise
+        #: Spatial std of the prefilter on the flow grid (px).
+        self.prefilter_sigma_px = cfg.spatial_sigma_px * s / cfg.scale
+        self.depth_range_mm: tuple[float, float] | None = cfg.depth_range_mm
+        self.noise_mm: float | None = cfg.noise_mm
+        self.edge_mm = self._edge_for(self.noise_mm or 0.0)
+
+    # -- per-video statistics ------------------------------------------------------------------
+    def _edge_for(self, noise_mm: float) -> float:
+        return max(self.config.edge_mm, 4.0 * noise_mm)
+
+    @property
+    def ready(self) -> bool:
+        """Whether the 8-bit mapping and the noise level are fixed (guides and flows can be
+        made)."""
+        return self.depth_range_mm is not None and self.noise_mm is not None
+
+    def fix_statistics(
+        self,
+        first_frames: Iterable[np.ndarray],
+        *,
+        estimate_noise: Callable[[np.ndarray], float] = estimate_noise_mm,
+    ) -> None:
+        """Fix what the config leaves open from the first window's low-res frames (h, w) mm:
+        the depth range of the 8-bit mapping (:func:`~upsr.method.motion.depth_range`) and the
+        noise (median over the frames of ``estimate_noise``), once per video."""
+        first = list(first_frames)
+        if self.depth_range_mm is None:
+            self.depth_range_mm = depth_range(np.stack(first))
+        if self.noise_mm is None:
+            self.noise_mm = float(np.median([estimate_noise(f) for f in first]))
+            self.edge_mm = self._edge_for(self.noise_mm)
+
+    # -- per frame -----------------------------------------------------------------------------
+    def prefilter(self, frame_mm: npt.ArrayLike) -> np.ndarray:
+        """A low-res frame (h, w) in mm, upsampled by s and bilateral-filtered: float32
+        (s·h, s·w) mm, for motion only (§5.2)."""
+        cfg = self.config
+        if self.blockwise:
+            return bilateral_prefilter_nearest(
+                frame_mm, self.grid_scale, cfg.prefilter_sigma_mm, self.prefilter_sigma_px
+            )
+        up = upsample_nearest(np.asarray(frame_mm, np.float32), self.grid_scale)
+        return bilateral_prefilter(up, cfg.prefilter_sigma_mm, self.prefilter_sigma_px)
+
+    def guide(self, prefiltered_mm: np.ndarray) -> np.ndarray:
+        """The 8-bit image (uint8, same shape) the flow sees, with the video's fixed mapping."""
+        if self.depth_range_mm is None:
+            raise RuntimeError("fix_statistics() first: the depth range is not fixed yet")
+        return depth_to_u8(prefiltered_mm, *self.depth_range_mm)
+
+    # -- flows ---------------------------------------------------------------------------------
+    def consecutive_flow(
+        self,
+        first_mm: np.ndarray,
+        second_mm: np.ndarray,
+        first_u8: np.ndarray,
+        second_u8: np.ndarray,
+    ) -> np.ndarray:
+        """Flow (s·h, s·w, 2) from one frame to the next (eq. 17), given their prefiltered
+        frames and guides, without the motion the depth does not support."""
+        flow = self.flow_backend(first_u8, second_u8)
+        return self.supported_flow(first_mm, second_mm, flow, units_per_mm=1.0)
+
+    def flow_pair(
+        self,
+        first_mm: np.ndarray,
+        second_mm: np.ndarray,
+        first_u8: np.ndarray,
+        second_u8: np.ndarray,
+        *,
+        parallel: bool = False,
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """(first → second, second → first) consecutive flows, on two threads if
+        ``parallel`` (same result)."""
+        return both(
+            lambda: self.consecutive_flow(first_mm, second_mm, first_u8, second_u8),
+            lambda: self.consecutive_flow(second_mm, first_mm, second_u8, first_u8),
+            enabled=parallel,
+        )
+
+    def residual_flow(self, first_u8: np.ndarray, second_u8: np.ndarray) -> np.ndarray:
+        """Residual flow between registered guide images (eq. 19), spurious motion removed."""
+        near, far = self.depth_range_mm  # type: ignore[misc]
+        flow = self.residual_flow_backend(first_u8, second_u8)
+        return self.supported_flow(
+            first_u8, second_u8, flow, units_per_mm=254.0 / max(far - near, 1e-6)
+        )
+
+    def supported_flow(
+        self, first: np.ndarray, second: np.ndarray, flow: np.ndarray, units_per_mm: float
+    ) -> np.ndarray:
+        """:func:`~upsr.method.motion.suppress_spurious_motion` on images in
+        mm × ``units_per_mm`` (1 for prefiltered depth, 254/(far − near) for guides)."""
+        cfg = self.config
+        if cfg.zero_motion_tolerance is None:
+            return flow
+        s = self.grid_scale
+        return suppress_spurious_motion(
+            first,
+            second,
+            flow,
+            window_px=2 * s + 1,
+            tolerance=cfg.zero_motion_tolerance,
+            noise_mm=self.noise_mm * units_per_mm,  # type: ignore[operator]
+            edge_mm=self.edge_mm * units_per_mm,
+            edge_window_px=4 * s + 1,
+        )

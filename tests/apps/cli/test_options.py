@@ -1,0 +1,115 @@
+"""upsr.apps.cli.options: one definition of the options ``upsr run`` and ``upsr batch`` share."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import typer
+
+from upsr.apps.batch import _OUT_SUFFIX
+from upsr.apps.cli.main import app
+from upsr.apps.cli.options import (
+    DEFAULT_FRAMES,
+    HELP_DEFAULTS,
+    Blur,
+    Flow,
+    FlowPreset,
+    OutFormat,
+    config_from_options,
+)
+from upsr.method.config import DeblurConfig, UPSRConfig
+
+METHOD_OPTIONS = {
+    "--scale",
+    "--frames",
+    "--no-deblur",
+    "--lam",
+    "--alpha",
+    "--btv-radius",
+    "--iterations",
+    "--blur",
+    "--flow",
+    "--flow-preset",
+    "--flow-scale",
+    "--refine-preset",
+    "--speckle-px",
+    "--no-refine",
+    "--keep-all-motion",
+}
+READ_OPTIONS = {"--key", "--topic", "--input-format", "--depth-scale", "--intrinsics"}
+
+
+def _params(name: str) -> dict[str, object]:
+    command = typer.main.get_command(app).commands[name]  # type: ignore[attr-defined]
+    return {p.opts[-1] if p.opts[-1].startswith("--") else p.opts[0]: p for p in command.params}
+
+
+def test_help_shows_the_config_defaults() -> None:
+    cfg, deblur = UPSRConfig(), DeblurConfig()
+    for name, shown in HELP_DEFAULTS.items():
+        obj, attr = (deblur, name.split(".")[1]) if name.startswith("deblur.") else (cfg, name)
+        assert getattr(obj, attr) == shown, name
+    assert UPSRConfig.from_options(2, DEFAULT_FRAMES) == config_from_options(2, None)
+
+
+def test_run_and_batch_share_one_definition_of_the_method_options() -> None:
+    run, batch = _params("run"), _params("batch")
+    assert METHOD_OPTIONS | READ_OPTIONS <= set(run) & set(batch)
+    for opt in METHOD_OPTIONS | READ_OPTIONS:
+        a, b = run[opt], batch[opt]
+        same = ("opts", "help", "default", "min", "max", "metavar", "is_flag")
+        assert [getattr(a, k) for k in same] == [getattr(b, k) for k in same], opt
+        assert a.type_descriptor.annotation is b.type_descriptor.annotation, opt
+    assert run["--format"].type_descriptor.annotation is OutFormat
+    assert batch["--format"].type_descriptor.annotation is OutFormat
+
+
+def test_choices_are_what_the_config_and_the_writers_accept() -> None:
+    assert {f.value for f in OutFormat} == set(_OUT_SUFFIX)
+    for blur in Blur:
+        assert DeblurConfig(blur=blur.value).blur == blur.value
+    for flow in Flow:
+        assert UPSRConfig(flow=flow.value).flow == flow.value
+    for preset in FlowPreset:
+        assert UPSRConfig(flow_preset=preset.value).flow_preset == preset.value
+
+
+def test_config_from_options_maps_every_option() -> None:
+    cfg = config_from_options(
+        3,
+        5,
+        lam=0.25,
+        alpha=0.5,
+        btv_radius=3,
+        iterations=4,
+        blur=Blur.box,
+        flow=Flow.farneback,
+        flow_preset=FlowPreset.fast,
+        flow_scale=2,
+        refine_preset=FlowPreset.ultrafast,
+        speckle_px=0,
+        no_refine=True,
+        keep_all_motion=True,
+    )
+    d = cfg.deblur
+    assert (d.enabled, d.lam, d.alpha, d.radius_px, d.iterations, d.blur) == (
+        True,
+        0.25,
+        0.5,
+        3,
+        4,
+        "box",
+    )
+    assert (cfg.scale, cfg.n_frames, cfg.flow, cfg.flow_preset, cfg.flow_scale) == (
+        3,
+        5,
+        "farneback",
+        "fast",
+        2,
+    )
+    assert (cfg.refine_preset, cfg.speckle_size_px, cfg.refine) == ("ultrafast", 0, False)
+    assert cfg.zero_motion_tolerance is None
+    assert not config_from_options(2, None, no_deblur=True).deblur.enabled
+    assert dataclasses.replace(config_from_options(2, None), n_frames=9) == UPSRConfig.from_options(
+        2, 9
+    )

@@ -1,0 +1,101 @@
+"""``upsr compare`` and ``upsr view``, and the pictures they draw (GIF, panels, 3-D view)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import cv2
+import numpy as np
+import pytest
+
+from tests.apps._util import scene
+from upsr.apps.cli.main import main
+from upsr.errors import InputError
+from upsr.geometry.intrinsics import parse_intrinsics
+from upsr.viz.animation import GifWriter
+from upsr.viz.pictures import ComparisonWriter, comparison_frame, render_view
+
+
+def test_comparison_pictures(tmp_path: Path) -> None:
+    v = scene()
+    hi = np.kron(v, np.ones((2, 2), np.float32))
+    img = comparison_frame(v[0], hi[0], 2, hi[0], vmin_mm=1000, vmax_mm=2400, caption="frame 0")
+    assert img.dtype == np.uint8 and img.shape[2] == 3 and img.shape[1] > 5 * 32
+    with pytest.raises(InputError, match="not r=2 times"):
+        comparison_frame(v[0], v[0], 2, vmin_mm=0, vmax_mm=1)
+    with ComparisonWriter(tmp_path / "a.gif", fps=4) as w:
+        for k in range(3):
+            w.write(comparison_frame(v[k], hi[k], 2, vmin_mm=1000, vmax_mm=2400))
+    with ComparisonWriter(tmp_path / "a.mp4", fps=4) as w:
+        for k in range(3):
+            w.write(comparison_frame(v[k], hi[k], 2, vmin_mm=1000, vmax_mm=2400))
+    cap = cv2.VideoCapture(str(tmp_path / "a.mp4"))
+    n = 0
+    while cap.read()[0]:
+        n += 1
+    assert n == 3
+    assert cv2.VideoWriter_fourcc(*"h264") == int(cap.get(cv2.CAP_PROP_FOURCC))
+    if hasattr(cv2, "imreadanimation"):
+        ok, anim = cv2.imreadanimation(str(tmp_path / "a.gif"))
+        assert ok and len(anim.frames) == 3
+    assert (tmp_path / "a.gif").read_bytes()[:6] == b"GIF89a"
+    with pytest.raises(InputError):
+        ComparisonWriter(tmp_path / "a.jpg")
+    with pytest.raises(RuntimeError), GifWriter(tmp_path / "b.gif") as g:
+        g.write(np.zeros((4, 4, 3), np.uint8))
+        raise RuntimeError
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["a.gif", "a.mp4"]
+
+
+def test_compare_and_view_commands(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    v = scene(t=4)
+    np.save(tmp_path / "low.npy", v)
+    hi = np.kron(v, np.ones((2, 2), np.float32))
+    hi[:, 5, 5] = 0
+    np.save(tmp_path / "up.npy", hi)
+    np.save(tmp_path / "truth.npy", hi + 3)
+    base = ["compare", str(tmp_path / "low.npy"), str(tmp_path / "up.npy"), "-q"]
+    assert (
+        main(
+            [
+                *base,
+                "--truth",
+                str(tmp_path / "truth.npy"),
+                "-o",
+                str(tmp_path / "c.png"),
+                "-k",
+                "-1",
+            ]
+        )
+        == 0
+    )
+    img = cv2.imread(str(tmp_path / "c.png"))
+    assert img is not None and img.shape[1] > img.shape[0]
+    assert main([*base, "-o", str(tmp_path / "c.gif"), "--range", "1000,2500"]) == 0
+    assert main([*base, "-o", str(tmp_path / "c.mp4"), "--scale", "2"]) == 0
+    assert main([*base, "-o", str(tmp_path / "x.mp4"), "--scale", "3"]) == 2
+    assert main([*base, "-o", str(tmp_path / "c.gif")]) == 2  # exists
+    assert main([*base, "-o", str(tmp_path / "c.png"), "-k", "9", "--overwrite"]) == 2
+    assert "frames 0..3" in capsys.readouterr().err
+    assert main(["view", str(tmp_path / "up.npy"), "-k", "1", "-o", str(tmp_path / "v.png")]) == 0
+    view = cv2.imread(str(tmp_path / "v.png"))
+    assert view.shape[1] >= 640 and (view < 200).any()  # a surface was drawn
+    assert main(["view", str(tmp_path / "up.npy"), "-o", str(tmp_path / "v.jpg")]) == 2
+    assert sorted(p.name for p in tmp_path.iterdir()) == [
+        "c.gif",
+        "c.mp4",
+        "c.png",
+        "low.npy",
+        "truth.npy",
+        "up.npy",
+        "v.png",
+    ]
+
+
+def test_render_view_shapes() -> None:
+    v = scene()[0]
+    cam = parse_intrinsics("20,20,7.5,5.5", 16, 12)
+    img = render_view(v, cam, min_width_px=64, shading="depth")
+    assert img.shape == (48, 64, 3)
+    with pytest.raises(InputError, match="no surface"):
+        render_view(np.zeros((12, 16)), cam)
