@@ -236,6 +236,12 @@ class UPSRConfig:
         INVENTED depth, off by default: after the deblurring, every pixel without depth takes
         the farthest (background-side) depth within r px, repeatedly, as the hole filling of
         depth SDKs (:func:`upsr.method.trust.fill_holes`).
+    mode : {"windowed", "recursive"}
+        ``"windowed"``: the paper's sliding window (N frames around each output, latency
+        N − 1 − (N−1)//2 frames). ``"recursive"`` (beyond the paper): a causal state carried
+        from one output to the next, one flow per frame, latency 0 frames, memory
+        independent of N, where N caps how many frames the state summarises
+        (:mod:`upsr.method.recursive`).
     deblur : DeblurConfig
         Deblurring parameters (eq. 29–30).
     """
@@ -266,6 +272,7 @@ class UPSRConfig:
     radial_radius_px: int = 2
     fusion_estimator: str = "auto"
     fill_holes: bool = False
+    mode: str = "windowed"
     deblur: DeblurConfig = field(default_factory=DeblurConfig)
 
     def __post_init__(self) -> None:
@@ -337,6 +344,10 @@ class UPSRConfig:
         _check(
             self.fusion_estimator in ("auto", "median", "mean"),
             f"fusion_estimator must be 'auto', 'median' or 'mean', not {self.fusion_estimator!r}",
+        )
+        _check(
+            self.mode in ("windowed", "recursive"),
+            f"mode must be 'windowed' or 'recursive', not {self.mode!r}",
         )
         for name in ("remove_mixed", "radial_compensation", "fill_holes"):
             _check(isinstance(getattr(self, name), bool), f"{name} must be True or False")

@@ -124,6 +124,17 @@ class UPSR:
     2
     """
 
+    def __new__(cls, *args: Any, **kwargs: Any) -> Any:
+        """``UPSR(..., mode="recursive")`` (or a config with that mode) makes a
+        :class:`upsr.method.recursive.RecursiveUPSR`."""
+        config = kwargs.get("config")
+        mode = kwargs.get("mode", config.mode if config is not None else "windowed")
+        if cls is UPSR and mode == "recursive":
+            from upsr.method.recursive import RecursiveUPSR
+
+            return RecursiveUPSR(*args, **kwargs)
+        return super().__new__(cls)
+
     def __init__(
         self,
         scale: int = 2,
@@ -137,6 +148,8 @@ class UPSR:
         self.config = (
             config if config is not None else UPSRConfig.from_options(scale, n_frames, **options)
         )
+        if self.config.mode != "windowed":
+            raise InputError(f"UPSR is the windowed engine, not mode={self.config.mode!r}")
         if workers is None:
             workers = 2 if (os.cpu_count() or 1) >= 2 else 0
         if isinstance(workers, bool) or not isinstance(workers, int) or workers < 0:
@@ -504,7 +517,8 @@ def super_resolve(
     scale : int
         SR factor r ≥ 1.
     n_frames : int
-        Frames per window N (1 ≤ N ≤ T), reference in the middle.
+        Frames per window N (1 ≤ N ≤ T), reference in the middle; with
+        ``mode="recursive"`` the most frames the state summarises (any T).
     config : UPSRConfig, optional
         Full configuration; overrides ``scale``, ``n_frames`` and ``options``.
     progress : bool, optional
@@ -525,6 +539,10 @@ def super_resolve(
         Bad data (shape, dtype, ±inf, negative depth, no valid depth) or parameters.
     """
     cfg = config if config is not None else UPSRConfig.from_options(scale, n_frames, **options)
+    if cfg.mode == "recursive":
+        from upsr.method.recursive import super_resolve_recursive
+
+        return super_resolve_recursive(frames, cfg, progress=progress)
     video = as_depth_video(frames)
     t_total, h, w = video.shape
     if cfg.n_frames > t_total:

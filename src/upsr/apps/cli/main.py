@@ -1,7 +1,8 @@
 """The ``upsr`` command line: the typer app, the root options and the entry point :func:`main`.
 
 One module per command group registers its commands here: :mod:`~upsr.apps.cli.run`
-(``run``), :mod:`~upsr.apps.cli.demo` (``demo``, ``analyze``), :mod:`~upsr.apps.cli.pictures`
+(``run``), :mod:`~upsr.apps.cli.live` (``live``), :mod:`~upsr.apps.cli.demo` (``demo``,
+``analyze``), :mod:`~upsr.apps.cli.pictures`
 (``compare``, ``view``), :mod:`~upsr.apps.cli.pointcloud` (``export-ply``),
 :mod:`~upsr.apps.cli.batch` (``batch``) and :mod:`~upsr.apps.cli.experiment`
 (``experiment ...``); the options they share are defined once in :mod:`~upsr.apps.cli.options`.
@@ -27,7 +28,7 @@ from typing import Annotated, Any
 
 import typer
 
-from upsr.apps.cli import batch, demo, experiment, pictures, pointcloud, run
+from upsr.apps.cli import batch, demo, experiment, live, pictures, pointcloud, run
 from upsr.errors import InputError
 
 try:  # typer >= 0.24 vendors click
@@ -98,7 +99,7 @@ def _root(
         logging.basicConfig(level=logging.DEBUG, format="upsr: %(name)s: %(message)s")
 
 
-for _module in (run, demo, pictures, pointcloud, batch):
+for _module in (run, live, demo, pictures, pointcloud, batch):
     _module.register(app)
 app.add_typer(experiment.app, name="experiment")
 

@@ -285,6 +285,16 @@ KeepAllMotionOpt = Annotated[
     ),
 ]
 
+RecursiveOpt = Annotated[
+    bool,
+    typer.Option(
+        "--recursive",
+        help="Recursive (causal) mode: each output from the current frame and a state "
+        "carried from the previous output; latency 0 frames, one flow per frame, N caps "
+        "the frames the state summarises (any video length).",
+    ),
+]
+
 
 def config_from_options(
     scale: int,
@@ -303,6 +313,7 @@ def config_from_options(
     no_deblur: bool = False,
     no_refine: bool = False,
     keep_all_motion: bool = False,
+    recursive: bool = False,
 ) -> UPSRConfig:
     """The :class:`UPSRConfig` of the method options shared by ``upsr run`` and ``upsr batch``
     (``None``: the default; ``frames=None``: N = 9)."""
@@ -333,4 +344,6 @@ def config_from_options(
         options["refine"] = False
     if keep_all_motion:
         options["zero_motion_tolerance"] = None
+    if recursive:
+        options["mode"] = "recursive"
     return UPSRConfig.from_options(scale, DEFAULT_FRAMES if frames is None else frames, **options)

@@ -31,6 +31,7 @@ from upsr.apps.cli.options import (
     OutFormat,
     OutIntrinsicsOpt,
     QuietOpt,
+    RecursiveOpt,
     RefinePresetOpt,
     ScaleOpt,
     SpecklePxOpt,
@@ -60,6 +61,7 @@ Examples:
   upsr run frames/ -o frames_x2/ -r 2 -n 5 --depth-scale 5000    # TUM PNGs
   upsr run capture.npz --key depth -o out.npz -r 2 --no-deblur --flow-preset fast
   upsr run capture.bag --topic /camera/depth/image_rect_raw -o out.npy -r 2
+  upsr run video.npy -o video_x2.npy -r 2 --recursive           # causal, latency 0
 """
 
 
@@ -128,6 +130,7 @@ def run(
     speckle_px: SpecklePxOpt = None,
     no_refine: NoRefineOpt = False,
     keep_all_motion: KeepAllMotionOpt = False,
+    recursive: RecursiveOpt = False,
     workers: WorkersOpt = None,
     overwrite: RunOverwriteOpt = False,
     quiet: QuietOpt = False,
@@ -156,13 +159,15 @@ def run(
         no_deblur=no_deblur,
         no_refine=no_refine,
         keep_all_motion=keep_all_motion,
+        recursive=recursive,
     )
     in_fmt, out_fmt = fmt(input_format), fmt(output_format)
     info = io.probe(input_path, key=key, fmt=in_fmt, topic=topic)
     camera = input_camera(input_path, info, intrinsics, fmt=in_fmt, topic=topic)
-    cfg = _fit_window(cfg, info.n_frames, input_path, explicit=frames is not None)
+    if not recursive:  # (the recursive state takes any video length)
+        cfg = _fit_window(cfg, info.n_frames, input_path, explicit=frames is not None)
     io.check_output_path([input_path], output, overwrite, fmt=out_fmt)
-    if frames is None and cfg.n_frames < DEFAULT_FRAMES:
+    if frames is None and cfg.n_frames < DEFAULT_FRAMES and not recursive:
         typer.echo(
             f"upsr: note: the video has {info.n_frames} frame(s): N = {cfg.n_frames}", err=True
         )
@@ -189,8 +194,9 @@ def run(
     r = cfg.scale
     t_n, h, w = info.shape
     rate = t_n / elapsed if elapsed > 0 else float("inf")
+    mode = ", recursive" if recursive else ""
     typer.echo(
-        f"upsr: {t_n} frames {w}x{h} -> {w * r}x{h * r} (r={r}, N={cfg.n_frames}) in "
+        f"upsr: {t_n} frames {w}x{h} -> {w * r}x{h * r} (r={r}, N={cfg.n_frames}{mode}) in "
         f"{elapsed:.1f} s ({rate:.1f} frames/s) -> {output}"
     )
 

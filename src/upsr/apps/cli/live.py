@@ -1,0 +1,348 @@
+"""``upsr live``: super-resolve a RealSense camera (or an SDK recording) frame by frame.
+
+The frames come from the RealSense SDK (``pyrealsense2``, the optional extra
+``upsr[realsense]``; it needs the system's libusb): a connected camera, or a ``.bag``
+recording played back through the SDK exactly as a camera (``enable_device_from_file``). A
+reader thread takes each frame from the SDK and hands it over through a queue of ONE frame: a
+frame that arrives while the previous one is still being processed replaces it, and the one
+replaced is counted as dropped (never queued without bound); gaps in the SDK's frame numbers
+count as dropped too. ``--no-real-time`` plays a recording as fast as the processing allows
+(no frame dropped: deterministic, the same frames as ``upsr run --recursive``).
+
+Each frame is super-resolved at once by the recursive engine
+(:class:`upsr.method.recursive.RecursiveUPSR`, latency 0 frames) and written with
+:class:`upsr.io.video.VideoWriter` (any output format of ``upsr run``). A status line on stderr
+shows the frames processed, the rate, the latency (time from the frame's arrival to its
+output) and the dropped frames; ``--preview`` rewrites a side-by-side PNG (input | output,
+:func:`upsr.viz.pictures.comparison_frame`) every ``--preview-every`` frames.
+"""
+
+from __future__ import annotations
+
+import queue
+import sys
+import threading
+import time
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Annotated, Any
+
+import typer
+
+from upsr.apps.cli.options import (
+    FlowPresetOpt,
+    FlowScaleOpt,
+    FramesOpt,
+    IterationsOpt,
+    NoDeblurOpt,
+    OutDepthScaleOpt,
+    OutFormat,
+    QuietOpt,
+    ScaleOpt,
+    config_from_options,
+    fmt,
+)
+from upsr.errors import InputError
+
+__all__ = ["FrameSource", "live", "register"]
+
+_LIVE_EPILOG = """\b
+Examples:
+  upsr live -o live_x2.npy -r 2 --preview preview.png        # the first RealSense camera
+  upsr live capture.bag -o out.npy -r 2 --no-real-time       # a recording, every frame
+"""
+
+SourceArg = Annotated[
+    Path | None,
+    typer.Argument(
+        metavar="[RECORDING]",
+        show_default=False,
+        help="A RealSense .bag recording played through the SDK as a camera [default: the "
+        "first connected RealSense camera].",
+    ),
+]
+LiveOutputOpt = Annotated[
+    Path,
+    typer.Option(
+        "--output",
+        "-o",
+        show_default=False,
+        help="Where to write the high-res video (any output format of 'upsr run').",
+    ),
+]
+LiveFormatOpt = Annotated[
+    OutFormat | None,
+    typer.Option(
+        "--format", "-f", case_sensitive=False, help="Output format [default: from the name]."
+    ),
+]
+PreviewOpt = Annotated[
+    Path | None,
+    typer.Option(
+        "--preview",
+        metavar="PATH.png",
+        help="Side-by-side PNG (input | output), rewritten while the video runs.",
+    ),
+]
+PreviewEveryOpt = Annotated[
+    int, typer.Option("--preview-every", min=1, help="Rewrite the preview every K frames.")
+]
+NoRealTimeOpt = Annotated[
+    bool,
+    typer.Option(
+        "--no-real-time",
+        help="Recording: play it as fast as the processing allows, every frame (no frame "
+        "dropped; the output equals 'upsr run --recursive' on the same frames).",
+    ),
+]
+MaxFramesOpt = Annotated[
+    int | None,
+    typer.Option("--max-frames", min=1, help="Stop after this many processed frames."),
+]
+SecondsOpt = Annotated[
+    float | None,
+    typer.Option("--seconds", min=0.0, help="Stop after this many seconds."),
+]
+LiveOverwriteOpt = Annotated[bool, typer.Option("--overwrite", help="Replace OUTPUT if it exists.")]
+
+_END = object()
+
+
+class FrameSource:
+    """Depth frames (mm, float32 (h, w)) from the RealSense SDK, through a queue of one.
+
+    Parameters
+    ----------
+    recording : path, optional
+        A ``.bag`` file played back as a camera (no repeat); None: the first camera.
+    real_time : bool
+        Recording: play at the recorded rate (frames may be dropped) or, False, as fast as
+        they are taken (none dropped).
+    """
+
+    def __init__(self, recording: Path | None, *, real_time: bool = True) -> None:
+        try:
+            import pyrealsense2 as rs
+        except ImportError as e:  # pragma: no cover - depends on the machine
+            raise InputError(
+                "upsr live needs the RealSense SDK: pip install 'upsr[realsense]' "
+                f"(and the system's libusb) ({e})"
+            ) from e
+        self._rs = rs
+        self.real_time = real_time if recording is not None else True
+        self.dropped = 0
+        self.received = 0
+        self._queue: queue.Queue[Any] = queue.Queue(maxsize=1)
+        self._stop = threading.Event()
+        self._error: BaseException | None = None
+        cfg = rs.config()
+        if recording is not None:
+            if not Path(recording).is_file():
+                raise InputError(f"{recording}: no such recording")
+            cfg.enable_device_from_file(str(recording), repeat_playback=False)
+        cfg.enable_stream(rs.stream.depth)
+        self._pipe = rs.pipeline()
+        try:
+            profile = self._pipe.start(cfg)
+        except RuntimeError as e:
+            raise InputError(f"RealSense: {e}") from e
+        device = profile.get_device()
+        self._playback = device.as_playback() if recording is not None else None
+        if self._playback is not None:
+            self._playback.set_real_time(self.real_time)
+        stream = profile.get_stream(rs.stream.depth).as_video_stream_profile()
+        self.shape = (stream.height(), stream.width())
+        intr = stream.get_intrinsics()
+        self.intrinsics = (intr.fx, intr.fy, intr.ppx, intr.ppy)
+        self._thread = threading.Thread(target=self._read, name="upsr-live-reader", daemon=True)
+        self._thread.start()
+
+    def _finished(self) -> bool:
+        pb = self._playback
+        return pb is not None and pb.current_status() == self._rs.playback_status.stopped
+
+    def _read(self) -> None:
+        import numpy as np
+
+        last = None
+        try:
+            while not self._stop.is_set():
+                ok, frames = self._pipe.try_wait_for_frames(200)
+                if not ok:
+                    if self._finished():
+                        break
+                    continue
+                depth = frames.get_depth_frame()
+                if not depth:
+                    continue
+                number = depth.get_frame_number()
+                if last is not None and number > last + 1 and self.real_time:
+                    self.dropped += number - last - 1  # the SDK dropped these
+                last = number
+                mm = np.asanyarray(depth.get_data()).astype(np.float32)
+                mm *= np.float32(depth.get_units() * 1000.0)
+                self.received += 1
+                item = (mm, time.perf_counter())
+                if self.real_time:
+                    try:
+                        self._queue.put_nowait(item)
+                    except queue.Full:
+                        try:  # the waiting frame is stale: the newest replaces it
+                            self._queue.get_nowait()
+                            self.dropped += 1
+                        except queue.Empty:
+                            pass
+                        self._queue.put_nowait(item)
+                else:
+                    while not self._stop.is_set():
+                        try:
+                            self._queue.put(item, timeout=0.2)
+                            break
+                        except queue.Full:
+                            continue
+        except BaseException as e:  # pragma: no cover - SDK errors
+            self._error = e
+        finally:
+            self._put_end()
+
+    def _put_end(self) -> None:
+        while True:
+            try:
+                self._queue.put(_END, timeout=0.2)
+                return
+            except queue.Full:
+                if self._stop.is_set():
+                    return
+
+    def __iter__(self) -> Iterator[tuple[Any, float]]:
+        """(frame mm, arrival time) in order, until the recording ends or :meth:`close`."""
+        while True:
+            item = self._queue.get()
+            if item is _END:
+                if self._error is not None:
+                    raise InputError(f"RealSense: {self._error}")
+                return
+            yield item
+
+    def close(self) -> None:
+        """Stop reading and stop the SDK pipeline."""
+        self._stop.set()
+        while True:  # let the reader put its end marker
+            try:
+                self._queue.get_nowait()
+            except queue.Empty:
+                break
+        self._thread.join(timeout=5.0)
+        try:
+            self._pipe.stop()
+        except RuntimeError:  # pragma: no cover
+            pass
+
+
+def live(
+    output: LiveOutputOpt,
+    scale: ScaleOpt,
+    recording: SourceArg = None,
+    frames: FramesOpt = None,
+    output_format: LiveFormatOpt = None,
+    depth_scale: OutDepthScaleOpt = 1000.0,
+    no_deblur: NoDeblurOpt = False,
+    iterations: IterationsOpt = None,
+    flow_preset: FlowPresetOpt = None,
+    flow_scale: FlowScaleOpt = None,
+    preview: PreviewOpt = None,
+    preview_every: PreviewEveryOpt = 10,
+    no_real_time: NoRealTimeOpt = False,
+    max_frames: MaxFramesOpt = None,
+    seconds: SecondsOpt = None,
+    overwrite: LiveOverwriteOpt = False,
+    quiet: QuietOpt = False,
+) -> None:
+    """Super-resolve a RealSense camera or recording live (recursive mode, latency 0).
+
+    Prints one summary line on stdout; the live status line goes to stderr.
+    """
+    from upsr.io import video as io
+    from upsr.method.recursive import RecursiveUPSR
+
+    cfg = config_from_options(
+        scale,
+        frames,
+        iterations=iterations,
+        flow_preset=flow_preset,
+        flow_scale=flow_scale,
+        no_deblur=no_deblur,
+        recursive=True,
+    )
+    out_fmt = fmt(output_format)
+    io.check_output_path([] if recording is None else [recording], output, overwrite, fmt=out_fmt)
+    source = FrameSource(recording, real_time=not no_real_time)
+    engine = RecursiveUPSR(config=cfg)
+    r = cfg.scale
+    done = 0
+    latency_ms = 0.0
+    start = time.perf_counter()
+    last_status = 0.0
+    try:
+        with io.VideoWriter(
+            output, fmt=out_fmt, depth_scale=depth_scale, overwrite=overwrite
+        ) as writer:
+            for frame, arrived in source:
+                out = engine.push(frame)
+                writer.write(out)
+                done += 1
+                now = time.perf_counter()
+                latency_ms = 1000.0 * (now - arrived)
+                if preview is not None and (done == 1 or done % preview_every == 0):
+                    _write_preview(preview, frame, out, r, done)
+                if not quiet and now - last_status > 0.25:
+                    _status(done, now - start, latency_ms, source.dropped)
+                    last_status = now
+                if (max_frames is not None and done >= max_frames) or (
+                    seconds is not None and now - start >= seconds
+                ):
+                    break
+            if done == 0:
+                raise InputError("no depth frame came from the RealSense source")
+    finally:
+        source.close()
+        if not quiet:
+            sys.stderr.write("\n")
+    elapsed = time.perf_counter() - start
+    h, w = source.shape
+    rate = done / elapsed if elapsed > 0 else float("inf")
+    typer.echo(
+        f"upsr live: {done} frames {w}x{h} -> {w * r}x{h * r} (r={r}, recursive) in "
+        f"{elapsed:.1f} s ({rate:.1f} frames/s, last latency {latency_ms:.0f} ms, "
+        f"{source.dropped} dropped) -> {output}"
+    )
+
+
+def _status(done: int, elapsed: float, latency_ms: float, dropped: int) -> None:
+    rate = done / elapsed if elapsed > 0 else 0.0
+    sys.stderr.write(
+        f"\rupsr live: {done} frames, {rate:5.1f} frames/s, latency {latency_ms:5.0f} ms, "
+        f"{dropped} dropped "
+    )
+    sys.stderr.flush()
+
+
+def _write_preview(path: Path, frame: Any, out: Any, scale: int, k: int) -> None:
+    import numpy as np
+
+    from upsr.viz.colormaps import write_png
+    from upsr.viz.pictures import comparison_frame
+
+    valid = frame[frame > 0]
+    if valid.size == 0:
+        return
+    lo, hi = np.percentile(valid, [1, 99])
+    picture = comparison_frame(
+        frame, out, scale, vmin_mm=float(lo), vmax_mm=float(max(hi, lo + 1)), caption=f"frame {k}"
+    )
+    write_png(path, picture)
+
+
+def register(app: typer.Typer) -> None:
+    """Add ``live`` to the ``upsr`` app."""
+    app.command("live", epilog=_LIVE_EPILOG)(live)

@@ -1,0 +1,558 @@
+"""Recursive (causal) UP-SR: zero latency, one flow per frame, memory independent of N.
+
+Beyond the paper. The windowed engine (:mod:`upsr.method.windowed`) fuses, for every output
+frame, the N frames around it: N/2 frames of latency and N − 1 registrations per output. The
+recursive engine carries instead a high-resolution *state* from one output to the next, on the
+r·h × r·w output grid:
+
+* ``depth``: the fused estimate (mm, 0 = nothing known), before deblurring;
+* ``count``: its confidence, the number of frames it summarises (capped at ``n_frames``, so
+  the state forgets as a window of about N frames would).
+
+Per frame t (only frame t and the state of t − 1 are read):
+
+1. the motion front-end (:class:`~upsr.method.frontend.MotionFrontEnd`) prefilters frame t and
+   computes ONE flow on the flow grid, from frame t to frame t − 1 (the backward lookup of the
+   current grid into the previous one), with its spurious motion suppressed;
+2. the new measurement is y_t↑ = U y_t after mixed-pixel removal
+   (:func:`~upsr.method.trust.remove_mixed_pixels`), and its anchor and tolerance τ = k·σ +
+   relief are those of :func:`~upsr.method.trust.reference_anchor` (frame t is the reference);
+3. registration: each output pixel p looks the state up at q = p + flow(q) (the flow read
+   bilinearly on the flow grid, as the windowed fusion reads it); the state is never
+   interpolated: of the (at most 4) state pixels around q the nearest is taken, or, when it
+   lies beyond τ of the anchor, the one of the other three that lies within τ (so a depth
+   edge of the state is moved, not blurred);
+4. radial compensation: the state's depth offset against frame t (motion along the viewing
+   ray), the masked, significance-tested median of the differences over a neighbourhood of one
+   surface (the rule of :func:`~upsr.method.trust.radial_offsets`), is subtracted;
+5. robust update, per pixel, with the trust rules of the windowed fusion:
+
+   - no state there (0, or outside the previous frame) and a measurement: start from the
+     anchor, which counts as 2 samples (it is the median of up to 9 samples of the surface);
+   - a state within τ of the anchor: update it with the measurement m and
+     count ← min(count + 1, N): the mean ``d += (m − d)/count`` (``fusion_estimator`` "mean":
+     with count < N exactly the running mean of the registered samples), or the recursive
+     median ``d += sign(m − d)·min(|m − d|, √2·σ/count)`` ("median": the stochastic
+     approximation of the median, whose step √2σ/n = 1/(n·f(median)) for Laplacian noise
+     of std σ reaches the variance σ²/(2n) of the sample median);
+   - a state beyond τ of the anchor, but within τ of the anchor of the low-res neighbour on
+     the pixel's half of the block, where the state has the block's surface at the block's
+     centre (the other surface at a depth edge inside the block, not a part newly seen there):
+     kept and updated with that neighbour's measurement;
+   - otherwise (disagreement beyond what the noise allows: something moved, appeared, or the
+     flow failed): the pixel restarts from the anchor, count 1;
+   - no measurement (0, or a mixed pixel): the state is kept with its count halved, and
+     forgotten (0) once the count drops below 1; 0 stays 0 where nothing is known;
+
+   so every pixel that frame t measured has depth in the output (the current frame anchors
+   it), and a sample beyond τ never gets averaged in;
+6. the windowed engine's finishing steps (:func:`~upsr.method.windowed.finish_fused`:
+   deblurring, speckle removal, the speckle filter never erasing what frame t measured on a
+   surface, optional hole filling) give the output; the state keeps the fused (not the
+   deblurred) depth, so the deblurring is never applied on top of itself.
+
+Relation to the windowed median (paper §5, eq. 28): on a static pixel the state with the mean
+estimator is the running mean of the last ≈ N samples (exactly the mean of all of them until N
+are seen), with the median estimator a recursive approximation of their median; a sample that
+the windowed fusion would not trust (beyond τ of the reference's anchor) restarts the pixel
+instead of being outvoted, which makes the recursive state follow what the current frame sees
+at once (no flying pixels, no ghosts, thin fast parts kept). The windowed mode, which sees
+frames after t too and the exact median of each registered window, stays the more accurate
+offline choice.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import math
+import time
+from collections.abc import Iterable, Iterator
+from typing import Any
+
+import numba as nb
+import numpy as np
+import numpy.typing as npt
+
+from upsr.errors import InputError
+from upsr.method.config import UPSRConfig
+from upsr.method.frontend import MotionFrontEnd
+from upsr.method.motion import FlowBackend, make_flow_backend
+from upsr.method.registration import _bilinear
+from upsr.method.trust import (
+    _offset_kernel,
+    choose_estimator,
+    fill_holes,
+    noise_shape,
+    reference_anchor,
+    remove_mixed_pixels,
+    surface_support,
+)
+from upsr.method.validation import as_depth_frame, as_depth_video
+from upsr.method.windowed import STAGES, finish_fused
+
+__all__ = ["RecursiveUPSR", "recursive_update", "super_resolve_recursive"]
+
+
+# ---------------------------------------------------------------------------------------------
+# compiled kernels
+# ---------------------------------------------------------------------------------------------
+@nb.njit(cache=True, nogil=True, inline="always")
+def _lookup(flow, ratio, inv, y, x):  # pragma: no cover - numba
+    """Position q (high-res px of the previous grid) that output pixel (y, x) comes from."""
+    u = (x + 0.5) * inv - 0.5
+    v = (y + 0.5) * inv - 0.5
+    return x + _bilinear(flow, u, v, 0) * ratio, y + _bilinear(flow, u, v, 1) * ratio
+
+
+@nb.njit(cache=True, nogil=True, parallel=True)
+def _registered_state_kernel(depth, flow, ratio, scale, out):  # pragma: no cover - numba
+    """out[i, j]: the state (nearest) at low-res pixel (i, j)'s centre pixel, moved by the flow."""
+    h, w = out.shape
+    hh, ww = depth.shape
+    inv = 1.0 / ratio
+    c = scale // 2
+    for i in nb.prange(h):
+        for j in range(w):
+            y = i * scale + c
+            x = j * scale + c
+            qx, qy = _lookup(flow, ratio, inv, y, x)
+            xi = math.floor(qx + 0.5)
+            yi = math.floor(qy + 0.5)
+            out[i, j] = 0.0
+            if 0 <= xi < ww and 0 <= yi < hh:
+                out[i, j] = depth[yi, xi]
+
+
+@nb.njit(cache=True, nogil=True, inline="always")
+def _step(d, m, n, use_mean, sigma):  # pragma: no cover - numba
+    e = m - d
+    if use_mean:
+        return d + e / n
+    a = 1.4142135 * max(sigma, 1.0) / n  # (noise-free data still converge)
+    return d + min(abs(e), a) * (1.0 if e > 0 else -1.0)
+
+
+@nb.njit(cache=True, nogil=True, inline="always")
+def _same_surface(depth, count, qx, qy, x0, y0, c0, thr):  # pragma: no cover - numba
+    """The state at q, bilinear among the (at most 4) state pixels around q that lie within
+    ``thr`` of ``c0`` (never across a depth edge): (depth, count)."""
+    hh, ww = depth.shape
+    fx = qx - x0
+    fy = qy - y0
+    sw = 0.0
+    sd = 0.0
+    sn = 0.0
+    for ya in range(y0, y0 + 2):
+        wy = fy if ya > y0 else 1.0 - fy
+        for xa in range(x0, x0 + 2):
+            if 0 <= xa < ww and 0 <= ya < hh:
+                v = depth[ya, xa]
+                if v > 0 and abs(v - c0) <= thr:
+                    wk = wy * (fx if xa > x0 else 1.0 - fx) + 1e-6
+                    sw += wk
+                    sd += wk * v
+                    sn += wk * count[ya, xa]
+    return sd / sw, sn / sw
+
+
+@nb.njit(cache=True, nogil=True, inline="always")
+def _centre_agrees(depth, flow, ratio, inv, i, j, scale, off, a, tl):  # pragma: no cover - numba
+    """Whether the state looked up at the centre pixel of low-res block (i, j) lies within
+    ``tl`` of ``a`` (the block's surface is where the state has it: its edge is known)."""
+    hh, ww = depth.shape
+    yc = i * scale + scale // 2
+    xc = j * scale + scale // 2
+    qx, qy = _lookup(flow, ratio, inv, yc, xc)
+    xn = math.floor(qx + 0.5)
+    yn = math.floor(qy + 0.5)
+    if 0 <= xn < ww and 0 <= yn < hh:
+        v = depth[yn, xn]
+        return v > 0 and abs(v - off - a) <= tl
+    return False
+
+
+@nb.njit(cache=True, nogil=True, parallel=True)
+def _update_kernel(
+    depth,
+    count,
+    flow,
+    ratio,
+    meas,
+    anchor,
+    tol,
+    offsets,
+    scale,
+    cap,
+    use_mean,
+    sigma,
+    edge,
+    out_d,
+    out_n,
+):  # pragma: no cover - numba
+    hh, ww = out_d.shape
+    h, w = meas.shape
+    inv = 1.0 / ratio
+    half = scale // 2
+    odd = scale % 2 == 1
+    for y in nb.prange(hh):
+        i = y // scale
+        sy = y - i * scale
+        di = 0 if (odd and sy == half) else (-1 if sy < half else 1)
+        for x in range(ww):
+            j = x // scale
+            sx = x - j * scale
+            dj = 0 if (odd and sx == half) else (-1 if sx < half else 1)
+            m = meas[i, j]
+            a = anchor[i, j]
+            tl = tol[i, j]
+            off = offsets[i, j]
+            qx, qy = _lookup(flow, ratio, inv, y, x)
+            xn = math.floor(qx + 0.5)
+            yn = math.floor(qy + 0.5)
+            x0 = math.floor(qx)
+            y0 = math.floor(qy)
+            # the state pixel that continues this pixel's surface: the nearest, or (when the
+            # nearest lies beyond the tolerance) the closest to the anchor of the other 3
+            c0 = 0.0
+            if 0 <= xn < ww and 0 <= yn < hh:
+                c0 = depth[yn, xn]
+            if not m > 0:
+                # no measurement: keep what is known, less and less confidently
+                if c0 > 0:
+                    s, n = _same_surface(depth, count, qx, qy, x0, y0, c0, edge)
+                    n *= 0.5
+                    if n >= 1.0:
+                        out_d[y, x] = s - off
+                        out_n[y, x] = n
+                        continue
+                out_d[y, x] = 0.0
+                out_n[y, x] = 0.0
+                continue
+            thr = edge
+            if tl > 0:
+                thr = min(tl, edge)
+                if not (c0 > 0 and abs(c0 - off - a) <= tl):
+                    best = tl
+                    nearest = c0
+                    c0 = 0.0
+                    for ya in range(y0, y0 + 2):
+                        for xa in range(x0, x0 + 2):
+                            if 0 <= xa < ww and 0 <= ya < hh and depth[ya, xa] > 0:
+                                e = abs(depth[ya, xa] - off - a)
+                                if e <= best:
+                                    best = e
+                                    c0 = depth[ya, xa]
+                    if (
+                        c0 == 0.0
+                        and nearest > 0
+                        and _centre_agrees(depth, flow, ratio, inv, i, j, scale, off, a, tl)
+                    ):
+                        # the other surface of a depth edge inside the block (the state has
+                        # the block's surface at its centre: an edge, not a part newly seen)?
+                        for ni, nj in ((i + di, j), (i, j + dj), (i + di, j + dj)):
+                            if (ni == i and nj == j) or ni < 0 or ni >= h or nj < 0 or nj >= w:
+                                continue
+                            mb = meas[ni, nj]
+                            ab = anchor[ni, nj]
+                            if mb > 0 and ab > 0 and abs(nearest - off - ab) <= tol[ni, nj]:
+                                m = mb
+                                c0 = nearest
+                                break
+            if c0 > 0:
+                s, n = _same_surface(depth, count, qx, qy, x0, y0, c0, thr)
+                n = min(n + 1.0, cap)
+                out_d[y, x] = _step(s - off, m, n, use_mean, sigma)
+                out_n[y, x] = n
+            elif a > 0:
+                # restart: the anchor (a median of up to 9 samples of the surface) counts 2
+                out_d[y, x] = a
+                out_n[y, x] = min(2.0, cap)
+            else:
+                out_d[y, x] = m
+                out_n[y, x] = 1.0
+
+
+def recursive_update(
+    depth: np.ndarray,
+    count: np.ndarray,
+    flow: np.ndarray,
+    measurement: np.ndarray,
+    anchor: np.ndarray,
+    tolerance: np.ndarray,
+    *,
+    scale: int,
+    cap: float,
+    estimator: str = "mean",
+    sigma_mm: float = 0.0,
+    edge_mm: float = 100.0,
+    radial_radius_px: int | None = 2,
+) -> tuple[np.ndarray, np.ndarray]:
+    """One step of the recursive fusion (see the module): the state (``depth``, ``count``) of
+    the previous frame, registered and updated with the current frame's ``measurement``.
+
+    Parameters
+    ----------
+    depth, count : ndarray float32 (r·h, r·w)
+        The previous state (mm, 0 = unknown; confidence in frames).
+    flow : ndarray float32 (s·h, s·w, 2)
+        Motion from the current frame to the previous one on the flow grid (flow px).
+    measurement : ndarray float32 (h, w)
+        The current low-res frame (mm, 0 = no measurement), mixed pixels removed.
+    anchor, tolerance : ndarray float32 (h, w)
+        :func:`upsr.method.trust.reference_anchor` of the measurement; a tolerance of 0
+        everywhere trusts every state sample.
+    scale : int
+        SR factor r.
+    cap : float
+        Largest count (the state summarises at most about this many frames).
+    estimator : {"mean", "median"}
+    sigma_mm : float
+        Noise std (mm): the step of the recursive median and the radial significance test.
+    edge_mm : float
+        Depth step that separates two surfaces (radial offsets).
+    radial_radius_px : int or None
+        Half-size of the radial-offset neighbourhood (low-res px); None: no compensation.
+
+    Returns
+    -------
+    (depth, count): the new state, float32 (r·h, r·w).
+    """
+    d = np.ascontiguousarray(depth, np.float32)
+    c = np.ascontiguousarray(count, np.float32)
+    fl = np.ascontiguousarray(flow, np.float32)
+    meas = np.ascontiguousarray(measurement, np.float32)
+    h, w = meas.shape
+    ratio = float(d.shape[1]) / fl.shape[1]
+    offsets = np.zeros((h, w), np.float32)
+    if radial_radius_px and (d > 0).any():
+        reg = np.empty((1, h, w), np.float32)
+        _registered_state_kernel(d, fl, ratio, int(scale), reg[0])
+        off = np.empty((1, h, w), np.float32)
+        _offset_kernel(reg, meas, float(edge_mm), float(sigma_mm), int(radial_radius_px), off)
+        offsets = off[0]
+    out_d = np.empty_like(d)
+    out_n = np.empty_like(c)
+    _update_kernel(
+        d, c, fl, ratio, meas,
+        np.ascontiguousarray(anchor, np.float32), np.ascontiguousarray(tolerance, np.float32),
+        offsets, int(scale), float(cap), estimator == "mean", float(sigma_mm), float(edge_mm),
+        out_d, out_n,
+    )  # fmt: skip
+    return out_d, out_n
+
+
+# ---------------------------------------------------------------------------------------------
+# the engine
+# ---------------------------------------------------------------------------------------------
+class RecursiveUPSR:
+    """Recursive (causal) UP-SR: each pushed frame's high-res output comes back at once.
+
+    Same interface as :class:`upsr.method.windowed.UPSR`: :meth:`push` returns the frame's
+    output (latency 0 frames), :meth:`feed` a list of it, :meth:`flush` nothing more (it
+    resets), :meth:`process` yields one output per input, :attr:`timings` the seconds per
+    stage. Memory: the state (two r·h × r·w float32 images) and the previous frame's
+    prefiltered and 8-bit guide images, whatever N. ``n_frames`` caps the state's count (how
+    many frames it summarises); see the module for the update rule.
+
+    Parameters
+    ----------
+    scale, n_frames, config, flow_backend, **options
+        As :class:`~upsr.method.windowed.UPSR`.
+    workers : int, optional
+        Accepted for the interface; the recursive engine works frame by frame (its kernels
+        use numba's threads).
+    """
+
+    def __init__(
+        self,
+        scale: int = 2,
+        n_frames: int = 9,
+        *,
+        config: UPSRConfig | None = None,
+        flow_backend: FlowBackend | None = None,
+        workers: int | None = None,
+        **options: Any,
+    ) -> None:
+        self.config = (
+            config if config is not None else UPSRConfig.from_options(scale, n_frames, **options)
+        )
+        self._custom_flow = flow_backend
+        self.workers = 0
+        #: Seconds per stage since the engine was made: "prefilter", "flow" (one flow per
+        #: frame), "registration" (radial offsets of the registered state), "fusion" (mixed
+        #: pixels, anchor, registration and update of the state), "deblur" (finishing).
+        self.timings: dict[str, float] = dict.fromkeys(STAGES, 0.0)
+        self.reset()
+
+    def reset(self) -> None:
+        """Forget the state (start a new video)."""
+        cfg = self.config
+        self._flow = self._custom_flow or make_flow_backend(cfg.flow, cfg.flow_preset)
+        self._front: MotionFrontEnd | None = None
+        self._shape: tuple[int, int] | None = None
+        self._count = 0
+        self._first: np.ndarray | None = None
+        self._prev_pre: np.ndarray | None = None
+        self._prev_guide: np.ndarray | None = None
+        self._depth: np.ndarray | None = None
+        self._conf: np.ndarray | None = None
+        self._temporal_mm = 0.0
+        est = cfg.fusion_estimator
+        self._estimator = "median" if est == "auto" else est
+
+    @property
+    def frames_seen(self) -> int:
+        """Number of frames pushed since the last reset/flush."""
+        return self._count
+
+    @property
+    def output_shape(self) -> tuple[int, int] | None:
+        """(r·h, r·w) once the first frame has been pushed."""
+        if self._shape is None:
+            return None
+        r = self.config.scale
+        return self._shape[0] * r, self._shape[1] * r
+
+    @property
+    def state(self) -> tuple[np.ndarray, np.ndarray] | None:
+        """(depth, count) of the last frame (the fused depth before deblurring), or None."""
+        if self._depth is None or self._conf is None:
+            return None
+        return self._depth, self._conf
+
+    @contextlib.contextmanager
+    def _timed(self, stage: str) -> Iterator[None]:
+        start = time.perf_counter()
+        try:
+            yield
+        finally:
+            self.timings[stage] += time.perf_counter() - start
+
+    def _noise(self) -> float:
+        cfg = self.config
+        if cfg.trust_noise_mm is not None:
+            return float(cfg.trust_noise_mm)
+        return max(self._front.noise_mm or 0.0, self._temporal_mm)  # type: ignore[union-attr]
+
+    def push(self, frame: npt.ArrayLike) -> np.ndarray:
+        """Add the next low-res frame (h, w) in mm; return its high-res frame (r·h, r·w)."""
+        t = self._count
+        cfg = self.config
+        r = cfg.scale
+        f = as_depth_frame(frame, name=f"frame {t}")
+        if self._front is None:
+            self._shape = f.shape
+            self._front = MotionFrontEnd(
+                cfg, f.shape[1], flow_backend=self._flow, residual_flow_backend=self._custom_flow
+            )
+            # per-video statistics from the first frame (latency 0: nothing later is known)
+            self._front.fix_statistics([f])
+            self._first = f
+        elif f.shape != self._shape:
+            raise InputError(
+                f"frame {t}: shape {f.shape} differs from the first frame's {self._shape}"
+            )
+        front = self._front
+        if t == 1 and self._first is not None:
+            kurtosis, temporal_mm = noise_shape(np.stack([self._first, f]), front.edge_mm)
+            if cfg.noise_mm is None:
+                self._temporal_mm = temporal_mm
+            if cfg.fusion_estimator == "auto":
+                self._estimator = choose_estimator(kurtosis)
+            self._first = None
+        with self._timed("prefilter"):
+            pre = front.prefilter(f)
+            guide = front.guide(pre)
+        flow = None
+        if self._prev_pre is not None:
+            with self._timed("flow"):
+                # one flow per frame: current -> previous (the backward lookup of the state)
+                flow = front.consecutive_flow(pre, self._prev_pre, guide, self._prev_guide)
+        with self._timed("fusion"):
+            meas = remove_mixed_pixels(f, front.edge_mm) if cfg.remove_mixed else f
+            noise = self._noise()
+            k = cfg.trust_k
+            anchor, tol = reference_anchor(meas, noise, k if k is not None else 1.0, front.edge_mm)
+            if k is None:
+                tol = np.zeros_like(tol)  # every state sample is trusted
+            if flow is None or self._depth is None:
+                flow = np.zeros((*pre.shape, 2), np.float32)
+                depth = np.zeros((f.shape[0] * r, f.shape[1] * r), np.float32)
+                conf = np.zeros_like(depth)
+            else:
+                depth, conf = self._depth, self._conf
+            fused, conf = recursive_update(
+                depth,
+                conf,  # type: ignore[arg-type]
+                flow,
+                meas,
+                anchor,
+                tol,
+                scale=r,
+                cap=float(cfg.n_frames),
+                estimator=self._estimator,
+                sigma_mm=noise,
+                edge_mm=front.edge_mm,
+                radial_radius_px=cfg.radial_radius_px if cfg.radial_compensation else None,
+            )
+        self._depth, self._conf = fused, conf
+        self._prev_pre, self._prev_guide = pre, guide
+        self._count = t + 1
+        with self._timed("deblur"):
+            out = finish_fused(fused, cfg)
+            keep = surface_support(meas, front.edge_mm)
+            lost = np.repeat(np.repeat(keep, r, axis=0), r, axis=1) & (out == 0) & (fused > 0)
+            if lost.any():
+                out = np.where(lost, fused, out)
+            if cfg.fill_holes:
+                out = fill_holes(out, r, iterations=64)
+        return out
+
+    def feed(self, frame: npt.ArrayLike) -> list[np.ndarray]:
+        """Add the next low-res frame; return ``[its high-res frame]`` (latency 0)."""
+        return [self.push(frame)]
+
+    def flush(self) -> list[np.ndarray]:
+        """Finish the video (nothing is pending: returns ``[]``) and reset.
+
+        Raises
+        ------
+        InputError
+            None of the pushed frames had any valid depth.
+        """
+        try:
+            if self._count and self._depth is not None and not (self._depth > 0).any():
+                raise InputError("no valid depth in any frame (all pixels are 0 or NaN)")
+            return []
+        finally:
+            self.reset()
+
+    def process(self, frames: Iterable[npt.ArrayLike]) -> Iterator[np.ndarray]:
+        """Super-resolve a stream of frames; yields each frame's output as soon as it is
+        pushed."""
+        for frame in frames:
+            yield self.push(frame)
+        self.flush()
+
+
+def super_resolve_recursive(
+    frames: npt.ArrayLike,
+    config: UPSRConfig,
+    *,
+    progress: bool | None = None,
+) -> np.ndarray:
+    """:func:`upsr.super_resolve` in recursive mode: the outputs of :class:`RecursiveUPSR`
+    pushed the frames of a (T, h, w) video, as one (T, r·h, r·w) float32 array."""
+    video = as_depth_video(frames)
+    t_total, h, w = video.shape
+    r = config.scale
+    out = np.empty((t_total, h * r, w * r), np.float32)
+    engine = RecursiveUPSR(config=config)
+    results: Iterable[np.ndarray] = engine.process(video)
+    if progress:
+        from tqdm import tqdm
+
+        results = tqdm(results, total=t_total, unit="frame", desc="upsr", leave=False)
+    for t, frame in enumerate(results):
+        out[t] = frame
+    return out

@@ -1,0 +1,87 @@
+"""``upsr live`` on a recording written by the RealSense SDK, played back as a camera."""
+
+from __future__ import annotations
+
+import ctypes.util
+import importlib.util
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from tests.apps._util import assert_user_error, run_cli
+
+DATA = Path(__file__).resolve().parents[1] / "data"
+FIXTURE = DATA / "live_small.db3"
+
+
+def _sdk_missing() -> str | None:
+    if importlib.util.find_spec("pyrealsense2") is None:
+        return "pyrealsense2 is not installed"
+    if ctypes.util.find_library("usb-1.0") is None:
+        return "libusb-1.0 is not installed"
+    try:
+        import pyrealsense2  # noqa: F401
+    except ImportError as e:  # pragma: no cover
+        return f"pyrealsense2 does not load: {e}"
+    return None
+
+
+needs_sdk = pytest.mark.skipif(_sdk_missing() is not None, reason=str(_sdk_missing()))
+
+
+def _frames() -> np.ndarray:
+    sys.path.insert(0, str(DATA))
+    try:
+        import make_live_small
+    finally:
+        sys.path.remove(str(DATA))
+    return make_live_small.frames()
+
+
+def test_fixture_is_small_and_made_by_its_script():
+    assert FIXTURE.stat().st_size < 300_000
+    assert (DATA / "make_live_small.py").is_file()
+
+
+@needs_sdk
+def test_live_on_a_recording_equals_run_recursive(tmp_path, capsys):
+    out = tmp_path / "live.npy"
+    preview = tmp_path / "preview.png"
+    rc, stdout, err = run_cli(
+        capsys, "live", FIXTURE, "--no-real-time", "-o", out, "-r", "2", "--preview", preview
+    )
+    assert rc == 0, err
+    assert "12 frames 48x40 -> 96x80" in stdout and "0 dropped" in stdout
+    assert "frames/s" in err and "latency" in err and "dropped" in err
+    assert preview.stat().st_size > 0
+    frames = _frames()
+    np.save(tmp_path / "in.npy", frames.astype(np.float32))
+    ref = tmp_path / "run.npy"
+    rc, stdout, err = run_cli(
+        capsys, "run", tmp_path / "in.npy", "-o", ref, "-r", "2", "--recursive", "-q"
+    )
+    assert rc == 0, err
+    assert "recursive" in stdout
+    np.testing.assert_array_equal(np.load(out), np.load(ref))
+
+
+@needs_sdk
+def test_live_in_real_time_drops_frames_rather_than_queueing_them(tmp_path, capsys):
+    out = tmp_path / "live.npz"
+    rc, stdout, err = run_cli(capsys, "live", FIXTURE, "-o", out, "-r", "2", "-q")
+    assert rc == 0, err
+    done = int(stdout.split("live: ")[1].split(" frames")[0])
+    dropped = int(stdout.split(" dropped")[0].rsplit(" ", 1)[1])
+    assert done >= 1 and done + dropped <= 12
+    assert np.load(out)["depth"].shape == (done, 80, 96)
+
+
+@needs_sdk
+def test_live_bad_recording(tmp_path, capsys):
+    rc, out, err = run_cli(
+        capsys, "live", tmp_path / "none.db3", "-o", tmp_path / "o.npy", "-r", "2"
+    )
+    assert_user_error(rc, out, err, "no such recording")
+    assert not (tmp_path / "o.npy").exists()
