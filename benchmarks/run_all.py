@@ -1,7 +1,8 @@
 """Run every benchmark (``make bench``): speed (ToF always; Samba, speed-up and memory when the
 Samba meshes are at ``--data``, default ``../shared/data``), the flow grid, the synthetic scenes,
-the deblurring iterations and speckle removal, and the Samba accuracy tables. Each benchmark
-prints its table and writes ``results.json`` under ``--out``."""
+the realistic sensor scenes (``--out docs/results`` writes them to docs/results/realistic), the
+deblurring iterations and speckle removal, and the Samba accuracy tables. Each benchmark prints
+its table and writes ``results.json`` under ``--out``."""
 
 from __future__ import annotations
 
@@ -13,6 +14,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 import deblur_eval
 import flow_grid_eval
+import realistic_eval
 import samba_eval
 import speed_eval
 import synthetic_eval
@@ -30,6 +32,8 @@ def main() -> int:
     flow_grid_eval.main(["--data", args.data, "--out", str(out / "flow_grid")])
     print("\n== synthetic scenes ==", flush=True)
     synthetic_eval.main(["--out", str(out / "synthetic")])
+    print("\n== realistic sensors (ToF footprint, Kinect, large and camera motion) ==", flush=True)
+    realistic_eval.main(["--out", str(out / "realistic")])
     print("\n== deblurring iterations and speckle removal ==", flush=True)
     deblur_eval.main(["--data", args.data, "--out", str(out / "deblur")])
     if (Path(args.data) / "samba" / "mesh_0000.obj").is_file():

@@ -76,3 +76,117 @@ def test_bad_arguments():
         dropout(np.ones((2, 2)), -0.1, rng)
     with pytest.raises(InputError, match="2-D"):
         dropout(np.ones(4), 0.1, rng)
+
+
+# --------------------------------------------------------------------------------------------
+# Sensor models: ToF footprint, depth-dependent noise, Kinect v1
+# --------------------------------------------------------------------------------------------
+
+from upsr.research.synth import degradation as deg  # noqa: E402
+
+
+def test_tof_footprint_means_blocks_and_mixes_at_an_edge():
+    r = 4
+    truth = np.full((8, 16), 3000.0, np.float32)
+    truth[:, :6] = 1000.0  # edge inside the second block column (cols 4..7)
+    low = deg.tof_footprint(truth, r)
+    assert low.shape == (2, 4) and low.dtype == np.float32
+    np.testing.assert_allclose(low[:, 0], 1000.0)
+    np.testing.assert_allclose(low[:, 2:], 3000.0)
+    # the mixed (flying) pixel: 2 of 4 columns foreground
+    np.testing.assert_allclose(low[:, 1], 0.5 * 1000.0 + 0.5 * 3000.0)
+    # video input and exact block means
+    rng = np.random.default_rng(0)
+    video = rng.uniform(500, 4000, (3, 8, 12)).astype(np.float32)
+    expect = video.reshape(3, 2, 4, 3, 4).mean(axis=(2, 4))
+    np.testing.assert_allclose(deg.tof_footprint(video, 4), expect, rtol=1e-6)
+
+
+def test_tof_footprint_no_return_when_most_of_the_block_is_empty():
+    truth = np.zeros((4, 12), np.float32)
+    truth[:, 0:4] = 2000.0  # full block
+    truth[:2, 4:8] = 1500.0  # half the block: kept (not "most" empty), mean of valid only
+    truth[0, 8:11] = 1200.0  # 3 of 16 valid: no return
+    low = deg.tof_footprint(truth, 4)
+    np.testing.assert_allclose(low[0], [2000.0, 1500.0, 0.0])
+    assert deg.tof_footprint(truth, 4, min_valid_fraction=0.1)[0, 2] == pytest.approx(1200.0)
+    with pytest.raises(InputError):
+        deg.tof_footprint(np.ones((5, 8)), 4)
+
+
+@pytest.mark.parametrize("law, kurtosis", [("gaussian", 3.0), ("laplace", 6.0)])
+def test_depth_dependent_noise_statistics(law, kurtosis):
+    rng = np.random.default_rng(4)
+    depth = np.empty((400, 400), np.float32)
+    depth[:200] = 1000.0
+    depth[200:] = 3000.0
+    coeffs = (2.0, 0.0, 3.0)  # σ = 2 + 3·z_m² mm: 5 mm at 1 m, 29 mm at 3 m
+    noisy = deg.add_depth_dependent_noise(depth, coeffs, rng, law=law).astype(np.float64)
+    for rows, z, s in ((slice(0, 200), 1000.0, 5.0), (slice(200, 400), 3000.0, 29.0)):
+        n = noisy[rows] - z
+        assert abs(n.mean()) < 0.05 * s
+        assert n.std() == pytest.approx(s, rel=0.02)
+        assert np.mean(n**4) / np.mean(n**2) ** 2 == pytest.approx(kurtosis, abs=0.4)
+    # a callable gives the same law as the coefficients
+    again = deg.add_depth_dependent_noise(
+        depth, lambda z: 2.0 + 3.0 * (z / 1000.0) ** 2, np.random.default_rng(4), law=law
+    )
+    np.testing.assert_allclose(again, noisy, rtol=1e-6)
+
+
+def test_kinect_axial_sigma_follows_nguyen_2012():
+    np.testing.assert_allclose(
+        deg.kinect_axial_sigma_mm([400.0, 1000.0, 2000.0, 3000.0]),
+        [1.2, 1.2 + 1.9 * 0.36, 1.2 + 1.9 * 2.56, 1.2 + 1.9 * 6.76],
+    )
+
+
+def test_disparity_quantisation_steps():
+    fb = 580.0 * 75.0
+    z = np.linspace(800.0, 3500.0, 5000, dtype=np.float32)[None, :]
+    q = deg.quantise_disparity(z).astype(np.float64)
+    d = fb / q
+    # every output disparity is a multiple of 1/8 px, and within half a step of the input's
+    np.testing.assert_allclose(d * 8, np.round(d * 8), atol=1e-3)
+    assert np.abs(d - fb / z).max() <= 1 / 16 + 1e-4
+    # the depth step at 2 m is z²·(1/8)/(f·b) ≈ 11.5 mm: neighbouring levels differ by that
+    levels = np.unique(np.round(q[(q > 1900) & (q < 2100)], 2))
+    assert np.diff(levels).mean() == pytest.approx(2000.0**2 / fb / 8, rel=0.1)
+    assert deg.quantise_disparity(np.zeros((2, 2))).sum() == 0
+
+
+def test_projector_shadows_on_the_far_side_of_the_jump():
+    f, b = 145.0, 75.0  # Kinect at 160×120
+    depth = np.full((4, 60), 2000.0, np.float32)
+    depth[:, 30:45] = 1000.0  # foreground block
+    width = f * b * (1 / 1000.0 - 1 / 2000.0)  # ≈ 5.4 px
+    out = deg.projector_shadows(depth, focal_px=f, baseline_mm=b, projector_side="right")
+    shadow = (out == 0)[0]
+    cols = np.flatnonzero(shadow)
+    # projector on the right: the band lies left of the foreground, on the background
+    assert cols.max() == 29 and len(cols) in (int(width), int(width) + 1)
+    assert (out[:, 30:45] == 1000.0).all() and (out[:, 45:] == 2000.0).all()
+    left = deg.projector_shadows(depth, focal_px=f, baseline_mm=b, projector_side="left")
+    cols = np.flatnonzero((left == 0)[0])
+    assert cols.min() == 45 and len(cols) in (int(width), int(width) + 1)
+    # a slanted plane casts no shadow on itself
+    ramp = np.tile(np.linspace(1500.0, 2500.0, 60, dtype=np.float32), (3, 1))
+    assert (deg.projector_shadows(ramp, focal_px=f) > 0).all()
+
+
+def test_kinect_model_rate_of_dropouts_noise_and_shadows():
+    rng = np.random.default_rng(5)
+    depth = np.full((2, 120, 160), 2000.0, np.float32)
+    depth[:, 40:80, 60:100] = 1200.0
+    out = deg.kinect(depth, rng)
+    assert out.shape == depth.shape and out.dtype == np.float32
+    # shadow band left of the box, about f·b·(1/1.2 m − 1/2 m) = 145·75·(1/1200 − 1/2000) px
+    band = 145.0 * 75.0 * (1 / 1200.0 - 1 / 2000.0)
+    row = out[0, 60]
+    assert (row[60 - int(band) + 1 : 60] == 0).all()
+    lost = out[:, :, 120:] == 0  # far from any edge: dropouts only
+    assert lost.mean() == pytest.approx(0.01, abs=0.004)
+    wall = out[:, :, 120:][~lost].astype(np.float64)
+    # σ_z(2 m) ≈ 6.1 mm of noise plus the ≈ 11.5 mm quantisation (uniform: step/√12 ≈ 3.3 mm)
+    assert wall.std() == pytest.approx(math.hypot(6.06, 11.46 / math.sqrt(12)), rel=0.15)
+    assert abs(wall.mean() - 2000.0) < 1.0
