@@ -51,6 +51,19 @@ TOLERANCE_FLOOR_MM = 2.0
 KURTOSIS_MEDIAN = 0.75
 
 
+@nb.njit(cache=True, nogil=True, inline="always")
+def _median_inplace(buf, m):  # pragma: no cover - numba
+    """Median of buf[:m], sorted in place (insertion sort: m is at most 25)."""
+    for p in range(1, m):
+        x = buf[p]
+        q = p - 1
+        while q >= 0 and buf[q] > x:
+            buf[q + 1] = buf[q]
+            q -= 1
+        buf[q + 1] = x
+    return buf[m // 2] if m % 2 == 1 else 0.5 * (buf[m // 2 - 1] + buf[m // 2])
+
+
 @nb.njit(cache=True, nogil=True)
 def _mixed_kernel(z, edge, out):  # pragma: no cover - numba
     h, w = z.shape
@@ -127,8 +140,7 @@ def _anchor_kernel(z, edge, sigma, k, floor, anchor, tol):  # pragma: no cover -
                     if u > 0 and abs(u - v) <= edge:
                         buf[m] = u
                         m += 1
-            s = np.sort(buf[:m])
-            anchor[i, j] = s[m // 2] if m % 2 == 1 else 0.5 * (s[m // 2 - 1] + s[m // 2])
+            anchor[i, j] = _median_inplace(buf, m)
     for i in range(h):
         for j in range(w):
             a0 = anchor[i, j]
@@ -208,38 +220,58 @@ def _registered_kernel(lowres, maps, scale, ratio, out):  # pragma: no cover - n
                     out[k, i, j] = lowres[k, yl, xl]
 
 
+@nb.njit(cache=True, nogil=True, inline="always")
+def _offset_at(reg, ref, k, i, j, edge, sigma, radius, buf):  # pragma: no cover - numba
+    """The significant median of frame k's registered differences around (i, j), or 0."""
+    h, w = ref.shape
+    c = ref[i, j]
+    m = 0
+    for a in range(max(i - radius, 0), min(i + radius + 1, h)):
+        for b in range(max(j - radius, 0), min(j + radius + 1, w)):
+            u = ref[a, b]
+            v = reg[k, a, b]
+            if not (u > 0 and v > 0):
+                continue
+            if c > 0 and abs(u - c) > edge:
+                continue  # another surface than the pixel's
+            d = v - u
+            if abs(d) <= edge:
+                buf[m] = d
+                m += 1
+    if m < 5:
+        return 0.0
+    med = _median_inplace(buf, m)
+    # significant only: beyond 4 standard errors of the median of m differences of two
+    # noisy samples (a static scene stays unchanged)
+    se = 1.2533 * math.sqrt(2.0) * sigma / math.sqrt(m)
+    return med if abs(med) > 4.0 * se else 0.0
+
+
 @nb.njit(cache=True, nogil=True)
-def _offset_kernel(reg, ref, edge, sigma, radius, out):  # pragma: no cover - numba
+def _offset_kernel(reg, ref, ref_index, edge, sigma, radius, out):  # pragma: no cover - numba
     n, h, w = reg.shape
-    size = (2 * radius + 1) ** 2
-    buf = np.empty(size, np.float32)
+    buf = np.empty((2 * radius + 1) ** 2, np.float32)
     for k in range(n):
+        if k == ref_index:
+            out[k] = 0.0
+            continue
+        # on every second pixel of each axis (the offsets are smooth); a pixel takes the
+        # value of its grid pixel when that one lies on its surface, else its own
+        for i in range(0, h, 2):
+            for j in range(0, w, 2):
+                out[k, i, j] = _offset_at(reg, ref, k, i, j, edge, sigma, radius, buf)
         for i in range(h):
             for j in range(w):
+                gi = i - i % 2
+                gj = j - j % 2
+                if gi == i and gj == j:
+                    continue
                 c = ref[i, j]
-                m = 0
-                for a in range(max(i - radius, 0), min(i + radius + 1, h)):
-                    for b in range(max(j - radius, 0), min(j + radius + 1, w)):
-                        u = ref[a, b]
-                        v = reg[k, a, b]
-                        if not (u > 0 and v > 0):
-                            continue
-                        if c > 0 and abs(u - c) > edge:
-                            continue  # another surface than the pixel's
-                        d = v - u
-                        if abs(d) <= edge:
-                            buf[m] = d
-                            m += 1
-                off = 0.0
-                if m >= 5:
-                    s = np.sort(buf[:m])
-                    med = s[m // 2] if m % 2 == 1 else 0.5 * (s[m // 2 - 1] + s[m // 2])
-                    # significant only: beyond 4 standard errors of the median of m
-                    # differences of two noisy samples (a static scene stays unchanged)
-                    se = 1.2533 * math.sqrt(2.0) * sigma / math.sqrt(m)
-                    if abs(med) > 4.0 * se:
-                        off = med
-                out[k, i, j] = off
+                g = ref[gi, gj]
+                if c > 0 and g > 0 and abs(c - g) <= edge:
+                    out[k, i, j] = out[k, gi, gj]
+                else:
+                    out[k, i, j] = _offset_at(reg, ref, k, i, j, edge, sigma, radius, buf)
 
 
 def radial_offsets(
@@ -290,8 +322,7 @@ def radial_offsets(
     reg = np.empty((n, h, w), np.float32)
     _registered_kernel(lr, mp, int(scale), float(ratio), reg)
     out = np.empty((n, h, w), np.float32)
-    _offset_kernel(reg, lr[ref], float(edge_mm), float(sigma_mm), int(radius_px), out)
-    out[ref] = 0.0
+    _offset_kernel(reg, lr[ref], int(ref), float(edge_mm), float(sigma_mm), int(radius_px), out)
     return out
 
 
