@@ -23,7 +23,8 @@ def test_static_scene_motion_is_zero_and_output_is_median_of_frames():
     # noise of 10 mm: no Laplace outlier comes near the 100 mm edge threshold, which would
     # (rightly) make the flow around it count as an edge's
     video = _static_video(sigma=10.0)
-    engine = upsr.UPSR(scale=2, n_frames=7, deblur=False, edge_weight_px=None)
+    # the paper's fusion (every sample votes); the trust test of the samples is checked below
+    engine = upsr.UPSR(scale=2, n_frames=7, deblur=False, edge_weight_px=None, trust_k=None)
     outs = [engine.push(f) for f in video]
     flows = np.stack([*engine._fwd.values(), *engine._bwd.values()])
     magnitude = np.hypot(flows[..., 0], flows[..., 1])
@@ -38,6 +39,11 @@ def test_static_scene_motion_is_zero_and_output_is_median_of_frames():
     edges = ndi.binary_dilation(box, iterations=5) & ~ndi.binary_erosion(box, iterations=5)
     assert same[~edges].mean() > 0.93
     assert same.mean() > 0.9
+    # with the trust test (default), a few Laplace outliers beyond 3σ of the reference's
+    # robust depth no longer vote: the median of the others, within the noise of it
+    trusted = upsr.super_resolve(video, 2, 7, deblur=False, edge_weight_px=None)[0]
+    close = np.abs(trusted - expected) < 10.0
+    assert close[~edges].mean() > 0.98
 
 
 def test_streaming_equals_batch_and_latency():
@@ -87,7 +93,10 @@ def test_end_to_end_dynamic_scene(background):
     assert m["surface_rmse"] < 0.4 * sigma  # far below the noise
     assert m["flying_pixels"] < 0.005
     assert m["edge_accuracy"] >= m_near["edge_accuracy"]
-    assert m["invented"] <= m_near["invented"] + 1e-9
+    # where the reference measured depth the output keeps it (as nearest does: a thin fast
+    # part never vanishes), where it did not the window's majority fills it (a dropout):
+    # at a silhouette over nothing that may add a few pixels nearest does not have
+    assert m["invented"] <= m_near["invented"] + 1e-3
     assert m["rmse"] < m_near["rmse"]
     if background == "none":
         # where the truth is 0 and every frame of the window says "no return", output 0
@@ -140,17 +149,22 @@ def test_streaming_bad_input():
 def test_chunk_with_the_videos_statistics_equals_the_whole_run():
     from upsr.method.motion import depth_range
     from upsr.method.noise import estimate_noise_mm
+    from upsr.method.trust import choose_estimator, noise_shape
     from upsr.method.windowed import window_start
 
     scene = dynamic_scene(n_frames=14, lowres_shape=(16, 20), scale=2, noise_sigma_mm=20, seed=4)
     n = 5
     whole = upsr.super_resolve(scene.lowres, 2, n)
     first = scene.lowres[:n]
+    noise = float(np.median([estimate_noise_mm(f) for f in first]))
     cfg = upsr.UPSRConfig(
         scale=2,
         n_frames=n,
         depth_range_mm=tuple(float(v) for v in depth_range(first)),
-        noise_mm=float(np.median([estimate_noise_mm(f) for f in first])),
+        noise_mm=noise,
+        # what "auto" picks from the video's first window: the estimator, the trust's noise
+        fusion_estimator=choose_estimator(noise_shape(first, 100.0)[0]),
+        trust_noise_mm=max(noise, noise_shape(first, 100.0)[1]),
     )
     a, b = 7, 14  # output frames of the chunk; its windows need input frames [lo, b)
     lo = window_start(a, 14, cfg)

@@ -197,6 +197,45 @@ class UPSRConfig:
         high-res px that no neighbour joins within ``edge_mm`` (isolated noise outliers that
         survived the median) are set to 0 = unknown (:func:`upsr.method.outliers.remove_speckles`).
         ``None``: r² (one low-res pixel's footprint); 0: keep everything.
+    trust_k : float or None
+        Fusion (beyond the paper): each registered sample is trusted only if it lies within
+        τ = trust_k·σ + the local relief of the reference's surface of the reference's own
+        robust depth there (the median of its 3×3 neighbours on its surface,
+        :func:`upsr.method.trust.reference_anchor`; σ the larger of the per-video noise
+        estimate and the std of its temporal noise). Untrusted samples vote neither on the depth
+        nor on whether there is depth; where the reference measured depth the output is never
+        0 (thin fast parts never vanish). ``None``: every sample votes (eq. 28).
+    trust_noise_mm : float or None
+        σ of the trust tolerance (mm). ``None``: ``noise_mm`` where given, else the larger of
+        the per-video noise estimate and the std of the temporal noise of static pixels of the
+        first window (which sees the quantisation steps of structured-light depth). Give it
+        (with ``noise_mm``, ``depth_range_mm`` and ``fusion_estimator``) to process a chunk
+        exactly as the whole video.
+    min_trusted : int or None
+        With fewer trusted samples than this the output is the anchor (the reference denoised
+        on its surface): the window length becomes per pixel. ``None``:
+        ``max(2, ceil(N/3))`` (at most N).
+    remove_mixed : bool
+        Set the mixed ("flying") input pixels of every frame (a depth more than the edge
+        threshold from both its nearest and its farthest 8-neighbour: a ToF footprint across
+        an edge) to 0 before the fusion, so the other frames fill them
+        (:func:`upsr.method.trust.remove_mixed_pixels`).
+    radial_compensation : bool
+        Subtract from each frame's samples its depth offset to the reference (motion along
+        the viewing ray, a masked median over (2·radial_radius_px+1)² low-res px of one
+        surface, kept where significant; :func:`upsr.method.trust.radial_offsets`) before the
+        trust test and the fusion.
+    radial_radius_px : int
+        Half-size (low-res px) of the neighbourhood of the radial offsets.
+    fusion_estimator : {"auto", "median", "mean"}
+        Estimate of the fused samples of a surface: the median (eq. 28, ML under Laplacian
+        noise), the mean (ML under Gaussian noise; falls between quantisation steps), or
+        ``"auto"``: chosen once per video from the excess kurtosis of the temporal differences
+        of its static pixels (> 0.75: median; :func:`upsr.method.trust.noise_shape`).
+    fill_holes : bool
+        INVENTED depth, off by default: after the deblurring, every pixel without depth takes
+        the farthest (background-side) depth within r px, repeatedly, as the hole filling of
+        depth SDKs (:func:`upsr.method.trust.fill_holes`).
     deblur : DeblurConfig
         Deblurring parameters (eq. 29–30).
     """
@@ -219,6 +258,14 @@ class UPSRConfig:
     edge_mm: float = 100.0
     edge_weight_px: float | None = 0.35
     edge_weight_floor: float = 0.25
+    trust_k: float | None = 3.0
+    trust_noise_mm: float | None = None
+    min_trusted: int | None = None
+    remove_mixed: bool = True
+    radial_compensation: bool = True
+    radial_radius_px: int = 2
+    fusion_estimator: str = "auto"
+    fill_holes: bool = False
     deblur: DeblurConfig = field(default_factory=DeblurConfig)
 
     def __post_init__(self) -> None:
@@ -265,6 +312,34 @@ class UPSRConfig:
             f"speckle_px must be an integer >= 0 (or None), got {self.speckle_px!r}",
         )
         _check(self.edge_mm > 0, "edge_mm must be > 0")
+        _check(
+            self.trust_k is None
+            or (
+                not isinstance(self.trust_k, bool)
+                and math.isfinite(self.trust_k)
+                and self.trust_k > 0
+            ),
+            f"trust_k must be a finite number > 0 (or None), got {self.trust_k!r}",
+        )
+        _check(
+            self.trust_noise_mm is None
+            or (math.isfinite(self.trust_noise_mm) and self.trust_noise_mm >= 0),
+            "trust_noise_mm must be a finite number >= 0 (or None to estimate it)",
+        )
+        _check(
+            self.min_trusted is None or (_is_int(self.min_trusted) and self.min_trusted >= 1),
+            f"min_trusted must be an integer >= 1 (or None), got {self.min_trusted!r}",
+        )
+        _check(
+            _is_int(self.radial_radius_px) and self.radial_radius_px >= 1,
+            f"radial_radius_px must be an integer >= 1, got {self.radial_radius_px!r}",
+        )
+        _check(
+            self.fusion_estimator in ("auto", "median", "mean"),
+            f"fusion_estimator must be 'auto', 'median' or 'mean', not {self.fusion_estimator!r}",
+        )
+        for name in ("remove_mixed", "radial_compensation", "fill_holes"):
+            _check(isinstance(getattr(self, name), bool), f"{name} must be True or False")
         object.__setattr__(self, "scale", int(self.scale))
         object.__setattr__(self, "n_frames", int(self.n_frames))
 
@@ -285,6 +360,13 @@ class UPSRConfig:
         if self.refine_preset is not None:
             return self.refine_preset
         return "ultrafast" if grid_width_px >= FLOW_GRID_MIN_WIDTH_PX else self.flow_preset
+
+    @property
+    def min_trusted_samples(self) -> int:
+        """Fewest trusted samples of a pixel whose estimate replaces the anchor."""
+        if self.min_trusted is not None:
+            return int(min(self.min_trusted, self.n_frames))
+        return int(min(max(2, math.ceil(self.n_frames / 3)), self.n_frames))
 
     @property
     def speckle_size_px(self) -> int:

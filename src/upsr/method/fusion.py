@@ -28,6 +28,7 @@ import numpy.typing as npt
 
 from upsr._numba import SAFE_FASTMATH
 from upsr.method.registration import interpolation_tables, weight_table
+from upsr.method.trust import trust_arrays
 
 __all__ = [
     "OUTSIDE",
@@ -85,6 +86,17 @@ def sorting_network(n: int) -> np.ndarray:
 
 
 @nb.njit(cache=True, nogil=True, inline="always")
+def _centre_sorted(vals, lo, hi, use_mean):  # pragma: no cover - numba
+    """The estimate of the sorted vals[lo:hi]: their median, or their mean (``use_mean``)."""
+    if use_mean:
+        acc = 0.0
+        for p in range(lo, hi):
+            acc += vals[p]
+        return np.float32(acc / (hi - lo))
+    return _median_sorted(vals, lo, hi)
+
+
+@nb.njit(cache=True, nogil=True, inline="always")
 def _too_few_valid(w_valid, w_in, ref_value, min_valid_fraction):  # pragma: no cover - numba
     """Whether a pixel is unknown: at most ``min_valid_fraction`` of the weight of its
     in-frame samples is valid (a tie follows the reference: unknown if its sample is)."""
@@ -94,7 +106,18 @@ def _too_few_valid(w_valid, w_in, ref_value, min_valid_fraction):  # pragma: no 
 
 @nb.njit(cache=True, nogil=True, inline="always")
 def _fuse_pixel(
-    vals, wts, nv, w_in, w_valid, ref_value, g, guide_bonus, min_valid_fraction, edge_mm, network
+    vals,
+    wts,
+    nv,
+    w_in,
+    w_valid,
+    ref_value,
+    g,
+    guide_bonus,
+    min_valid_fraction,
+    edge_mm,
+    network,
+    use_mean=False,
 ):  # pragma: no cover - numba
     """The fused depth of one pixel from its samples: vals[k] > 0 valid (else +inf) with vote
     weights wts[k] (0 for invalid ones); nv valid samples; w_in, w_valid the weight of the
@@ -117,7 +140,7 @@ def _fuse_pixel(
         wts[a] = wb if swap else wa
         wts[b] = wa if swap else wb
     if vals[nv - 1] - vals[0] <= edge_mm:
-        return _median_sorted(vals, 0, nv)
+        return _centre_sorted(vals, 0, nv, use_mean)
     # samples from several surfaces (a depth edge): the surface with the largest vote
     # weight wins (a tie: the reference's surface); the surface of the guide (the nearest
     # forward-registered sample) gets a bonus; its median is the output
@@ -139,7 +162,7 @@ def _fuse_pixel(
             acc = 0.0
         if p < nv:
             acc += wts[p]
-    return _median_sorted(vals, best_lo, best_hi)
+    return _centre_sorted(vals, best_lo, best_hi, use_mean)
 
 
 @nb.njit(cache=True, nogil=True, parallel=True)
@@ -224,6 +247,11 @@ def _register_fuse_kernel(
     measured,
     network,
     still,
+    anchor,
+    tol,
+    offsets,
+    min_trusted,
+    use_mean,
     out,
 ):  # pragma: no cover - numba
     n = lowres.shape[0]
@@ -265,7 +293,22 @@ def _register_fuse_kernel(
         on_fx = np.empty(m_on, np.float32)
         on_low = np.empty(m_on, np.int64)
         on_jd = np.empty(m_on, np.float64)
+        on_anc = np.empty(m_on, np.float32)  # the reference's anchor (0: none, no trust test)
+        on_tol = np.empty(m_on, np.float32)
+        # at a depth edge: the anchor of the low-res neighbour (another surface) on the side
+        # of the pixel within its block, in x and in y (0: none), whose samples may compete
+        on_ax = np.zeros(m_on, np.float32)
+        on_tx = np.zeros(m_on, np.float32)
+        on_ay = np.zeros(m_on, np.float32)
+        on_ty = np.zeros(m_on, np.float32)
         fi = np.float64(i)
+        li = low_of[i]
+        anc_row = anchor[li]
+        tol_row = tol[li]
+        quarter = 0.0  # the half of the block on that side
+        dy = fi - centre_of[i]
+        ny = li + 1 if dy > quarter else (li - 1 if dy < -quarter else -1)
+        ny = ny if 0 <= ny < anchor.shape[0] else -1
         for q in range(m_on):
             j = on[q]
             on_jd[q] = np.float64(j)
@@ -273,12 +316,27 @@ def _register_fuse_kernel(
             on_b[q] = cols[j, 1]
             on_fx[q] = fx[j]
             on_low[q] = low_of[j]
+            lj = on_low[q]
+            a0 = anc_row[lj]
+            on_anc[q] = a0
+            on_tol[q] = tol_row[lj]
+            if a0 > 0:
+                dx = on_jd[q] - centre_of[j]
+                nx = lj + 1 if dx > quarter else (lj - 1 if dx < -quarter else -1)
+                if 0 <= nx < w_low and abs(anc_row[nx] - a0) > edge_mm:
+                    on_ax[q] = anc_row[nx]
+                    on_tx[q] = tol_row[nx]
+                if ny >= 0 and abs(anchor[ny, lj] - a0) > edge_mm:
+                    on_ay[q] = anchor[ny, lj]
+                    on_ty[q] = tol[ny, lj]
         # one output row at a time, every frame's sample of each of those pixels: loops
         # over the row (SIMD where they can)
         raw = np.empty((n, m_on), np.float32)  # the sample; NaN: outside its frame (abstains)
         srt = np.empty((n, m_on), np.float32)  # the valid samples (+inf for the others), sorted
         n_in = np.zeros(m_on, np.int64)
         nv = np.zeros(m_on, np.int64)
+        total = np.zeros(m_on, np.float32)  # sum of the valid (trusted) samples
+        n_own = np.zeros(m_on, np.int64)  # samples trusted by the pixel's own anchor
         px = np.empty((n, m_on), np.float64)  # where each sample lies (output px)
         py = np.empty((n, m_on), np.float64)
         at = np.empty(m_on, np.int64)  # its low-res pixel (flat index; -1: outside)
@@ -293,14 +351,24 @@ def _register_fuse_kernel(
                 px[k] = on_jd  # (read where the vote weights are needed)
                 py[k] = fi
                 own = lowres[k, low_of[i]]
+                off_k = offsets[k, low_of[i]]
                 raw_k = raw[k]
                 srt_k = srt[k]
                 for q in range(m_on):
                     v = own[on_low[q]]
-                    raw_k[q] = v
-                    srt_k[q] = v if v > 0 else inf
-                    n_in[q] += 1
-                    nv[q] += 1 if v > 0 else 0
+                    a = on_anc[q]
+                    vc = v - off_k[on_low[q]]
+                    own_k = (v > 0) & (a > 0) & (abs(vc - a) <= on_tol[q])
+                    side = (abs(vc - on_ax[q]) <= on_tx[q]) | (abs(vc - on_ay[q]) <= on_ty[q])
+                    ok = (v > 0) & ((a <= 0) | own_k | side)
+                    # an untrusted sample abstains entirely (neither depth nor "no depth")
+                    vote = (a <= 0) | ok
+                    n_own[q] += 1 if own_k else 0
+                    raw_k[q] = (vc if v > 0 else v) if vote else nan
+                    srt_k[q] = vc if ok else inf
+                    total[q] += vc if ok else 0.0
+                    n_in[q] += 1 if vote else 0
+                    nv[q] += 1 if ok else 0
                 continue
             # the flow-grid row interpolated to this output row, in output px (times r/s)
             m0 = maps[k, y0]
@@ -309,6 +377,7 @@ def _register_fuse_kernel(
                 vxk[c] = ((1 - gy) * m0[c, 0] + gy * m1[c, 0]) * ratio
                 vyk[c] = ((1 - gy) * m0[c, 1] + gy * m1[c, 1]) * ratio
             lk = lowres[k].ravel()
+            off_k = offsets[k, low_of[i]]
             rk = raw[k]
             sk = srt[k]
             pxk = px[k]
@@ -335,10 +404,18 @@ def _register_fuse_kernel(
                 t = at[q]
                 v = lk[max(t, 0)]
                 inside = t >= 0
-                valid = inside & (v > 0)
-                rk[q] = v if inside else nan
-                sk[q] = v if valid else inf
-                n_in[q] += 1 if inside else 0
+                a = on_anc[q]
+                vc = v - off_k[on_low[q]]  # radial motion compensated
+                own_k = inside & (v > 0) & (a > 0) & (abs(vc - a) <= on_tol[q])
+                side = (abs(vc - on_ax[q]) <= on_tx[q]) | (abs(vc - on_ay[q]) <= on_ty[q])
+                valid = inside & (v > 0) & ((a <= 0) | own_k | side)
+                n_own[q] += 1 if own_k else 0
+                # outside, or valid but not trusted by the reference's anchor: abstains
+                vote = inside & ((a <= 0) | valid)
+                rk[q] = (vc if v > 0 else v) if vote else nan
+                sk[q] = vc if valid else inf
+                total[q] += vc if valid else 0.0
+                n_in[q] += 1 if vote else 0
                 nv[q] += 1 if valid else 0
         _sort_columns(srt, network)
         # the common case, branch-free (SIMD): every sample valid and one surface (a span
@@ -349,21 +426,42 @@ def _register_fuse_kernel(
         hi_row = srt[n - 1]
         mid_a = srt[(n - 1) // 2]
         mid_b = srt[n // 2]
+        inv_n = np.float32(1.0 / n)
         for q in range(m_on):
-            plain[q] = np.float32(0.5) * (mid_a[q] + mid_b[q]) if n % 2 == 0 else mid_b[q]
-            other[q] = (nv[q] < n) | (hi_row[q] - lo_row[q] > edge_mm)
+            med = np.float32(0.5) * (mid_a[q] + mid_b[q]) if n % 2 == 0 else mid_b[q]
+            plain[q] = total[q] * inv_n if use_mean else med
+            few_own = (on_anc[q] > 0) & (n_own[q] < min_trusted)
+            other[q] = (nv[q] < n) | (hi_row[q] - lo_row[q] > edge_mm) | few_own
         for q in range(m_on):
             j = on[q]
             if not other[q]:
                 out[i, j] = plain[q]
                 continue
             m = nv[q]
+            if on_anc[q] > 0:
+                # the reference measured depth here: never 0; with too few samples trusted
+                # by its anchor, the anchor (the reference denoised on its surface); else the
+                # estimate of the trusted samples, or, with samples of the neighbouring
+                # surface at an edge too, the competition of the surfaces below
+                if n_own[q] < min_trusted:
+                    out[i, j] = on_anc[q]
+                    continue
+                if m == n_own[q]:
+                    if use_mean:
+                        out[i, j] = total[q] / m
+                    else:
+                        mid = m // 2
+                        odd = m % 2 == 1
+                        out[i, j] = srt[mid, q] if odd else 0.5 * (srt[mid - 1, q] + srt[mid, q])
+                    continue
             if m == 0:
                 out[i, j] = 0.0  # no valid sample
                 continue
             one_surface = srt[m - 1, q] - srt[0, q] <= edge_mm
             mid = m // 2
             median = srt[mid, q] if m % 2 == 1 else 0.5 * (srt[mid - 1, q] + srt[mid, q])
+            if use_mean and one_surface:
+                median = total[q] / m  # the mean of the (all) valid samples
             if m == n_in[q] and one_surface:
                 # the common case: every in-frame sample valid, one surface: the plain median
                 out[i, j] = median
@@ -410,6 +508,7 @@ def _register_fuse_kernel(
                 min_valid_fraction,
                 edge_mm,
                 network,
+                use_mean,
             )
 
 
@@ -598,6 +697,11 @@ def register_and_fuse(
     min_valid_fraction: float = 0.5,
     edge_mm: float = 100.0,
     measured_only: bool = True,
+    anchor: npt.ArrayLike | None = None,
+    tolerance: npt.ArrayLike | None = None,
+    offsets: npt.ArrayLike | None = None,
+    min_trusted: int = 1,
+    estimator: str = "median",
 ) -> np.ndarray:
     """Registration (eq. 20) and invalid-aware median fusion (eq. 28) in one compiled pass.
 
@@ -630,6 +734,22 @@ def register_and_fuse(
         Output 0 wherever no frame of the window measured the low-res pixel the output pixel
         belongs to (never invent depth where the camera saw nothing, even when the motion
         brings samples there).
+    anchor, tolerance : array_like (h, w), optional
+        Trust (beyond the paper, :func:`upsr.method.trust.reference_anchor`): where
+        ``anchor`` > 0 (the reference measured depth), a sample is trusted only if it lies
+        within ``tolerance`` of it; untrusted samples vote neither on the depth nor on whether
+        there is depth, and the output is never 0 there: the estimate of the trusted samples,
+        or the anchor itself with fewer than ``min_trusted`` of them. Where ``anchor`` is 0
+        the rules above apply. ``None``: no trust test (eq. 28 as before).
+    offsets : array_like (N, h, w), optional
+        Depth offset (mm) subtracted from frame k's samples that land on reference low-res
+        pixel (i, j), before the trust test and the fusion (radial motion,
+        :func:`upsr.method.trust.radial_offsets`). ``None``: none.
+    min_trusted : int
+        Fewest trusted samples whose estimate replaces the anchor.
+    estimator : {"median", "mean"}
+        Estimate of the samples of the winning surface: their median (eq. 28, ML for Laplace
+        noise) or their mean (ML for Gaussian noise; between quantisation steps).
 
     Returns
     -------
@@ -651,6 +771,9 @@ def register_and_fuse(
         else np.ascontiguousarray(guide, dtype=np.float32)
     )
     measured = (lr > 0).any(axis=0) if measured_only else np.ones((h, w), np.bool_)
+    if estimator not in ("median", "mean"):
+        raise ValueError(f"estimator must be 'median' or 'mean', not {estimator!r}")
+    anc, tol, offs = trust_arrays(anchor, tolerance, offsets, (n, h, w))
     out = np.empty((hh, ww), np.float32)
     _register_fuse_kernel(
         lr,
@@ -672,6 +795,11 @@ def register_and_fuse(
         measured,
         _network(n),
         ref if not mp[ref].any() else -1,  # the reference's map is zero: a shortcut
+        anc,
+        tol,
+        offs,
+        max(int(min_trusted), 1),
+        estimator == "mean",
         out,
     )
     return out

@@ -52,6 +52,15 @@ from upsr.method.registration import (
     sample_centres,
     to_output_grid,
 )
+from upsr.method.trust import (
+    choose_estimator,
+    fill_holes,
+    noise_shape,
+    radial_offsets,
+    reference_anchor,
+    remove_mixed_pixels,
+    surface_support,
+)
 from upsr.method.validation import as_depth_frame, as_depth_video
 
 __all__ = ["STAGES", "UPSR", "finish_fused", "super_resolve", "window_start"]
@@ -166,6 +175,10 @@ class UPSR:
         self._next_out = 0
         self._next_submit = 0
         self._any_valid = False
+        # temporal noise of static pixels (std, estimator), fixed from the first window
+        self._temporal_mm = 0.0
+        est = self.config.fusion_estimator
+        self._estimator = "median" if est == "auto" else est
         self._lowres: dict[int, np.ndarray] = {}
         self._pre: dict[int, np.ndarray] = {}
         self._guide: dict[int, np.ndarray] = {}
@@ -221,6 +234,12 @@ class UPSR:
         if self._count == cfg.n_frames:
             # per-video statistics, fixed once from the first window (never per frame)
             front.fix_statistics(self._lowres[k] for k in sorted(self._lowres))
+            first = np.stack([self._lowres[k] for k in sorted(self._lowres)])
+            kurtosis, temporal_mm = noise_shape(first, front.edge_mm)
+            if cfg.noise_mm is None:  # a given noise is the noise (chunks of a video)
+                self._temporal_mm = temporal_mm
+            if cfg.fusion_estimator == "auto":
+                self._estimator = choose_estimator(kurtosis)
         if front.ready:
             for k in sorted(self._pre):
                 if k not in self._guide:
@@ -259,6 +278,28 @@ class UPSR:
             )
         with self._timed("fusion"):
             lowres = np.stack([self._lowres[k] for k in idx])
+            if cfg.remove_mixed:
+                # mixed (flying) input pixels: no measurement, the other frames fill them
+                lowres = remove_mixed_pixels(lowres, self._front.edge_mm)
+            noise = cfg.trust_noise_mm
+            if noise is None:
+                noise = max(self._front.noise_mm or 0.0, self._temporal_mm)
+            offsets = None
+            if cfg.radial_compensation and cfg.n_frames > 1:
+                offsets = radial_offsets(
+                    lowres,
+                    maps,
+                    r,
+                    ref,
+                    sigma_mm=noise,
+                    edge_mm=self._front.edge_mm,
+                    radius_px=cfg.radial_radius_px,
+                )
+            anchor = tolerance = None
+            if cfg.trust_k is not None:
+                anchor, tolerance = reference_anchor(
+                    lowres[ref], noise, cfg.trust_k, self._front.edge_mm
+                )
             guide = None
             if cfg.splat_radius_px and cfg.n_frames > 1:
                 # where each sample lands in the reference (upsr.method.registration.
@@ -279,9 +320,24 @@ class UPSR:
                 min_valid_fraction=cfg.min_valid_fraction,
                 edge_mm=self._front.edge_mm,  # type: ignore[union-attr]
                 measured_only=True,  # never invent depth where no frame measured anything
+                anchor=anchor,
+                tolerance=tolerance,
+                offsets=offsets,
+                min_trusted=cfg.min_trusted_samples,
+                estimator=self._estimator,
             )
         with self._timed("deblur"):
-            return finish_fused(fused, cfg)
+            out = finish_fused(fused, cfg)
+            if anchor is not None:
+                # the speckle filter never erases what the reference measured on a surface
+                # (a thin fast part kept by its anchor is an island, not noise)
+                keep = surface_support(lowres[ref], self._front.edge_mm)
+                lost = np.repeat(np.repeat(keep, r, axis=0), r, axis=1) & (out == 0) & (fused > 0)
+                if lost.any():
+                    out = np.where(lost, fused, out)
+            if cfg.fill_holes:
+                out = fill_holes(out, r, iterations=64)  # invented depth (off by default)
+            return out
 
     def _chain(self, k: int, m: int) -> np.ndarray:
         """Frame k's low-res sample centres carried by the consecutive flows to frame m (flow

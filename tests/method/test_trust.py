@@ -1,0 +1,263 @@
+"""Trust of the registered samples: reference anchor, mixed pixels, radial motion, estimator,
+hole filling (upsr.method.trust and the trust path of fusion.register_and_fuse)."""
+
+import numpy as np
+import pytest
+
+import upsr
+from upsr.errors import InputError
+from upsr.method.config import UPSRConfig
+from upsr.method.fusion import register_and_fuse
+from upsr.method.trust import (
+    choose_estimator,
+    fill_holes,
+    noise_shape,
+    radial_offsets,
+    reference_anchor,
+    remove_mixed_pixels,
+)
+from upsr.method.upsampling import upsample_nearest
+
+R = 2
+WALL = 3000.0
+BAR = 1500.0
+
+
+def _bar_video(n=9, h=12, w=40, width=1, speed=5, background=WALL, noise=0.0, seed=0):
+    """A thin vertical bar (``width`` low-res px) moving ``speed`` px/frame in front of a wall
+    (or of nothing: background 0); the reference (middle frame) has it at column 18."""
+    rng = np.random.default_rng(seed)
+    ref = (n - 1) // 2
+    frames = np.full((n, h, w), background, np.float32)
+    for k in range(n):
+        c = 18 + speed * (k - ref)
+        if 0 <= c < w:
+            frames[k, :, c : c + width] = BAR
+    if noise:
+        frames = np.where(frames > 0, frames + rng.normal(0, noise, frames.shape), 0)
+    return frames.astype(np.float32), ref
+
+
+def _fuse_trusted(frames, ref, maps=None, *, sigma=3.0, edge=100.0, **kw):
+    n, h, w = frames.shape
+    if maps is None:  # the flow did not follow the bar: zero motion everywhere
+        maps = np.zeros((n, h * R, w * R, 2), np.float32)
+    anchor, tol = reference_anchor(frames[ref], sigma, 3.0, edge)
+    return register_and_fuse(
+        frames, maps, R, ref, anchor=anchor, tolerance=tol, edge_mm=edge, min_trusted=3, **kw
+    )
+
+
+@pytest.mark.parametrize("background", [WALL, 0.0])
+@pytest.mark.parametrize("width", [1, 2])
+def test_thin_fast_bar_survives_at_its_reference_position(background, width):
+    frames, ref = _bar_video(width=width, background=background)
+    maps = np.zeros((frames.shape[0], 12 * R, 40 * R, 2), np.float32)
+    old = register_and_fuse(frames, maps, R, ref, edge_mm=100.0)
+    new = _fuse_trusted(frames, ref)
+    cols = slice(18 * R, (18 + width) * R)
+    # the other frames' samples there show the wall (or nothing) and used to erase the bar
+    assert not np.any(old[:, cols] == BAR)
+    np.testing.assert_array_equal(new[:, cols], BAR)
+    # not shifted: everywhere else the reference's own background
+    rest = np.ones(new.shape[1], bool)
+    rest[cols] = False
+    np.testing.assert_array_equal(new[:, rest], background)
+
+
+def test_an_untrusted_sample_cannot_change_the_output():
+    rng = np.random.default_rng(1)
+    frames = (WALL + rng.normal(0, 3, (7, 6, 6))).astype(np.float32)
+    ref = 3
+    outs = []
+    for value in (WALL + 60, WALL - 80, 500.0, 0.0, 9000.0):
+        changed = frames.copy()
+        changed[1, 2, 3] = value
+        changed[5, 2, 3] = value
+        outs.append(_fuse_trusted(changed, ref))
+    for out in outs[1:]:  # whatever the untrusted value (or none): the same output
+        np.testing.assert_array_equal(out, outs[0])
+    # which is the estimate of the trusted samples alone
+    trusted = np.delete(frames[:, 2, 3], [1, 5])
+    np.testing.assert_allclose(outs[0][2 * R, 3 * R], np.median(trusted), rtol=1e-6)
+    # without the trust test the outliers move it
+    maps = np.zeros((7, 12, 12, 2), np.float32)
+    changed = frames.copy()
+    changed[[1, 5, 6], 2, 3] = WALL + 60
+    assert register_and_fuse(changed, maps, R, ref)[2 * R, 3 * R] != outs[0][2 * R, 3 * R]
+
+
+def test_with_too_few_trusted_samples_the_output_is_the_anchor_never_zero():
+    frames = np.zeros((9, 5, 5), np.float32)
+    frames[4] = 2000.0
+    frames[4, 2, 2] = 2004.0
+    out = _fuse_trusted(frames, 4)
+    anchor, _ = reference_anchor(frames[4], 3.0, 3.0, 100.0)
+    np.testing.assert_array_equal(out, upsample_nearest(anchor, R))
+    assert anchor[2, 2] == 2000.0  # the 3x3 median on its surface
+    # without trust the other frames' "no return" erase the reference's depth
+    maps = np.zeros((9, 10, 10, 2), np.float32)
+    assert not register_and_fuse(frames, maps, R, 4).any()
+
+
+def test_a_dropout_in_the_reference_is_still_filled():
+    rng = np.random.default_rng(2)
+    frames = (WALL + rng.normal(0, 3, (7, 6, 6))).astype(np.float32)
+    frames[3, 2, 3] = 0.0
+    out = _fuse_trusted(frames, 3)
+    block = out[2 * R : 3 * R, 3 * R : 4 * R]
+    expected = np.median(np.delete(frames[:, 2, 3], 3))
+    np.testing.assert_allclose(block, expected, rtol=1e-6)
+
+
+def test_anchor_follows_its_surface_and_tolerance_its_relief():
+    z = np.tile(2000.0 + 10.0 * np.arange(8, dtype=np.float32), (6, 1))
+    z[:, 6:] = 1000.0  # a foreground edge
+    anchor, tol = reference_anchor(z, 2.0, 3.0, 100.0)
+    np.testing.assert_array_equal(anchor[1:-1, 1:5], z[1:-1, 1:5])  # a plane: its own depth
+    np.testing.assert_array_equal(anchor[:, 6:], 1000.0)  # never across the edge
+    assert tol[2, 3] == pytest.approx(3.0 * 2.0 + 10.0)  # k·σ + relief of one pixel
+    assert tol[2, 7] == pytest.approx(6.0)
+    z[1, 1] = 0.0
+    anchor, tol = reference_anchor(z, 2.0, 3.0, 100.0)
+    assert anchor[1, 1] == 0.0 and tol[1, 1] == 0.0
+
+
+def test_mixed_pixels_are_removed_and_never_reach_the_output():
+    frames = np.full((5, 8, 10), WALL, np.float32)
+    frames[:, :, :5] = 1000.0
+    mixed = frames.copy()
+    for k in range(5):
+        mixed[k, 2 + k % 3, 5] = 2000.0  # ToF footprint across the edge, in every frame
+    clean = remove_mixed_pixels(mixed, 100.0)
+    np.testing.assert_array_equal(clean, np.where(mixed != frames, 0.0, frames))
+    # edges, slopes and single outliers at one side are not mixed pixels
+    np.testing.assert_array_equal(remove_mixed_pixels(frames, 100.0), frames)
+    kw = dict(deblur=False, noise_mm=2.0, speckle_px=0)
+    out = upsr.super_resolve(mixed, 2, 5, **kw)
+    valid = out[out > 0]
+    near_surface = (np.abs(valid - 1000) <= 100) | (np.abs(valid - WALL) <= 100)
+    assert near_surface.all()
+    off = upsr.super_resolve(mixed, 2, 5, remove_mixed=False, **kw)
+    assert np.any(np.abs(off - 2000) < 100)  # without it the mixed pixel survives
+
+
+def _approach_video(t=12, h=16, w=20, speed=25.0, noise=3.0, seed=3):
+    """A camera moving ``speed`` mm/frame toward a slanted wall (no lateral motion)."""
+    rng = np.random.default_rng(seed)
+    _ys, xs = np.mgrid[0:h, 0:w].astype(np.float32)
+    walls = np.stack([2500.0 + 15.0 * xs - speed * k for k in range(t)])
+    return (walls + rng.normal(0, noise, walls.shape)).astype(np.float32), walls
+
+
+def test_radial_motion_is_compensated():
+    video, truth = _approach_video(h=24, w=30)
+    kw = dict(deblur=False, noise_mm=3.0, edge_weight_px=None, speckle_px=0)
+    out = upsr.super_resolve(video, 2, 9, **kw)
+    truth_up = upsample_nearest(truth, 2)
+    assert abs(float(np.mean(out - truth_up))) < 1.0
+    # per output frame (the windows of the first and last frames are not centred on them):
+    # what is left is the noise of the offset estimates, no bias
+    bias = np.mean(out - truth_up, axis=(1, 2))
+    assert np.abs(bias).max() < 2.0
+    trust_only = upsr.super_resolve(video, 2, 9, radial_compensation=False, **kw)
+    assert np.abs(np.mean(trust_only - truth_up, axis=(1, 2))).max() > 3.0
+    plain = upsr.super_resolve(video, 2, 9, radial_compensation=False, trust_k=None, **kw)
+    assert np.abs(np.mean(plain - truth_up, axis=(1, 2))).max() > 20.0
+
+
+def test_a_static_scene_gets_no_radial_offset():
+    rng = np.random.default_rng(4)
+    frames = (2000.0 + rng.laplace(0, 10 / np.sqrt(2), (9, 16, 20))).astype(np.float32)
+    maps = np.zeros((9, 32, 40, 2), np.float32)
+    off = radial_offsets(frames, maps, 2, 4, sigma_mm=10.0, edge_mm=100.0)
+    assert not off.any()
+    # a real offset of one frame is found
+    frames[2] += 40.0
+    off = radial_offsets(frames, maps, 2, 4, sigma_mm=10.0, edge_mm=100.0)
+    assert np.median(off[2]) == pytest.approx(40.0, abs=5.0)
+    assert not off[4].any()
+
+
+def _kinect(z, rng, f=580.0, b=75.0, sigma_px=0.07):
+    """Kinect-like structured light: disparity with noise, quantised to 1/8 px."""
+    disparity = f * b / z + rng.normal(0, sigma_px, z.shape)
+    return (f * b / (np.round(disparity * 8.0) / 8.0)).astype(np.float32)
+
+
+@pytest.mark.parametrize("kind", ["gaussian", "kinect", "laplace"])
+def test_the_estimator_follows_the_shape_of_the_noise(kind):
+    rng = np.random.default_rng(5)
+    n, h, w = 9, 24, 24
+    truth = np.full((n, h, w), 2500.0, np.float32)
+    if kind == "gaussian":
+        frames = truth + rng.normal(0, 10, truth.shape)
+    elif kind == "laplace":
+        frames = truth + rng.laplace(0, 10 / np.sqrt(2), truth.shape)
+    else:
+        frames = _kinect(truth, rng)
+    frames = frames.astype(np.float32)
+    kurt, std = noise_shape(frames, 100.0)
+    estimator = choose_estimator(kurt)
+    assert estimator == ("median" if kind == "laplace" else "mean")
+    sigma = max(std, upsr.method.deblurring.estimate_noise_mm(frames[4]))
+    anchor, tol = reference_anchor(frames[4], sigma, 3.0, 100.0)
+    maps = np.zeros((n, h * R, w * R, 2), np.float32)
+    fused = register_and_fuse(
+        frames, maps, R, 4, anchor=anchor, tolerance=tol, min_trusted=3, estimator=estimator
+    )
+    rmse = float(np.sqrt(np.mean((fused - 2500.0) ** 2)))
+    mean = float(np.sqrt(np.mean((frames.mean(axis=0) - 2500.0) ** 2)))
+    median = float(np.sqrt(np.mean((np.median(frames, axis=0) - 2500.0) ** 2)))
+    if kind == "laplace":
+        assert rmse <= median * 1.02 and median < mean
+    else:
+        assert rmse <= mean + 1e-3
+    assert rmse < float(np.sqrt(np.mean((frames[4] - 2500.0) ** 2)))  # never worse than input
+
+
+def test_fill_holes_takes_the_background_side_and_is_off_by_default():
+    z = np.full((6, 8), 3000.0, np.float32)
+    z[:, :3] = 1000.0
+    z[2:4, 3:5] = 0.0  # a shadow between foreground and background
+    filled = fill_holes(z, 1)
+    assert (filled[2:4, 3:5] == 3000.0).all()
+    np.testing.assert_array_equal(filled[z > 0], z[z > 0])
+    assert UPSRConfig().fill_holes is False
+    video = np.stack([z] * 3)
+    assert (upsr.super_resolve(video, 2, 3, deblur=False) == 0).any()
+    assert (upsr.super_resolve(video, 2, 3, deblur=False, fill_holes=True) > 0).all()
+
+
+def test_trust_config_is_validated():
+    assert UPSRConfig(n_frames=9).min_trusted_samples == 3
+    assert UPSRConfig(n_frames=3).min_trusted_samples == 2
+    assert UPSRConfig(n_frames=1).min_trusted_samples == 1
+    assert UPSRConfig(n_frames=9, min_trusted=5).min_trusted_samples == 5
+    for bad in (
+        {"trust_k": 0},
+        {"trust_k": float("nan")},
+        {"min_trusted": 0},
+        {"radial_radius_px": 0},
+        {"fusion_estimator": "mode"},
+        {"fill_holes": 1},
+    ):
+        with pytest.raises(InputError):
+            UPSRConfig(**bad)
+    with pytest.raises(ValueError):
+        register_and_fuse(np.ones((2, 3, 3)), np.zeros((2, 3, 3, 2)), 1, estimator="mode")
+
+
+def test_engine_keeps_a_thin_fast_bar():
+    # 2 low-res px wide, 5 px/frame, in front of a wall, with noise: the flow cannot follow it
+    frames, _ = _bar_video(n=9, h=16, w=40, width=2, noise=5.0, seed=6)
+    kw = dict(noise_mm=5.0, deblur=False)
+    out = upsr.super_resolve(frames, R, 9, **kw)[4]  # the reference of the middle window
+    bar = out[2 * R : -2 * R, 18 * R : 20 * R]
+    # its core always; at its sides the wall's samples may compete for a high-res pixel
+    assert np.all(np.abs(bar[:, 1:-1] - BAR) < 30)
+    assert np.mean(np.abs(bar - BAR) < 30) > 0.9
+    wall = out[2 * R : -2 * R, 22 * R : 30 * R]
+    assert np.all(np.abs(wall - WALL) < 30)
+    old = upsr.super_resolve(frames, R, 9, trust_k=None, **kw)[4]
+    assert np.mean(np.abs(old[2 * R : -2 * R, 18 * R : 20 * R] - BAR) < 30) < 0.5
