@@ -2,12 +2,12 @@
 
 Each recording is split into chunks of consecutive output frames; a chunk reads the input
 frames its windows need (UP-SR's window for output t is the frames [s, s + N) with
-s = clip(t − (N−1)//2, 0, T − N), :func:`upsr.method.windowed.window_start`), so neighbouring chunks
-overlap by N − 1 input frames. The per-video statistics that the engine would fix from the
-first N frames of the video — the 8-bit depth mapping of the flow images
-(:func:`upsr.method.motion.depth_range`) and the noise estimate (median over those frames of
-:func:`upsr.method.deblurring.estimate_noise_mm`) — are computed once per recording and given to
-every chunk: the result is identical, frame for frame, to a single run over the whole recording.
+s = clip(t − (N−1)//2, 0, T − N), :func:`upsr.method.windowed.window_start`), so
+neighbouring chunks overlap by N − 1 input frames. Every choice the engine fixes once per video
+from its first N frames (the flow images' 8-bit depth mapping, the noise estimate, the fusion's
+estimator and trust noise: :func:`upsr.method.windowed.pinned_config`) is made once per
+recording and given to every chunk: the result is identical, frame for frame, to a single run
+over the whole recording.
 
 Chunks run in worker processes (``workers``) or as tasks on an existing Dask scheduler
 (``scheduler="tcp://host:port"``, the ``[dask]`` extra; inputs and the output folder must be
@@ -48,7 +48,6 @@ __all__ = [
     "output_name",
     "run_batch",
     "run_chunk",
-    "video_statistics",
 ]
 
 WORK_DIR = ".upsr-batch"
@@ -92,26 +91,6 @@ def chunk_plan(n_total: int, n_frames: int, chunk_frames: int) -> list[tuple[int
         b = min(a + chunk_frames, n_total)
         plan.append((a, b, start(a), start(b - 1) + n_frames))
     return plan
-
-
-def video_statistics(first_frames: np.ndarray) -> tuple[tuple[float, float], float]:
-    """The per-video statistics UP-SR fixes from the first N frames (mm).
-
-    Returns
-    -------
-    depth_range_mm : (float, float)
-        :func:`upsr.method.motion.depth_range` of the frames (the flow images' 8-bit mapping).
-    noise_mm : float
-        Median over the frames of :func:`upsr.method.deblurring.estimate_noise_mm`.
-    """
-    from upsr.method.motion import depth_range
-    from upsr.method.noise import estimate_noise_mm
-
-    # kept exactly as the engine computes them (NumPy scalars): the 8-bit mapping's rounding
-    # depends on their type (NumPy 2 promotion rules)
-    near, far = depth_range(first_frames)
-    noise = float(np.median([estimate_noise_mm(f) for f in first_frames]))
-    return (near, far), noise
 
 
 # ---------------------------------------------------------------------------------------------
@@ -388,12 +367,9 @@ def _prepare(
             first.append(frame)
             if len(first) == cfg.n_frames:
                 break
-    rng, noise = video_statistics(np.stack(first))
-    pinned = dataclasses.replace(
-        cfg,
-        depth_range_mm=cfg.depth_range_mm if cfg.depth_range_mm is not None else rng,
-        noise_mm=cfg.noise_mm if cfg.noise_mm is not None else noise,
-    )
+    from upsr.method.windowed import pinned_config
+
+    pinned = pinned_config(np.stack(first), cfg)
     m = chunk_frames or max(4 * cfg.n_frames, math.ceil(info.n_frames / max(workers, 1)))
     config = dataclasses.asdict(pinned)
     base = {

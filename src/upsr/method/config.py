@@ -59,7 +59,7 @@ class DeblurConfig:
         1–9 % higher, but the extra steps fit the noise, not the surfaces).
     step_mm : float or None
         First step length β₀ (mm). ``None``: a robust estimate of the noise left in the fused
-        image (:func:`upsr.method.deblurring.estimate_noise_mm` at a lag of r px), at least 0.5 mm.
+        image (:func:`upsr.method.noise.estimate_noise_mm` at a lag of r px), at least 0.5 mm.
     step_decay : float
         Geometric decay of the step: β_k = β₀ · step_decay^k.
     edge_mm : float or None
@@ -68,7 +68,7 @@ class DeblurConfig:
         plain BTV.
     smooth_sigma_mm : float or None
         Beyond the paper: a final edge-preserving smoothing of each surface
-        (:func:`upsr.method.deblurring.smooth_surfaces`) with this range std (mm), which turns the
+        (:func:`upsr.method.smoothing.smooth_surfaces`) with this range std (mm), which turns the
         staircase of dense upsampling on slanted surfaces into ramps. ``None`` disables it.
     smooth_sigma_px : float or None
         Its spatial std in high-res px; ``None``: r/2.
@@ -167,7 +167,7 @@ class UPSRConfig:
     noise_mm : float or None
         Noise std of the input (mm), which sets the edge threshold (≥ 4·noise) and the margin of
         the spurious-motion test. ``None``: estimated once per video from its first N frames
-        (:func:`upsr.method.deblurring.estimate_noise_mm`). Give it (with ``depth_range_mm``) to
+        (:func:`upsr.method.noise.estimate_noise_mm`). Give it (with ``depth_range_mm``) to
         process a chunk of a longer video exactly as the whole video would be.
     refine : bool
         Paper eq. 19: re-estimate each frame's motion against its already registered neighbour
