@@ -47,6 +47,7 @@ from __future__ import annotations
 
 import contextlib
 import os
+import stat
 import weakref
 from collections.abc import Iterable, Iterator, Sequence
 from pathlib import Path
@@ -73,6 +74,7 @@ from upsr.io._base import (
     check_depth_scale,
     check_fmt,
     check_frame_range,
+    check_input_type,
 )
 from upsr.method.validation import as_depth_frame
 
@@ -101,13 +103,8 @@ def _format_module(fmt: str) -> Any:
 
 
 def _input_format(path: Path, fmt: str | None) -> str:
-    try:
-        exists = path.exists()
-        is_dir = path.is_dir()
-    except OSError as e:
-        raise InputError(f"{path}: cannot access ({e.strerror or e})") from None
-    if not exists:
-        raise InputError(f"{path}: no such file or folder")
+    # by type, before anything opens it (a FIFO with no writer would block open() for ever)
+    is_dir = stat.S_ISDIR(check_input_type(path).st_mode)
     from upsr.io import registry as formats
 
     if fmt is not None:
