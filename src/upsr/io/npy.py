@@ -69,9 +69,8 @@ def check_fortran(name: str, shape: tuple[int, ...], dtype: np.dtype) -> None:
     limit = frame_budget()
     if need > limit:
         raise InputError(
-            f"{name}: a Fortran-order array of {need / 1e9:.3g} GB must be read whole (no frame "
-            f"is contiguous), more than the {limit / 1e9:.3g} GB allowed; save it in C order "
-            f"(np.ascontiguousarray)"
+            f"{name}: Fortran-order array of {need / 1e9:.3g} GB, read whole, over the "
+            f"{limit / 1e9:.3g} GB budget: save it in C order"
         )
 
 
