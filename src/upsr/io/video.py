@@ -372,7 +372,7 @@ def check_output_path(
             )
         if in_res in out_res.parents and in_res.is_dir():
             raise InputError(
-                f"output {out} is inside the input folder {inp}: choose another output path"
+                f"output {out} is inside the input folder {inp.name or inp}: choose another output"
             )
     try:
         st_out = os.lstat(out)
