@@ -107,7 +107,12 @@ def test_stale_part_files_of_dead_processes_removed(tmp_path: Path) -> None:
         "os._exit(0)  # like SIGKILL: no cleanup\n"
     )
     env = {**os.environ, "PYTHONPATH": os.pathsep.join(sys.path)}
-    subprocess.run([sys.executable, "-c", code, str(out), str(tmp_path / "frames")], check=True, timeout=60, env=env)
+    subprocess.run(
+        [sys.executable, "-c", code, str(out), str(tmp_path / "frames")],
+        check=True,
+        timeout=60,
+        env=env,
+    )
     stale = [p for p in os.listdir(tmp_path) if p.startswith(".")]
     assert len(stale) == 2, stale
     live = temp_name(out, "part")  # ours (a live PID): kept

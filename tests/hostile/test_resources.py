@@ -20,9 +20,10 @@ def test_huge_scale_refused_before_allocating(r: int, tmp_path: Path) -> None:
         UPSRConfig(scale=r)  # the option bound
     tracemalloc.start()
     try:
-        with pytest.raises(InputError, match="needs ~.* GB of memory.*--max-memory") as e:
-            resources.check_resources((9, 56, 64), r, 9, output=tmp_path / "o.npy",
-                                      max_memory=4 << 30)
+        with pytest.raises(InputError, match=r"needs ~.* GB of memory.*--max-memory") as e:
+            resources.check_resources(
+                (9, 56, 64), r, 9, output=tmp_path / "o.npy", max_memory=4 << 30
+            )
         peak = tracemalloc.get_traced_memory()[1]
     finally:
         tracemalloc.stop()

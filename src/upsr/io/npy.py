@@ -115,7 +115,7 @@ def frames(
     name = str(path)
     check_input_type(path, folder_ok=False)
     with reading(name):
-        f = open(path, "rb")  # noqa: SIM115 - closed in the finally below
+        f = open(path, "rb")
     try:
         with reading(name):
             shape, fortran, dtype = read_npy_header(f, name)

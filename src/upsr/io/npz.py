@@ -36,9 +36,7 @@ def _member(zf: zipfile.ZipFile, key: str | None, name: str) -> tuple[str, str]:
     if key is None:
         key = arrays[0]
     elif key not in arrays:
-        raise InputError(
-            f"{name}: no array named {key[:60]!r} (available: {short_list(arrays)})"
-        )
+        raise InputError(f"{name}: no array named {key[:60]!r} (available: {short_list(arrays)})")
     return key, key + ".npy"
 
 
