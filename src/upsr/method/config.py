@@ -403,10 +403,14 @@ def _number(
             except (OverflowError, ValueError):  # an int beyond float range
                 ok = False
             ok = ok and math.isfinite(v)
-    if ok:
-        ok = (v > lo if lo_open else v >= lo) and (v < hi if hi_open else v <= hi)
     if not ok:
         raise InputError(f"{name} must be {kind} in {bounds}, got {_show(value)}")
+    if not (v > lo if lo_open else v >= lo):
+        rel = ">" if lo_open else ">="
+        raise InputError(f"{name} must be {kind} {rel} {lo:g}, got {_show(value)}")
+    if not (v < hi if hi_open else v <= hi):
+        rel = "<" if hi_open else "<="
+        raise InputError(f"{name} must be {kind} {rel} {hi:g}, got {_show(value)}")
     return v
 
 
