@@ -17,10 +17,11 @@ from __future__ import annotations
 import json
 import math
 import os
+import stat
 from pathlib import Path
 from typing import Any
 
-from upsr.errors import InputError
+from upsr.errors import InputError, one_line
 from upsr.geometry.camera import PinholeCamera
 
 __all__ = [
@@ -35,6 +36,9 @@ __all__ = [
 ]
 
 #: The pixel convention stated in every intrinsics file.
+#: Largest ``*.intrinsics.json`` read (bytes): a real one is a few hundred bytes.
+MAX_INTRINSICS_BYTES = 1 << 20
+
 CONVENTION = (
     "pinhole, no distortion; pixel (row i, column j) centred at (u, v) = (j, i) px; "
     "scaled by r (SPEC 1): f' = r f, c' = r (c + 0.5) - 0.5"
@@ -102,11 +106,18 @@ def load_intrinsics(path: str | os.PathLike[str]) -> PinholeCamera:
     """Read an ``*.intrinsics.json`` file (as written by :func:`write_intrinsics`)."""
     p = Path(path)
     try:
+        st = os.stat(p)
+        if not stat.S_ISREG(st.st_mode):
+            raise InputError(f"{p}: not a regular file")
+        if st.st_size > MAX_INTRINSICS_BYTES:
+            raise InputError(f"{p}: {st.st_size} bytes is too large for an intrinsics file")
         d = json.loads(p.read_text(encoding="utf-8"))
     except OSError as e:
         raise InputError(f"{p}: cannot read ({e.strerror or e})") from None
+    except RecursionError:
+        raise InputError(f"{p}: not an intrinsics file (JSON nested too deeply)") from None
     except ValueError as e:
-        raise InputError(f"{p}: not a JSON file ({e})") from None
+        raise InputError(one_line(f"{p}: not a JSON file ({e})")) from None
     return camera_from_dict(d, str(p))
 
 

@@ -46,7 +46,9 @@ folders of the output are created (and removed again if the writing fails).
 from __future__ import annotations
 
 import contextlib
+import errno
 import os
+import stat
 import weakref
 from collections.abc import Iterable, Iterator, Sequence
 from pathlib import Path
@@ -59,7 +61,9 @@ from upsr._atomic import (
     AtomicWriter,
     new_temp_dir,
     new_temp_file,
+    publish,
     remove,
+    remove_stale,
     temp_name,
     write_bytes_atomic,
     write_text_atomic,
@@ -73,6 +77,7 @@ from upsr.io._base import (
     check_depth_scale,
     check_fmt,
     check_frame_range,
+    check_input_type,
 )
 from upsr.method.validation import as_depth_frame
 
@@ -101,13 +106,8 @@ def _format_module(fmt: str) -> Any:
 
 
 def _input_format(path: Path, fmt: str | None) -> str:
-    try:
-        exists = path.exists()
-        is_dir = path.is_dir()
-    except OSError as e:
-        raise InputError(f"{path}: cannot access ({e.strerror or e})") from None
-    if not exists:
-        raise InputError(f"{path}: no such file or folder")
+    # by type, before anything opens it (a FIFO with no writer would block open() for ever)
+    is_dir = stat.S_ISDIR(check_input_type(path).st_mode)
     from upsr.io import registry as formats
 
     if fmt is not None:
@@ -356,10 +356,10 @@ def check_output_path(
     out = Path(output_path)
     if isinstance(input_paths, (str, os.PathLike)):
         input_paths = [input_paths]
-    out_res = out.resolve()
+    out_res = _resolve(out, "output")
     for inp in input_paths:
         inp = Path(inp)
-        in_res = inp.resolve()
+        in_res = _resolve(inp, "input")
         same = out_res == in_res
         if not same and os.path.exists(out) and os.path.exists(inp):
             with contextlib.suppress(OSError):
@@ -369,6 +369,29 @@ def check_output_path(
         if out_res in in_res.parents:
             raise InputError(
                 f"output folder {out} contains the input {inp}: choose another output path"
+            )
+        if in_res in out_res.parents and in_res.is_dir():
+            raise InputError(
+                f"output {out} is inside the input folder {inp.name or inp}: choose another output"
+            )
+    try:
+        st_out = os.lstat(out)
+    except (FileNotFoundError, NotADirectoryError):  # a parent that is a file: checked below
+        st_out = None
+    except OSError as e:
+        raise InputError(f"output {out}: cannot access ({e.strerror or e})") from None
+    if st_out is not None:
+        try:
+            st_target = os.stat(out)
+        except OSError:  # a dangling link: replaced like a file
+            st_target = st_out
+        mode = st_target.st_mode
+        dangling = st_target is st_out and stat.S_ISLNK(mode)
+        if not (stat.S_ISREG(mode) or stat.S_ISDIR(mode) or dangling):
+            from upsr.io._base import file_kind
+
+            raise InputError(
+                f"output {out} is {file_kind(mode)}: refusing to write to or replace it"
             )
     f = _output_format(out, fmt)
     if os.path.lexists(out):
@@ -410,6 +433,17 @@ def check_output_path(
     if not os.access(anc, os.W_OK | os.X_OK):
         raise InputError(f"cannot create {out}: no permission to write in {anc}")
     return out
+
+
+def _resolve(p: Path, what: str) -> Path:
+    try:
+        return p.resolve()
+    except RuntimeError:  # Python < 3.13: "Symlink loop"
+        raise InputError(f"{what} {p}: symbolic link loop") from None
+    except OSError as e:
+        if e.errno == errno.ELOOP:
+            raise InputError(f"{what} {p}: symbolic link loop") from None
+        raise InputError(f"{what} {p}: cannot access ({e.strerror or e})") from None
 
 
 def _cleanup(temps: list[Path], created_dirs: list[Path]) -> None:
@@ -476,6 +510,7 @@ class VideoWriter(AtomicWriter):
         self._temp: Path | None = None
         self._temps: list[Path] = []
         self._created: list[Path] = []
+        self._sidecars: list[tuple[Path, Path]] = []
         self._closed = False
         self._finalizer = weakref.finalize(self, _cleanup, self._temps, self._created)
 
@@ -492,6 +527,7 @@ class VideoWriter(AtomicWriter):
             os.mkdir(d)
             self._created.append(d)
         impl = _format_module(self.format)
+        remove_stale(self.path)  # .part files and folders of dead writers (SIGKILL)
         fh: BinaryIO | None = None
         if impl.writes_folder(self.path):
             self._temp = new_temp_dir(self.path)
@@ -553,14 +589,58 @@ class VideoWriter(AtomicWriter):
         self._closed = True
         self._finalizer.detach()
 
+    def add_sidecar(self, path: PathLike, data: bytes | str) -> None:
+        """Publish ``data`` at ``path`` together with the video (e.g. ``OUTPUT.intrinsics.json``).
+
+        Written to a temporary now (a full disk fails here, before the video is complete) and
+        moved into place just before the video, replacing an older sidecar: when the video is
+        visible its sidecars are too; if the video cannot be published they are removed again.
+        """
+        if self._closed:
+            raise ValueError("add_sidecar on a closed VideoWriter")
+        dest = Path(path)
+        raw = data.encode("utf-8") if isinstance(data, str) else bytes(data)
+        dest.parent.mkdir(parents=True, exist_ok=True)
+        tmp, fh = new_temp_file(dest, "tmp")
+        self._temps.append(tmp)
+        with fh:
+            fh.write(raw)
+            fh.flush()
+            os.fsync(fh.fileno())
+        self._sidecars.append((tmp, dest))
+
     def _install(self) -> None:
         tmp, dest = self._temp, self.path
         assert tmp is not None
+        if not self.overwrite and os.path.lexists(dest):  # before touching its sidecars
+            raise InputError(
+                f"output {dest} already exists (use --overwrite / overwrite=True to replace it)"
+            )
+        published: list[Path] = []
+        try:
+            for side_tmp, side in self._sidecars:  # sidecars first: the video marks completion
+                os.replace(side_tmp, side)
+                published.append(side)
+            self._install_video(tmp, dest)
+        except InputError:  # another writer published this output meanwhile: its sidecars
+            raise
+        except BaseException:
+            for side in published:
+                remove(side)
+            raise
+        self._temps.clear()
+
+    def _install_video(self, tmp: Path, dest: Path) -> None:
+        exists_msg = (
+            f"output {dest} already exists (use --overwrite / overwrite=True to replace it)"
+        )
+        if not self.overwrite:
+            try:  # no-replace: of two writers finishing the same output, one fails here
+                publish(tmp, dest, replace=False)
+            except FileExistsError:
+                raise InputError(exists_msg) from None
+            return
         if os.path.lexists(dest):
-            if not self.overwrite:
-                raise InputError(
-                    f"output {dest} already exists (use --overwrite / overwrite=True to replace it)"
-                )
             check_output_path((), dest, True, fmt=self.format)
             if _folder_output(self.format, dest) and not dest.is_symlink():
                 trash = temp_name(dest, "old")
@@ -568,10 +648,8 @@ class VideoWriter(AtomicWriter):
                 self._temps.append(trash)
                 os.replace(tmp, dest)
                 remove(trash)
-                self._temps.clear()
                 return
-        os.replace(tmp, dest)
-        self._temps.clear()
+        publish(tmp, dest, replace=True)
 
     def abort(self) -> None:
         """Discard everything written; nothing appears at the output path. Idempotent."""
