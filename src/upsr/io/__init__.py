@@ -10,8 +10,10 @@ from upsr._lazy import attach
 __getattr__, __dir__, __all__ = attach(
     __name__,
     submodules=[
+        "color",
         "datasets",
         "exr",
+        "identity",
         "npy",
         "npz",
         "png",
@@ -19,9 +21,20 @@ __getattr__, __dir__, __all__ = attach(
         "registry",
         "rosbag",
         "tiff",
+        "units",
         "video",
     ],
     names={
+        "read_timestamps": "identity",
+        "read_frame_names": "identity",
+        "resample_color": "color",
+        "write_color": "color",
+        "check_depth_range": "units",
+        "check_output_capacity": "units",
+        "detect_tum_scale": "units",
+        "resolve_depth_scales": "units",
+    }
+    | {
         name: "video"
         for name in (
             "FORMATS",
