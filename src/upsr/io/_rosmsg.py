@@ -235,7 +235,17 @@ def rvl_encode(values: np.ndarray) -> bytes:
 def _imdecode(data: bytes, name: str) -> np.ndarray:
     import cv2
 
-    img = cv2.imdecode(np.frombuffer(data, np.uint8), cv2.IMREAD_UNCHANGED)
+    from upsr.io._common import check_frame_size
+
+    if data[:8] == b"\x89PNG\r\n\x1a\n" and len(data) >= 24:  # size before decoding (bombs)
+        w, h = struct.unpack(">II", data[16:24])
+        check_frame_size(name, h, w)
+    if not data:
+        raise InputError(f"{name}: empty compressed image")
+    try:
+        img = cv2.imdecode(np.frombuffer(data, np.uint8), cv2.IMREAD_UNCHANGED)
+    except cv2.error:
+        img = None
     if img is None:
         raise InputError(f"{name}: the compressed image cannot be decoded")
     return img
@@ -272,8 +282,9 @@ def decode_compressed_depth(msg: CompressedMsg, name: str = "image") -> np.ndarr
             if len(body) < 8:
                 raise InputError(f"{name}: RVL data without its size")
             w, h = struct.unpack_from("<II", body, 0)
-            if w * h <= 0 or w * h > 1 << 28:
-                raise InputError(f"{name}: RVL image of {w}x{h} pixels")
+            from upsr.io._common import check_frame_size
+
+            check_frame_size(name, h, w)
             raw = rvl_decode(body[8:], w * h).reshape(h, w)
         else:
             raw = _imdecode(body, name)
