@@ -52,7 +52,7 @@ PathLike = str | os.PathLike
 #: Container formats understood by the readers (see :mod:`upsr.io.registry`).
 FORMATS = ("npy", "npz", "png", "tiff", "exr", "rosbag", "nyu", "pgm", "tum", "sun")
 #: Formats the writer can produce.
-WRITE_FORMATS = ("npy", "npz", "png", "tiff", "exr")
+WRITE_FORMATS = ("npy", "npz", "png", "tiff", "exr", "rosbag")
 
 #: Largest frame accepted (pixels): guards against decompression bombs and absurd headers.
 MAX_FRAME_PIXELS = 1 << 28

@@ -464,10 +464,11 @@ class VideoWriter(AtomicWriter):
     path : str or path-like
         ``.npy`` (float32 mm), ``.npz`` (float32 mm, key ``"depth"``), ``.tif``/``.tiff``
         (float32, one page per frame), ``.exr`` (one float32 ``Z`` frame), or a folder name
-        without suffix (16-bit PNG frames ``000000.png``, …; EXR frames with ``fmt="exr"``).
+        without suffix (16-bit PNG frames ``000000.png``, …; EXR frames with ``fmt="exr"``; a
+        ROS 2 bag with ``fmt="rosbag"``).
     n_frames : int, optional
         Expected number of frames: writing more, or closing after fewer, raises InputError.
-    fmt : {"npy", "npz", "png", "tiff", "exr"}, optional
+    fmt : {"npy", "npz", "png", "tiff", "exr", "rosbag"}, optional
         Force the format instead of guessing it from the path.
     depth_scale : float
         PNG: raw units per metre (1000: mm, TUM: 5000); raw = round(mm · depth_scale / 1000).
@@ -475,6 +476,14 @@ class VideoWriter(AtomicWriter):
         TIFF and EXR: the float value written is mm · depth_scale / 1000 (1000: mm, 1: m).
     overwrite : bool
         Replace an existing output (see :func:`check_output_path`).
+    frame_names : sequence of str, optional
+        PNG/EXR folder outputs: the frames' file names without suffix (e.g. the input's, from
+        :func:`upsr.io.read_frame_names`) instead of ``000000``, …; ignored by file outputs.
+    timestamps_ns : sequence of int, optional
+        Frame times (ns): ``.npz`` outputs store them as ``timestamps``; ROS bags stamp their
+        messages with them; other formats ignore them.
+    camera : PinholeCamera, optional
+        ROS bag outputs: the output camera, written as ``sensor_msgs/CameraInfo``.
 
     Use it as a context manager: the output appears at ``path`` only when the block ends
     without an exception; otherwise nothing is left behind. Every format streams to disk (the
@@ -495,7 +504,15 @@ class VideoWriter(AtomicWriter):
         fmt: str | None = None,
         depth_scale: float = 1000.0,
         overwrite: bool = False,
+        frame_names: Sequence[str] | None = None,
+        timestamps_ns: Sequence[int] | np.ndarray | None = None,
+        camera: Any = None,
     ) -> None:
+        from upsr.io.identity import check_frame_names, check_timestamps
+
+        self.frame_names = None if frame_names is None else check_frame_names(frame_names, n_frames)
+        self.timestamps_ns = None if timestamps_ns is None else check_timestamps(timestamps_ns)
+        self.camera = camera
         self.path = Path(path)
         self.format = _output_format(self.path, fmt)
         self.depth_scale = check_depth_scale(depth_scale)
@@ -548,6 +565,8 @@ class VideoWriter(AtomicWriter):
                 with contextlib.suppress(OSError):
                     fh.close()
             raise
+        if hasattr(self._sink, "set_meta"):  # ROS bags: stamps and CameraInfo
+            self._sink.set_meta(timestamps_ns=self.timestamps_ns, camera=self.camera)
 
     def write(self, frame: npt.ArrayLike) -> None:
         """Append one (h, w) depth frame in mm (0 or NaN = no measurement)."""
@@ -582,6 +601,15 @@ class VideoWriter(AtomicWriter):
             assert self._temp is not None and self._sink is not None
             self._sink.close()
             self._sink = None
+            from upsr.io.identity import finish_output
+
+            finish_output(
+                self.format,
+                self._temp,
+                self.frames_written,
+                frame_names=self.frame_names,
+                timestamps_ns=self.timestamps_ns,
+            )
             self._install()
         except BaseException:
             self.abort()
@@ -674,10 +702,12 @@ def write_video(
     fmt: str | None = None,
     depth_scale: float = 1000.0,
     overwrite: bool = False,
+    **meta: Any,
 ) -> Path:
     """Write a (T, h, w) depth video (array or iterable of frames) atomically; return the path.
 
-    See :class:`VideoWriter` for the formats and options.
+    See :class:`VideoWriter` for the formats and options (``meta``: ``frame_names``,
+    ``timestamps_ns``, ``camera``).
     """
     if isinstance(frames, np.ndarray):
         if frames.ndim != 3:
@@ -686,7 +716,7 @@ def write_video(
     else:
         n = len(frames) if isinstance(frames, Sequence) else None
     with VideoWriter(
-        path, n_frames=n, fmt=fmt, depth_scale=depth_scale, overwrite=overwrite
+        path, n_frames=n, fmt=fmt, depth_scale=depth_scale, overwrite=overwrite, **meta
     ) as writer:
         for frame in frames:  # type: ignore[union-attr]
             writer.write(frame)
