@@ -86,8 +86,8 @@ def test_sigkill_upsr_run(inputs: Path, tmp_path: Path) -> None:
     ref = np.load(ref_path)
     out = tmp_path / "out" / "a.npy"
     for k in range(KILLS):
-        # kill a first write, then a replacement (--overwrite) of the complete output
-        overwrite = ["--overwrite"] if k % 2 else []
+        # kill a first write, then replacements (--overwrite) of the complete output
+        overwrite = ["--overwrite"] if out.exists() else []
         before = out.read_bytes() if out.exists() else None
         rc = _upsr(
             "run", inputs / "a.npy", "-o", out, "-r", 2, "-n", 3, "-q", *overwrite,
