@@ -47,7 +47,7 @@ def test_frame_budget_is_a_parameter(tmp_path: Path) -> None:
     p = png_bomb(tmp_path / "f.png", 64, 64)
     _base.set_frame_budget(1000)
     try:
-        with pytest.raises(InputError, match="allowed per frame"):
+        with pytest.raises(InputError, match="per-frame limit"):
             io.probe(p)
     finally:
         _base.set_frame_budget(None)

@@ -106,8 +106,10 @@ def check_frame_budget(
     need = int(h) * int(w) * float(bytes_per_px)
     if need > limit:
         raise InputError(
-            f"{name}: a {w}x{h} frame needs ~{_gb(need)} of memory to read, more than the "
-            f"{_gb(limit)} allowed per frame (--max-memory to raise it)"
+            one_line(
+                f"{name}: a {w}x{h} frame needs ~{_gb(need)} to read, over the {_gb(limit)} "
+                "per-frame limit (--max-memory)"
+            )
         )
 
 
