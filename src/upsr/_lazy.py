@@ -46,5 +46,11 @@ def attach(
 
 
 def by_module(**exports: Iterable[str]) -> dict[str, str]:
-    """The ``names`` table of :func:`attach` written per submodule: ``by_module(a=["f"])``."""
+    """The ``names`` table of :func:`attach` written per submodule.
+
+    Examples
+    --------
+    >>> by_module(camera=["PinholeCamera"], rendering=["look_at", "render_depth"])
+    {'PinholeCamera': 'camera', 'look_at': 'rendering', 'render_depth': 'rendering'}
+    """
     return {name: module for module, names in exports.items() for name in names}

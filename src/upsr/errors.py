@@ -21,6 +21,13 @@ def one_line(text: object, limit: int = MAX_MESSAGE_CHARS) -> str:
 
     A longer text keeps its start and its end around ``" … "`` (the end often names the
     cause: ``… (No space left on device)``).
+
+    Examples
+    --------
+    >>> one_line("bad  \t input")
+    'bad input'
+    >>> len(one_line("x" * 500))
+    200
     """
     s = " ".join(str(text).split())
     if len(s) <= limit:

@@ -225,7 +225,13 @@ def _gb(n: float) -> str:
 
 
 def parse_bytes(text: str | int | float) -> int:
-    """``"4G"``, ``"512M"``, ``"2.5GB"``, ``1e9`` → bytes (for ``--max-memory``); InputError."""
+    """``"4G"``, ``"512M"``, ``"2.5GB"``, ``1e9`` → bytes (for ``--max-memory``); InputError.
+
+    Examples
+    --------
+    >>> parse_bytes("4G"), parse_bytes("512M"), parse_bytes(1e9)
+    (4294967296, 536870912, 1000000000)
+    """
     if isinstance(text, bool):
         raise InputError(f"--max-memory must be a size such as 4G, got {text!r}")
     s = str(text).strip().upper().removesuffix("B").removesuffix("I")
