@@ -1,8 +1,8 @@
 """Accuracy and speed against the size of the flow grid (``flow_scale``) and the DIS preset of
 the eq. 19 residual flows (``refine_preset``): the measurements behind their defaults.
 
-* synthetic 64×56 ToF-like scenes (``upsr.research.synth.dynamic_scene``, wall background, 15 frames,
-  seeds 0–2, σ = 10 and 30 mm), r = 4, N = 9: SPEC §6 metrics averaged over the 6 videos;
+* synthetic 64×56 ToF-like scenes (``upsr.research.synth.dynamic_scene``, wall background,
+  15 frames, seeds 0–2, σ = 10 and 30 mm), r = 4, N = 9: SPEC §6 metrics averaged over the 6 videos;
 * Samba 256×147 (``--data``, 20 meshes, σ = 10, 30, 50 mm), r = 4, N = 9, when the meshes are
   there: metrics and seconds per frame.
 

@@ -43,3 +43,14 @@ def attach(
         return list(public)
 
     return __getattr__, __dir__, list(public)
+
+
+def by_module(**exports: Iterable[str]) -> dict[str, str]:
+    """The ``names`` table of :func:`attach` written per submodule.
+
+    Examples
+    --------
+    >>> by_module(camera=["PinholeCamera"], rendering=["look_at", "render_depth"])
+    {'PinholeCamera': 'camera', 'look_at': 'rendering', 'render_depth': 'rendering'}
+    """
+    return {name: module for module, names in exports.items() for name in names}

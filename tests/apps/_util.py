@@ -81,4 +81,6 @@ def check_batch_output(out: Path, ref: dict[str, np.ndarray]) -> None:
     """The batch outputs OUT/<name>.npy equal the single runs ``ref``; no work folder left."""
     for k, v in ref.items():
         np.testing.assert_array_equal(np.load(out / f"{k}.npy"), v)
-    assert not (out / ".upsr-batch").exists()
+    work = out / ".upsr-batch"  # only the options records of the outputs are left
+    assert not work.exists() or [p.name for p in work.iterdir()] == ["outputs"]
+    assert not (out / ".upsr-batch.lock").exists()

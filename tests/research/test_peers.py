@@ -53,3 +53,24 @@ def test_blockwise_bilateral_equals_the_filter_of_the_nearest_upsampling(r):
     fast = bilateral_nearest(low, r, sigma)
     slow = masked_bilateral(upsample_nearest(low, r), float(r), 3.0 * upsample_nearest(sigma, r))
     np.testing.assert_allclose(fast, slow, rtol=1e-5, atol=1e-3)
+
+
+def test_masked_bilateral_equals_its_definition():
+    """A direct NumPy sum of the definition (valid neighbours only, square window)."""
+    rng = np.random.default_rng(3)
+    z = (1500 + rng.normal(0, 20, (9, 11))).astype(np.float32)
+    z[2, 3] = 0
+    z[:, 7:] += 500
+    ss, sr, rad = 1.3, 40.0, 2
+    out = masked_bilateral(z, ss, sr, radius_px=rad)
+    ref = np.zeros_like(z)
+    for i, j in zip(*np.nonzero(z), strict=True):
+        num = den = 0.0
+        for ii in range(max(i - rad, 0), min(i + rad + 1, z.shape[0])):
+            for jj in range(max(j - rad, 0), min(j + rad + 1, z.shape[1])):
+                if z[ii, jj] > 0:
+                    w = np.exp(-((ii - i) ** 2 + (jj - j) ** 2) / (2 * ss**2))
+                    w *= np.exp(-((z[ii, jj] - z[i, j]) ** 2) / (2 * sr**2))
+                    num, den = num + w * z[ii, jj], den + w
+        ref[i, j] = num / den
+    np.testing.assert_allclose(out, ref, rtol=1e-6, atol=1e-3)

@@ -2,12 +2,12 @@
 
 Each recording is split into chunks of consecutive output frames; a chunk reads the input
 frames its windows need (UP-SR's window for output t is the frames [s, s + N) with
-s = clip(t − (N−1)//2, 0, T − N), :func:`upsr.method.windowed.window_start`), so neighbouring chunks
-overlap by N − 1 input frames. The per-video statistics that the engine would fix from the
-first N frames of the video — the 8-bit depth mapping of the flow images
-(:func:`upsr.method.motion.depth_range`) and the noise estimate (median over those frames of
-:func:`upsr.method.deblurring.estimate_noise_mm`) — are computed once per recording and given to
-every chunk: the result is identical, frame for frame, to a single run over the whole recording.
+s = clip(t − (N−1)//2, 0, T − N), :func:`upsr.method.windowed.window_start`), so
+neighbouring chunks overlap by N − 1 input frames. Every choice the engine fixes once per video
+from its first N frames (the flow images' 8-bit depth mapping, the noise estimate, the fusion's
+estimator and trust noise: :func:`upsr.method.windowed.pinned_config`) is made once per
+recording and given to every chunk: the result is identical, frame for frame, to a single run
+over the whole recording.
 
 Chunks run in worker processes (``workers``) or as tasks on an existing Dask scheduler
 (``scheduler="tcp://host:port"``, the ``[dask]`` extra; inputs and the output folder must be
@@ -21,6 +21,7 @@ that fails is reported, its partial chunks are removed, and the others go on.
 
 from __future__ import annotations
 
+import collections
 import contextlib
 import dataclasses
 import hashlib
@@ -48,7 +49,6 @@ __all__ = [
     "output_name",
     "run_batch",
     "run_chunk",
-    "video_statistics",
 ]
 
 WORK_DIR = ".upsr-batch"
@@ -92,26 +92,6 @@ def chunk_plan(n_total: int, n_frames: int, chunk_frames: int) -> list[tuple[int
         b = min(a + chunk_frames, n_total)
         plan.append((a, b, start(a), start(b - 1) + n_frames))
     return plan
-
-
-def video_statistics(first_frames: np.ndarray) -> tuple[tuple[float, float], float]:
-    """The per-video statistics UP-SR fixes from the first N frames (mm).
-
-    Returns
-    -------
-    depth_range_mm : (float, float)
-        :func:`upsr.method.motion.depth_range` of the frames (the flow images' 8-bit mapping).
-    noise_mm : float
-        Median over the frames of :func:`upsr.method.deblurring.estimate_noise_mm`.
-    """
-    from upsr.method.motion import depth_range
-    from upsr.method.noise import estimate_noise_mm
-
-    # kept exactly as the engine computes them (NumPy scalars): the 8-bit mapping's rounding
-    # depends on their type (NumPy 2 promotion rules)
-    near, far = depth_range(first_frames)
-    noise = float(np.median([estimate_noise_mm(f) for f in first_frames]))
-    return (near, far), noise
 
 
 # ---------------------------------------------------------------------------------------------
@@ -293,42 +273,230 @@ def _fingerprint(inp: Path, spec: dict[str, Any]) -> str:
 # executors
 # ---------------------------------------------------------------------------------------------
 class _LocalExecutor:
-    """Chunks in this process (1 worker) or in a pool of spawned processes."""
+    """Chunks in this process (1 worker) or in a pool of spawned worker processes.
+
+    The pool is this module's own (not :class:`concurrent.futures.ProcessPoolExecutor`, which
+    breaks as a whole when one worker dies): the driver hands one chunk at a time to each
+    worker, so it knows which chunk a worker that dies (SIGKILL, segfault, ``os._exit``) was
+    computing; that chunk's recording is reported as failed, a new worker takes the worker's
+    place and the other recordings go on. Workers die with the driver (see
+    :func:`_die_with_parent`).
+    """
 
     def __init__(self, workers: int) -> None:
-        self.workers = workers
-        self._pool: Any = None
-        if workers > 1:
-            import multiprocessing
-            from concurrent.futures import ProcessPoolExecutor
+        import multiprocessing
 
-            self._pool = ProcessPoolExecutor(
-                max_workers=workers, mp_context=multiprocessing.get_context("spawn")
-            )
+        self.workers = workers
+        self._pool = workers > 1
+        self._ctx = multiprocessing.get_context("spawn")
+        self._queue: collections.deque[tuple[Any, Any, dict[str, Any]]] = collections.deque()
+        self._idle: list[_Worker] = []
+        self._busy: dict[_Worker, tuple[Any, dict[str, Any]]] = {}
 
     def submit(self, spec: dict[str, Any]) -> Any:
-        if self._pool is None:
-            from concurrent.futures import Future
+        from concurrent.futures import Future
 
-            fut: Future[dict[str, Any]] = Future()
-            fut.set_result(run_chunk(spec))
-            return fut
-        return self._pool.submit(run_chunk, spec)
+        fut: Future[dict[str, Any]] = Future()
+        task = run_chunk  # looked up now: a test may replace it
+        if not self._pool:
+            fut.set_running_or_notify_cancel()
+            fut.set_result(task(spec))
+        else:
+            self._queue.append((fut, task, spec))
+        return fut
 
     def as_completed(self, futures: Sequence[Any]) -> Iterator[Any]:
-        from concurrent.futures import as_completed
+        from multiprocessing.connection import wait
 
-        return as_completed(futures)
+        want = set(futures)
+        while want:
+            done = [f for f in want if f.done()]
+            want.difference_update(done)
+            yield from (f for f in done if not f.cancelled())
+            if not want:
+                return
+            self._dispatch()
+            if not self._busy:
+                if not any(not f.done() for f in want):
+                    continue
+                return  # nothing left to run (cancelled)
+            handles: list[Any] = []
+            for w in self._busy:
+                handles += [w.conn, w.proc.sentinel]
+            wait(handles)
+            for w in list(self._busy):
+                self._poll(w)
+
+    def _dispatch(self) -> None:
+        while self._queue and (self._idle or len(self._busy) < self.workers):
+            fut, task, spec = self._queue.popleft()
+            if not fut.set_running_or_notify_cancel():
+                continue  # cancelled: its recording failed already
+            for _attempt in range(2):  # an idle worker may have died meanwhile
+                w = self._idle.pop() if self._idle else _Worker(self._ctx)
+                try:
+                    w.conn.send((task, spec))
+                except (OSError, EOFError):
+                    w.stop(kill=True)
+                    continue
+                except Exception as e:  # the task cannot be pickled
+                    self._idle.append(w)
+                    fut.set_result({"error": f"{type(e).__name__}: {e}", "kind": "internal"})
+                    break
+                self._busy[w] = (fut, spec)
+                break
+            else:
+                fut.set_result({"error": "cannot start a worker process", "kind": "internal"})
+
+    def _poll(self, w: _Worker) -> None:
+        fut, spec = self._busy[w]
+        try:
+            has_result = w.conn.poll()
+            res = w.conn.recv() if has_result else None
+        except (OSError, EOFError):
+            res = None
+        if res is not None:
+            del self._busy[w]
+            self._idle.append(w)
+            fut.set_result(res)
+            return
+        if w.proc.is_alive():
+            return
+        del self._busy[w]
+        how = _exit_description(w.proc.exitcode)
+        w.stop(kill=True)
+        fut.set_result(
+            {
+                "error": f"its worker process died ({how}) while computing output frames "
+                f"{spec['out_start']}-{spec['out_stop'] - 1}",
+                "kind": "internal",
+            }
+        )
 
     def shutdown(self) -> None:
-        if self._pool is not None:
-            self._pool.shutdown(wait=True, cancel_futures=True)
+        for w in self._idle:
+            with contextlib.suppress(OSError, ValueError):
+                w.conn.send(None)
+        for w in self._idle:
+            w.stop(kill=False)
+        for w in self._busy:  # interrupted: nothing more is wanted from them
+            w.stop(kill=True)
+        self._idle.clear()
+        self._busy.clear()
+        self._queue.clear()
+
+
+def _exit_description(code: int | None) -> str:
+    import signal
+
+    if code is not None and code < 0:
+        try:
+            return f"killed by {signal.Signals(-code).name}"
+        except ValueError:
+            return f"killed by signal {-code}"
+    return f"exit status {code}"
+
+
+class _Worker:
+    """One spawned worker process and the pipe it gets its tasks through."""
+
+    def __init__(self, ctx: Any) -> None:
+        self.conn, child = ctx.Pipe(duplex=True)
+        self.proc = ctx.Process(
+            target=_worker_main, args=(child, os.getpid()), daemon=True, name="upsr-batch-worker"
+        )
+        self.proc.start()
+        child.close()
+
+    def stop(self, kill: bool) -> None:
+        if not kill:
+            self.proc.join(5)
+        if self.proc.is_alive():
+            self.proc.kill()
+        self.proc.join(5)
+        with contextlib.suppress(OSError):
+            self.conn.close()
+        with contextlib.suppress(ValueError):
+            self.proc.close()
+
+
+def _worker_main(conn: Any, parent_pid: int) -> None:
+    """A worker process: run the tasks received on ``conn`` one by one, until ``None``."""
+    import signal
+
+    _die_with_parent(parent_pid)
+    signal.signal(signal.SIGINT, signal.SIG_IGN)  # the driver decides (and kills us)
+    while True:
+        try:
+            job = conn.recv()
+        except (EOFError, OSError):
+            return
+        except Exception as e:  # the task could not be unpickled
+            conn.send({"error": f"{type(e).__name__}: {e}", "kind": "internal"})
+            continue
+        if job is None:
+            return
+        task, spec = job
+        try:
+            res = task(spec)
+        except BaseException as e:  # run_chunk never raises; a replaced task might
+            res = {"error": f"{type(e).__name__}: {e}", "kind": "internal"}
+        conn.send(res)
+
+
+def _die_with_parent(parent_pid: int) -> None:
+    """Make this worker process end when its parent (the driver) does, even on SIGKILL.
+
+    Linux: the parent-death signal (``prctl(PR_SET_PDEATHSIG, SIGKILL)``); everywhere: a
+    watchdog thread that exits once the parent PID changes (the worker was re-parented).
+    """
+    import signal
+    import threading
+
+    if sys.platform.startswith("linux"):
+        with contextlib.suppress(Exception):
+            import ctypes
+
+            libc = ctypes.CDLL(None, use_errno=True)
+            libc.prctl(1, int(signal.SIGKILL), 0, 0, 0)  # 1 = PR_SET_PDEATHSIG
+    if os.getppid() != parent_pid:  # the parent died before the signal was armed
+        os._exit(1)
+
+    def watchdog() -> None:
+        while True:
+            time.sleep(0.5)
+            if os.getppid() != parent_pid:
+                os._exit(1)
+
+    threading.Thread(target=watchdog, name="upsr-parent-watchdog", daemon=True).start()
+
+
+def check_scheduler_address(address: str) -> str:
+    """Refuse (:class:`InputError`) a ``--scheduler`` that is not ``tcp://HOST:PORT``."""
+    from urllib.parse import urlsplit
+
+    shown = address if len(address) <= 80 else address[:77] + "..."
+    try:
+        u = urlsplit(address)
+        ok = (
+            u.scheme in ("tcp", "tls")
+            and bool(u.hostname)
+            and u.port is not None
+            and u.path in ("", "/")
+            and not (u.query or u.fragment or u.username)
+        )
+    except ValueError:  # a port that is no number or out of range
+        ok = False
+    if not ok:
+        raise InputError(f"--scheduler {shown!r} is not a Dask scheduler address tcp://HOST:PORT")
+    return address
 
 
 class _DaskExecutor:
     """Chunks as tasks on an existing Dask distributed scheduler."""
 
     def __init__(self, address: str) -> None:
+        check_scheduler_address(address)
         try:
             from dask.distributed import Client
         except ImportError:
@@ -337,8 +505,8 @@ class _DaskExecutor:
                 "pip install 'upsr[dask]'"
             ) from None
         try:
-            self.client = Client(address, timeout="15s")
-        except (OSError, TimeoutError) as e:
+            self.client = Client(address, timeout="10s")
+        except (OSError, TimeoutError, ValueError) as e:
             raise InputError(f"cannot connect to the Dask scheduler {address}: {e}") from None
         self.workers = max(1, len(self.client.scheduler_info().get("workers", {})))
 
@@ -388,12 +556,9 @@ def _prepare(
             first.append(frame)
             if len(first) == cfg.n_frames:
                 break
-    rng, noise = video_statistics(np.stack(first))
-    pinned = dataclasses.replace(
-        cfg,
-        depth_range_mm=cfg.depth_range_mm if cfg.depth_range_mm is not None else rng,
-        noise_mm=cfg.noise_mm if cfg.noise_mm is not None else noise,
-    )
+    from upsr.method.windowed import pinned_config
+
+    pinned = pinned_config(np.stack(first), cfg)
     m = chunk_frames or max(4 * cfg.n_frames, math.ceil(info.n_frames / max(workers, 1)))
     config = dataclasses.asdict(pinned)
     base = {
@@ -519,15 +684,57 @@ def run_batch(
     -------
     BatchResult
     """
-    from tqdm import tqdm
-
-    out = Path(out_dir)
+    # absolute paths: the tasks run in workers with other working directories
+    out = Path(os.path.abspath(out_dir))
     if not inputs:
         raise InputError("no input recordings given")
     out_fmt = _check_batch_options(out, output_format, workers, chunk_frames)
+    if scheduler is not None:
+        check_scheduler_address(scheduler)
     recs = _recordings(inputs, out, _OUT_SUFFIX[out_fmt])
+    _check_out_vs_inputs(out, recs)
     read = {"key": key, "topic": topic, "fmt": input_format, "depth_scale": depth_scale}
+    options = _options_record(config, read, out_fmt, intrinsics, shrink_frames)
     say = log or (lambda line: None)
+    with _batch_folder(out):
+        return _run_locked(
+            recs,
+            config,
+            read,
+            options,
+            say,
+            out_fmt=out_fmt,
+            depth_scale=depth_scale,
+            intrinsics=intrinsics,
+            scheduler=scheduler,
+            workers=workers,
+            chunk_frames=chunk_frames,
+            overwrite=overwrite,
+            progress=progress,
+            shrink_frames=shrink_frames,
+        )
+
+
+def _run_locked(
+    recs: list[Recording],
+    config: UPSRConfig,
+    read: dict[str, Any],
+    options: dict[str, Any],
+    say: Callable[[str], None],
+    *,
+    out_fmt: str,
+    depth_scale: float,
+    intrinsics: str | None,
+    scheduler: str | None,
+    workers: int | None,
+    chunk_frames: int,
+    overwrite: bool,
+    progress: bool,
+    shrink_frames: bool,
+) -> BatchResult:
+    """:func:`run_batch` once it holds the lock of the output folder."""
+    from tqdm import tqdm
+
     executor: Any = None
     bar = tqdm(
         total=len(recs),
@@ -543,7 +750,7 @@ def run_batch(
             if scheduler
             else _LocalExecutor(workers or os.cpu_count() or 1)
         )
-        run = _BatchRun(recs, config, say, bar.update)
+        run = _BatchRun(recs, config, say, bar.update, options)
         pending = run.submit_all(
             executor, read, out_fmt, chunk_frames, intrinsics, overwrite, shrink_frames
         )
@@ -558,12 +765,180 @@ def run_batch(
     return BatchResult(recs)
 
 
+#: the lock file of an output folder (beside its work folder, never inside it)
+LOCK_FILE = ".upsr-batch.lock"
+
+
+@contextlib.contextmanager
+def _batch_folder(out: Path) -> Iterator[None]:
+    """Create the output folder if needed and hold its lock (``OUT/.upsr-batch.lock``).
+
+    The lock is an exclusive :func:`fcntl.flock` taken without waiting: a second batch on the
+    same folder (which would otherwise delete the first one's chunks as stale) is refused
+    with an :class:`InputError`. The lock file is removed (while still locked) at the end; a
+    process that opened it meanwhile sees that the file it locked is no longer the one at
+    the path and tries again. A folder this call created is removed again if it stays empty.
+    """
+    created = not os.path.lexists(out)
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as e:
+        raise InputError(f"--out {out}: cannot create the folder ({e.strerror or e})") from None
+    try:
+        with _folder_lock(out):
+            yield
+    finally:
+        if created:
+            with contextlib.suppress(OSError):
+                out.rmdir()  # only if empty (everything failed)
+
+
+@contextlib.contextmanager
+def _folder_lock(out: Path) -> Iterator[None]:
+    try:
+        import fcntl
+    except ImportError:  # pragma: no cover - not POSIX: no lock
+        yield
+        return
+    path = out / LOCK_FILE
+    while True:
+        try:
+            fd = os.open(path, os.O_RDWR | os.O_CREAT | getattr(os, "O_CLOEXEC", 0), 0o644)
+        except OSError as e:
+            raise InputError(
+                f"--out {out}: cannot create {path.name} ({e.strerror or e})"
+            ) from None
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except OSError:
+            holder = ""
+            with contextlib.suppress(OSError, ValueError):
+                holder = f" (PID {int(os.pread(fd, 20, 0).decode().strip())})"
+            os.close(fd)
+            raise InputError(
+                f"--out {out} is in use by another upsr batch{holder}: wait for it to finish "
+                f"or choose another output folder"
+            ) from None
+        try:
+            st, now = os.fstat(fd), os.stat(path)
+            current = (st.st_dev, st.st_ino) == (now.st_dev, now.st_ino)
+        except OSError:
+            current = False
+        if current:
+            break
+        os.close(fd)  # its previous holder removed it after we opened it: again
+    try:
+        with contextlib.suppress(OSError):
+            os.ftruncate(fd, 0)
+            os.pwrite(fd, f"{os.getpid()}\n".encode(), 0)
+        yield
+    finally:
+        with contextlib.suppress(OSError):
+            os.unlink(path)
+        os.close(fd)
+
+
+def _resolved(p: Path) -> Path:
+    try:
+        return p.resolve()
+    except (OSError, RuntimeError):
+        raise InputError(f"{p}: cannot resolve the path (symbolic link loop?)") from None
+
+
+def _check_out_vs_inputs(out: Path, recs: list[Recording]) -> None:
+    """Refuse (before any work) an output folder inside an input folder, or an output that
+    is one of the inputs (any recording's, not only its own)."""
+    out_res = _resolved(out)
+    ins = [(r.input, _resolved(r.input)) for r in recs]
+    for inp, in_res in ins:
+        if (in_res == out_res or in_res in out_res.parents) and in_res.is_dir():
+            raise InputError(
+                f"--out {out} is inside the input folder {inp}: choose another output folder"
+            )
+    for rec in recs:
+        dest = _resolved(rec.output)
+        for inp, in_res in ins:
+            same = dest == in_res
+            if not same and os.path.exists(dest) and os.path.exists(in_res):
+                with contextlib.suppress(OSError):
+                    same = os.path.samefile(dest, in_res)
+            if same:
+                raise InputError(
+                    f"the output {rec.output} of {rec.input} is the input {inp}: "
+                    f"choose another output folder"
+                )
+
+
+def _options_record(
+    config: UPSRConfig,
+    read: dict[str, Any],
+    out_fmt: str,
+    intrinsics: str | None,
+    shrink_frames: bool,
+) -> dict[str, Any]:
+    """What an output of this batch depends on besides its input (compared on a rerun);
+    not the chunking, which does not change the output."""
+    rec = {
+        "config": dataclasses.asdict(config),
+        "read": read,
+        "format": out_fmt,
+        "intrinsics": intrinsics,
+        "shrink_frames": shrink_frames,
+    }
+    return dict(json.loads(json.dumps(rec, default=str)))
+
+
+def _record_path(rec: Recording) -> Path:
+    """Where the options an output was made with are recorded:
+    ``OUT/.upsr-batch/outputs/<output name>.json`` (no chunk folder is named without a dot
+    and a fingerprint)."""
+    return rec.output.parent / WORK_DIR / "outputs" / f"{rec.output.name}.json"
+
+
+def _read_record(rec: Recording) -> dict[str, Any] | None:
+    """The options record of an output (None: none, or unreadable)."""
+    try:
+        data = json.loads(_record_path(rec).read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return None
+    return data if isinstance(data, dict) and "options" in data else None
+
+
+def _write_record(rec: Recording, options: dict[str, Any], state: str) -> None:
+    """Record (atomically) the options of ``rec``'s output: state "writing" before the
+    output is published, "done" once it and its sidecar are complete."""
+    from upsr._atomic import write_text_atomic
+
+    path = _record_path(rec)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    text = json.dumps({"state": state, "input": str(rec.input), "options": options})
+    write_text_atomic(path, text)
+
+
+def _drop_record(rec: Recording) -> None:
+    with contextlib.suppress(OSError):
+        _record_path(rec).unlink()
+
+
+def _differences(old: dict[str, Any], new: dict[str, Any], prefix: str = "") -> list[str]:
+    """``key: old -> new`` for the leaves of two option records that differ."""
+    out = []
+    for k in sorted(set(old) | set(new)):
+        a, b = old.get(k), new.get(k)
+        if isinstance(a, dict) and isinstance(b, dict):
+            out += _differences(a, b, f"{prefix}{k}.")
+        elif a != b:
+            out.append(f"{prefix}{k}: {a} -> {b}")
+    return out
+
+
 def _check_batch_options(
     out: Path, output_format: str | None, workers: int | None, chunk_frames: int
 ) -> str:
     """Check the options of :func:`run_batch` (before any work); return the output format."""
-    if workers is not None and workers < 1:
-        raise InputError(f"--workers must be >= 1, got {workers}")
+    most = max(64, 2 * (os.cpu_count() or 1))  # each a process with its own memory
+    if workers is not None and not 1 <= workers <= most:
+        raise InputError(f"--workers must be 1..{most}, got {workers}")
     if chunk_frames < 0:
         raise InputError(f"--chunk-frames must be >= 0, got {chunk_frames}")
     if out.exists() and not out.is_dir():
@@ -583,7 +958,7 @@ def _recordings(
     recs: list[Recording] = []
     by_output: dict[Path, Path] = {}
     for inp in inputs:
-        p = Path(inp)
+        p = Path(os.path.abspath(inp))
         dest = out / (output_name(p) + suffix)
         if dest in by_output:
             raise InputError(
@@ -604,8 +979,10 @@ class _BatchRun:
         config: UPSRConfig,
         say: Callable[[str], None],
         tick: Callable[[int], Any],
+        options: dict[str, Any] | None = None,
     ) -> None:
         self.recs, self.config, self.say, self.tick = recs, config, say, tick
+        self.options = options if options is not None else {}
 
     def fail(self, rec: Recording, message: str, kind: str) -> None:
         rec.status, rec.error, rec.error_kind = "failed", message, kind
@@ -627,9 +1004,14 @@ class _BatchRun:
 
         pending: dict[Any, tuple[Recording, int]] = {}
         for rec in self.recs:
-            if os.path.lexists(rec.output) and not overwrite:
+            verdict = self._existing(rec, overwrite)
+            if verdict == "skip":
                 rec.status = "skipped"
                 self.say(f"skipped (output exists): {rec.output}")
+                self.tick(1)
+                continue
+            if verdict:
+                self.fail(rec, verdict, "input")
                 self.tick(1)
                 continue
             try:
@@ -651,6 +1033,32 @@ class _BatchRun:
                 pending[executor.submit(spec)] = (rec, i)
         return pending
 
+    def _existing(self, rec: Recording, overwrite: bool) -> str:
+        """What to do about ``rec``'s output: "" compute it, "skip", or why it is refused.
+
+        An output with no options record (not made by a batch) is skipped, as is one made
+        with the same options; one made with other options is refused without
+        ``overwrite``; one whose record says "writing" (a batch died while publishing it,
+        maybe before its sidecar) is recomputed.
+        """
+        if not os.path.lexists(rec.output) or overwrite:
+            return ""
+        record = _read_record(rec)
+        if record is None:
+            return "skip"
+        if record.get("state") != "done":
+            return ""
+        if record["options"] == self.options:
+            return "skip"
+        diff = _differences(record["options"], self.options)
+        shown = "; ".join(diff[:2]) + ("; ..." if len(diff) > 2 else "")
+        if len(shown) > 90:
+            shown = shown[:87] + "..."
+        return (
+            f"output {rec.output.name} was made with other options ({shown}): "
+            f"use --overwrite to recompute it"
+        )
+
     def collect(
         self,
         executor: Any,
@@ -658,33 +1066,73 @@ class _BatchRun:
         out_fmt: str,
         depth_scale: float,
     ) -> None:
-        """Gather the finished chunks; assemble each recording once all its chunks are in."""
-        for fut in executor.as_completed(list(pending)):
-            rec, _ = pending.pop(fut)
-            if rec.status != "pending":
-                continue  # the recording failed already
-            try:
-                res = fut.result()
-            except Exception as e:  # a worker died, the cluster went away
-                res = {"error": f"{type(e).__name__}: {e}", "kind": "internal"}
-            if "error" in res:
-                self.fail(rec, res["error"], res["kind"])
-                for other, (r2, _) in pending.items():
-                    if r2 is rec:
-                        other.cancel()
-                self.tick(1)
-                continue
-            rec.done_chunks += 1
-            rec.seconds += float(res["seconds"])
-            if rec.done_chunks < len(rec.chunks):
-                continue
-            try:
-                _assemble(rec, rec.config or self.config, out_fmt, depth_scale)
-            except InputError as e:
-                self.fail(rec, str(e), "input")
-            except OSError as e:
-                self.fail(rec, f"cannot write {rec.output}: {e}", "input")
-            else:
-                rec.status = "done"
-                self.say(f"done: {rec.input} -> {rec.output} ({rec.n_frames} frames)")
+        """Gather the finished chunks; assemble each recording once all its chunks are in.
+
+        A Dask task whose worker died (``KilledWorker``: it was running, or only queued,
+        on a worker that died) is submitted once more before its recording is failed: the
+        scheduler cannot tell the task that killed the worker from those queued beside it.
+        """
+        retried: set[tuple[int, int]] = set()
+        while pending:
+            resubmitted = False
+            for fut in executor.as_completed(list(pending)):
+                rec, i = pending.pop(fut)
+                if rec.status != "pending":
+                    continue  # the recording failed already
+                res = self._result(fut, rec, i)
+                if res.get("kind") == "killed" and (id(rec), i) not in retried:
+                    retried.add((id(rec), i))
+                    pending[executor.submit(rec.chunks[i])] = (rec, i)
+                    resubmitted = True
+                    break
+                self._chunk_done(rec, res, pending, out_fmt, depth_scale)
+            if not resubmitted:
+                break
+
+    @staticmethod
+    def _result(fut: Any, rec: Recording, i: int) -> dict[str, Any]:
+        try:
+            return dict(fut.result())
+        except Exception as e:  # a Dask worker died, the cluster went away
+            if type(e).__name__ == "KilledWorker":
+                spec = rec.chunks[i]
+                return {
+                    "error": f"its worker process died (Dask KilledWorker) while computing "
+                    f"output frames {spec['out_start']}-{spec['out_stop'] - 1}",
+                    "kind": "killed",
+                }
+            return {"error": f"{type(e).__name__}: {e}", "kind": "internal"}
+
+    def _chunk_done(
+        self,
+        rec: Recording,
+        res: dict[str, Any],
+        pending: dict[Any, tuple[Recording, int]],
+        out_fmt: str,
+        depth_scale: float,
+    ) -> None:
+        if res.get("kind") == "killed":
+            res["kind"] = "internal"
+        if "error" in res:
+            self.fail(rec, res["error"], res["kind"])
+            for other, (r2, _) in pending.items():
+                if r2 is rec:
+                    other.cancel()
             self.tick(1)
+            return
+        rec.done_chunks += 1
+        rec.seconds += float(res["seconds"])
+        if rec.done_chunks < len(rec.chunks):
+            return
+        try:
+            _write_record(rec, self.options, "writing")
+            _assemble(rec, rec.config or self.config, out_fmt, depth_scale)
+            _write_record(rec, self.options, "done")
+        except InputError as e:
+            self.fail(rec, str(e), "input")
+        except OSError as e:
+            self.fail(rec, f"cannot write {rec.output}: {e}", "input")
+        else:
+            rec.status = "done"
+            self.say(f"done: {rec.input} -> {rec.output} ({rec.n_frames} frames)")
+        self.tick(1)

@@ -107,6 +107,11 @@ class PinholeCamera:
         ------
         InputError
             s ≤ 0, or the scaled image size is not a whole number of pixels.
+
+        Examples
+        --------
+        >>> PinholeCamera(500.0, 500.0, 319.5, 239.5, 640, 480).scaled(2)
+        PinholeCamera(fx=1000.0, fy=1000.0, cx=639.5, cy=479.5, width=1280, height=960)
         """
         s = float(factor)
         if not math.isfinite(s) or s <= 0:

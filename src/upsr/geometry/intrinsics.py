@@ -8,7 +8,8 @@ the field of view: f' = r·f and c' = r·(c + 0.5) − 0.5 (:meth:`PinholeCamera
 The intrinsics of an output video are written next to it as ``<output>.intrinsics.json``::
 
     {"width": 1280, "height": 960, "fx": 1050.0, "fy": 1050.0, "cx": 639.5, "cy": 479.5,
-     "K": [[...], [...], [...]], "scale": 2,
+     "K": [[...], [...], [...]], "intrinsic_matrix": [9 values, K column-major], "scale": 2,
+     "timestamps_ns": [...], "frame_names": [...],
      "input": {"width": 640, "height": 480, "fx": 525.0, ...}, "convention": "..."}
 """
 
@@ -17,10 +18,14 @@ from __future__ import annotations
 import json
 import math
 import os
+import stat
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
-from upsr.errors import InputError
+import numpy as np
+
+from upsr.errors import InputError, one_line
 from upsr.geometry.camera import PinholeCamera
 
 __all__ = [
@@ -35,6 +40,9 @@ __all__ = [
 ]
 
 #: The pixel convention stated in every intrinsics file.
+#: Largest ``*.intrinsics.json`` read (bytes): a real one is a few hundred bytes.
+MAX_INTRINSICS_BYTES = 1 << 20
+
 CONVENTION = (
     "pinhole, no distortion; pixel (row i, column j) centred at (u, v) = (j, i) px; "
     "scaled by r (SPEC 1): f' = r f, c' = r (c + 0.5) - 0.5"
@@ -78,6 +86,8 @@ def camera_to_dict(camera: PinholeCamera) -> dict[str, Any]:
         "cx": float(camera.cx),
         "cy": float(camera.cy),
         "K": [[float(v) for v in row] for row in camera.K],
+        # Open3D's PinholeCameraIntrinsic JSON: K column-major (read_pinhole_camera_intrinsic)
+        "intrinsic_matrix": [float(v) for v in np.asarray(camera.K, np.float64).T.reshape(-1)],
     }
 
 
@@ -102,11 +112,18 @@ def load_intrinsics(path: str | os.PathLike[str]) -> PinholeCamera:
     """Read an ``*.intrinsics.json`` file (as written by :func:`write_intrinsics`)."""
     p = Path(path)
     try:
+        st = os.stat(p)
+        if not stat.S_ISREG(st.st_mode):
+            raise InputError(f"{p}: not a regular file")
+        if st.st_size > MAX_INTRINSICS_BYTES:
+            raise InputError(f"{p}: {st.st_size} bytes is too large for an intrinsics file")
         d = json.loads(p.read_text(encoding="utf-8"))
     except OSError as e:
         raise InputError(f"{p}: cannot read ({e.strerror or e})") from None
+    except RecursionError:
+        raise InputError(f"{p}: not an intrinsics file (JSON nested too deeply)") from None
     except ValueError as e:
-        raise InputError(f"{p}: not a JSON file ({e})") from None
+        raise InputError(one_line(f"{p}: not a JSON file ({e})")) from None
     return camera_from_dict(d, str(p))
 
 
@@ -116,8 +133,16 @@ def write_intrinsics(
     *,
     source: PinholeCamera | None = None,
     scale: int | float | None = None,
+    timestamps_ns: Sequence[int] | None = None,
+    frame_names: Sequence[str] | None = None,
 ) -> Path:
-    """Write ``camera`` as JSON atomically (with the input camera and scale, if given)."""
+    """Write ``camera`` as JSON atomically (with the input camera and scale, if given).
+
+    The file is also an Open3D ``PinholeCameraIntrinsic`` (``width``, ``height``,
+    ``intrinsic_matrix``: K column-major), readable by
+    ``open3d.io.read_pinhole_camera_intrinsic``. ``timestamps_ns`` (int ns per frame) and
+    ``frame_names`` pair the output frames with the input's (and its colour frames).
+    """
     from upsr._atomic import write_text_atomic
 
     d = camera_to_dict(camera)
@@ -125,5 +150,10 @@ def write_intrinsics(
         d["scale"] = scale
     if source is not None:
         d["input"] = camera_to_dict(source)
+        d["input"].pop("intrinsic_matrix")
+    if timestamps_ns is not None:
+        d["timestamps_ns"] = [int(t) for t in timestamps_ns]
+    if frame_names is not None:
+        d["frame_names"] = [str(n) for n in frame_names]
     d["convention"] = CONVENTION
     return write_text_atomic(path, json.dumps(d, indent=2) + "\n")

@@ -13,6 +13,7 @@ import contextlib
 import math
 import os
 import re
+import stat
 from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
@@ -20,7 +21,7 @@ from typing import TYPE_CHECKING, Any, BinaryIO, Protocol
 
 import numpy as np
 
-from upsr.errors import InputError
+from upsr.errors import InputError, one_line
 
 if TYPE_CHECKING:
     from upsr.io.registry import ReadOptions
@@ -37,9 +38,13 @@ __all__ = [
     "check_array_meta",
     "check_depth_scale",
     "check_fmt",
+    "check_frame_budget",
     "check_frame_range",
+    "check_input_type",
+    "frame_budget",
     "natural_key",
     "reading",
+    "set_frame_budget",
 ]
 
 PathLike = str | os.PathLike
@@ -47,10 +52,100 @@ PathLike = str | os.PathLike
 #: Container formats understood by the readers (see :mod:`upsr.io.registry`).
 FORMATS = ("npy", "npz", "png", "tiff", "exr", "rosbag", "nyu", "pgm", "tum", "sun")
 #: Formats the writer can produce.
-WRITE_FORMATS = ("npy", "npz", "png", "tiff", "exr")
+WRITE_FORMATS = ("npy", "npz", "png", "tiff", "exr", "rosbag")
 
 #: Largest frame accepted (pixels): guards against decompression bombs and absurd headers.
 MAX_FRAME_PIXELS = 1 << 28
+
+#: Bytes one frame may need while it is read (its stored bytes, the decoded pixels and the
+#: float32 frame), set by :func:`set_frame_budget`; None: :func:`frame_budget`'s default.
+_FRAME_BUDGET: int | None = None
+#: Most bytes a frame may need by default, whatever the machine has (1 GiB).
+DEFAULT_FRAME_BUDGET_MAX = 1 << 30
+
+
+def set_frame_budget(n_bytes: int | None) -> None:
+    """Set the byte budget of one frame being read (None: back to the default).
+
+    The command line sets it from ``--max-memory``; see :func:`frame_budget`.
+    """
+    global _FRAME_BUDGET
+    if n_bytes is not None and (isinstance(n_bytes, bool) or int(n_bytes) < 1):
+        raise InputError(f"frame byte budget must be an integer >= 1, got {n_bytes!r}")
+    _FRAME_BUDGET = None if n_bytes is None else int(n_bytes)
+
+
+def frame_budget() -> int:
+    """Bytes one frame may need while it is read, before anything is allocated for it.
+
+    Default: a quarter of the memory available now (MemAvailable, RLIMIT_AS and the cgroup
+    limit, :func:`upsr.method.resources.available_memory_bytes`), at most 1 GiB and at least
+    64 MiB: a header declaring a 16000×16000 frame (a 530 KB PNG "bomb") is refused from the
+    header instead of decoding 0.5 GB of pixels and 1 GB of float32 depth.
+    """
+    if _FRAME_BUDGET is not None:
+        return _FRAME_BUDGET
+    from upsr.method.resources import available_memory_bytes
+
+    return int(max(64 << 20, min(DEFAULT_FRAME_BUDGET_MAX, available_memory_bytes() // 4)))
+
+
+def _gb(n: float) -> str:
+    return f"{n / 1e9:.2g} GB" if n >= 1e8 else f"{n / 1e6:.2g} MB"
+
+
+def check_frame_budget(
+    name: str, h: int, w: int, bytes_per_px: float, *, budget: int | None = None
+) -> None:
+    """Refuse frames whose reading would need more than ``budget`` bytes (:func:`frame_budget`).
+
+    ``bytes_per_px``: what reading one pixel allocates (stored sample, decoded copies, the
+    float32 frame). Checked from the header, before anything is allocated.
+    """
+    limit = frame_budget() if budget is None else int(budget)
+    need = int(h) * int(w) * float(bytes_per_px)
+    if need > limit:
+        raise InputError(
+            one_line(
+                f"{name}: a {w}x{h} frame needs ~{_gb(need)} to read, over the {_gb(limit)} "
+                "per-frame limit (--max-memory)"
+            )
+        )
+
+
+_FILE_KINDS = (
+    (stat.S_ISFIFO, "a FIFO (named pipe)"),
+    (stat.S_ISSOCK, "a socket"),
+    (stat.S_ISCHR, "a character device"),
+    (stat.S_ISBLK, "a block device"),
+)
+
+
+def file_kind(mode: int) -> str:
+    """What a non-regular, non-folder file of ``st_mode`` is, in words."""
+    for test, what in _FILE_KINDS:
+        if test(mode):
+            return what
+    return "not a regular file"
+
+
+def check_input_type(path: Path, *, folder_ok: bool = True) -> os.stat_result:
+    """``os.stat`` of an input, refused unless it is a regular file (or a folder).
+
+    Checked by type before anything opens it: ``/dev/zero`` would be read forever, a FIFO
+    with no writer blocks ``open`` for ever, sockets and devices are no depth videos.
+    """
+    try:
+        st = os.stat(path)
+    except FileNotFoundError:
+        raise InputError(f"{path}: no such file or folder") from None
+    except OSError as e:
+        raise InputError(f"{path}: cannot access ({e.strerror or e})") from None
+    if stat.S_ISREG(st.st_mode) or (folder_ok and stat.S_ISDIR(st.st_mode)):
+        return st
+    if stat.S_ISDIR(st.st_mode):
+        raise InputError(f"{path}: is a folder, not a file")
+    raise InputError(f"{path}: is {file_kind(st.st_mode)}, not a depth file: refusing to read it")
 
 
 @dataclass(frozen=True)
@@ -223,9 +318,13 @@ def reading(name: str) -> Iterator[None]:
     except InputError:
         raise
     except OSError as e:
-        raise InputError(f"{name}: cannot read ({e.strerror or e})") from None
+        raise InputError(one_line(f"{name}: cannot read ({e.strerror or e})")) from None
+    except MemoryError:
+        raise InputError(f"{name}: too large to read in the memory available") from None
     except Exception as e:  # zipfile/zlib/numpy header parsing: all the user's data
-        raise InputError(f"{name}: corrupt or unreadable ({type(e).__name__}: {e})") from None
+        raise InputError(
+            one_line(f"{name}: corrupt or unreadable ({type(e).__name__}: {e})")
+        ) from None
 
 
 def check_array_meta(name: str, shape: tuple[int, ...], dtype: np.dtype) -> None:

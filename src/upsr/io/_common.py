@@ -13,7 +13,7 @@ from pathlib import Path
 import numpy as np
 
 from upsr.errors import InputError
-from upsr.io._base import MAX_FRAME_PIXELS, natural_key, reading
+from upsr.io._base import MAX_FRAME_PIXELS, check_frame_budget, natural_key, reading
 
 __all__ = [
     "c_output_captured",
@@ -57,6 +57,7 @@ def check_frame_size(name: str, h: int, w: int) -> None:
         raise InputError(f"{name}: empty {w}x{h} image")
     if h * w > MAX_FRAME_PIXELS:
         raise InputError(f"{name}: frames of {w}x{h} pixels are too large")
+    check_frame_budget(name, h, w, 16)  # stored sample (<= 8 B), float32 frame and a copy
 
 
 def mixed_size(name: str, hw: tuple[int, int], first: str, first_hw: tuple[int, int]) -> InputError:

@@ -1,7 +1,10 @@
 """``.npy`` depth videos: one (T, h, w) array of depth in mm, any integer or float dtype.
 
-Read through a memory map (``np.load(mmap_mode="r", allow_pickle=False)``): frames are read one
-at a time and a frame range starts at its byte offset. Written as float32 mm, streamed: a
+Read frame by frame with plain reads (no memory map: a file that shrinks while it is read would
+kill the process with SIGBUS), a frame range starting at its byte offset; the header is checked
+against the file size and the frame byte budget (:func:`upsr.io._base.frame_budget`) before
+anything is allocated. A Fortran-order array (time varying fastest: no frame is contiguous) is
+read whole when it fits the budget and refused otherwise. Written as float32 mm, streamed: a
 fixed-size header is written first and rewritten with the final frame count at the end.
 Nothing is ever unpickled (object arrays are refused).
 """
@@ -18,7 +21,14 @@ from typing import IO, BinaryIO
 import numpy as np
 
 from upsr.errors import InputError
-from upsr.io._base import VideoInfo, check_array_meta, reading
+from upsr.io._base import (
+    VideoInfo,
+    check_array_meta,
+    check_frame_budget,
+    check_input_type,
+    frame_budget,
+    reading,
+)
 from upsr.io.registry import ReadOptions
 from upsr.method.validation import as_depth_frame
 
@@ -47,12 +57,40 @@ def read_npy_header(f: IO[bytes], name: str) -> tuple[tuple[int, ...], bool, np.
             raise InputError(f"{name}: unsupported .npy format version {version}")
     shape = tuple(int(s) for s in shape)
     check_array_meta(name, shape, dtype)
+    check_frame_budget(name, shape[1], shape[2], dtype.itemsize + 8)
+    if fortran:
+        check_fortran(name, shape, dtype)
     return shape, bool(fortran), dtype
+
+
+def check_fortran(name: str, shape: tuple[int, ...], dtype: np.dtype) -> None:
+    """A Fortran-order array is read whole: refuse it when it exceeds the frame budget."""
+    need = math.prod(shape) * dtype.itemsize
+    limit = frame_budget()
+    if need > limit:
+        raise InputError(
+            f"{name}: Fortran-order array of {need / 1e9:.3g} GB, read whole, over the "
+            f"{limit / 1e9:.3g} GB budget: save it in C order"
+        )
+
+
+def read_exact(f: IO[bytes], n: int, label: str) -> bytes:
+    """Exactly ``n`` bytes of ``f`` (InputError ``truncated`` when it ends before)."""
+    chunks = []
+    left = n
+    while left > 0:
+        b = f.read(min(left, 1 << 26))
+        if not b:
+            raise InputError(f"{label}: truncated array data (the file ended early)")
+        chunks.append(b)
+        left -= len(b)
+    return b"".join(chunks)
 
 
 def probe(path: Path, opts: ReadOptions | None = None, fmt: str = "npy") -> VideoInfo:
     """Describe a ``.npy`` video (header and file size checked)."""
     name = str(path)
+    check_input_type(path, folder_ok=False)
     with reading(name), open(path, "rb") as f:
         shape, _, dtype = read_npy_header(f, name)
         offset = f.tell()
@@ -73,17 +111,35 @@ def frames(
     start: int = 0,
     stop: int | None = None,
 ) -> Iterator[np.ndarray]:
-    """Frames ``start`` … ``stop - 1`` of a ``.npy`` video (float32 mm), memory-mapped."""
+    """Frames ``start`` … ``stop - 1`` of a ``.npy`` video (float32 mm), read one at a time."""
     name = str(path)
+    check_input_type(path, folder_ok=False)
     with reading(name):
-        arr = np.load(path, mmap_mode="r", allow_pickle=False)
+        f = open(path, "rb")
     try:
-        for t in range(start, arr.shape[0] if stop is None else stop):
+        with reading(name):
+            shape, fortran, dtype = read_npy_header(f, name)
+            offset = f.tell()
+        t_n, h, w = shape
+        last = t_n if stop is None else stop
+        frame_bytes = h * w * dtype.itemsize
+        if fortran:  # time varies fastest: read the whole array (within the budget)
             with reading(name):
-                raw = np.array(arr[t])
-            yield as_depth_frame(raw, name=f"{path.name} frame {t}")
+                data = read_exact(f, frame_bytes * t_n, name)
+            video = np.frombuffer(data, dtype).reshape(shape, order="F")
+            for t in range(start, last):
+                yield as_depth_frame(video[t], name=f"{path.name} frame {t}")
+            return
+        with reading(name):
+            f.seek(offset + frame_bytes * start)
+        for t in range(start, last):
+            with reading(name):
+                data = read_exact(f, frame_bytes, f"{name} frame {t}")
+            yield as_depth_frame(
+                np.frombuffer(data, dtype).reshape(h, w), name=f"{path.name} frame {t}"
+            )
     finally:
-        del arr
+        f.close()
 
 
 def npy_header(shape: tuple[int, int, int]) -> bytes:

@@ -18,9 +18,9 @@ from typing import BinaryIO
 import numpy as np
 
 from upsr._atomic import new_temp_file, remove
-from upsr.errors import InputError
+from upsr.errors import InputError, short_list
 from upsr.io import npy
-from upsr.io._base import VideoInfo, reading
+from upsr.io._base import VideoInfo, check_input_type, reading
 from upsr.io.registry import ReadOptions
 from upsr.method.validation import as_depth_frame
 
@@ -36,7 +36,7 @@ def _member(zf: zipfile.ZipFile, key: str | None, name: str) -> tuple[str, str]:
     if key is None:
         key = arrays[0]
     elif key not in arrays:
-        raise InputError(f"{name}: no array named {key!r} (available: {', '.join(arrays)})")
+        raise InputError(f"{name}: no array named {key[:60]!r} (available: {short_list(arrays)})")
     return key, key + ".npy"
 
 
@@ -44,6 +44,7 @@ def probe(path: Path, opts: ReadOptions | None = None, fmt: str = "npz") -> Vide
     """Describe the array ``opts.key`` (default: the first) of a ``.npz`` (header checked)."""
     key = opts.key if opts is not None else None
     name = str(path)
+    check_input_type(path, folder_ok=False)
     with reading(name), zipfile.ZipFile(path) as zf:
         key, member = _member(zf, key, name)
         label = f"{name}[{key}]"
@@ -60,16 +61,7 @@ def probe(path: Path, opts: ReadOptions | None = None, fmt: str = "npz") -> Vide
     return VideoInfo(shape[0], shape[1], shape[2], dtype, "npz", key)
 
 
-def _read_exact(f: BinaryIO, n: int, label: str) -> bytes:
-    chunks = []
-    left = n
-    while left > 0:
-        b = f.read(left)
-        if not b:
-            raise InputError(f"{label}: truncated array data")
-        chunks.append(b)
-        left -= len(b)
-    return b"".join(chunks)
+_read_exact = npy.read_exact
 
 
 def _skip(f: BinaryIO, n: int, label: str) -> None:
@@ -89,6 +81,7 @@ def frames(
 ) -> Iterator[np.ndarray]:
     """Frames ``start`` … ``stop - 1`` of the array ``opts.key`` (float32 mm)."""
     name = str(path)
+    check_input_type(path, folder_ok=False)
     with reading(name):
         zf = zipfile.ZipFile(path)
     try:
@@ -100,7 +93,7 @@ def frames(
         t_n, h, w = shape
         last = t_n if stop is None else stop
         frame_bytes = h * w * dtype.itemsize
-        if fortran:  # time varies fastest: frames are not contiguous, read the whole array
+        if fortran:  # time varies fastest: read the whole array (read_npy_header: within budget)
             with reading(name):
                 data = _read_exact(f, frame_bytes * t_n, label)
             video = np.frombuffer(data, dtype).reshape(shape, order="F")

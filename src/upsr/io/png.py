@@ -22,7 +22,14 @@ from typing import Any, BinaryIO
 import numpy as np
 
 from upsr.errors import InputError
-from upsr.io._base import MAX_FRAME_PIXELS, VideoInfo, natural_key, reading
+from upsr.io._base import (
+    MAX_FRAME_PIXELS,
+    VideoInfo,
+    check_frame_budget,
+    check_input_type,
+    natural_key,
+    reading,
+)
 from upsr.io.registry import ReadOptions
 from upsr.method.validation import as_depth_frame
 
@@ -57,6 +64,8 @@ _ADAM7 = (
 )
 
 _PNG_MAX = 65535
+#: Bytes allocated per pixel while one frame is read (see :func:`_png_header`).
+_PNG_BYTES_PER_PX = 12
 
 
 def frame_files(path: Path) -> list[Path]:
@@ -81,6 +90,7 @@ def frame_files(path: Path) -> list[Path]:
 def _png_header(file: Path) -> tuple[int, int, int]:
     """Return (height, width, interlace) of a 16-bit grayscale PNG from its IHDR chunk."""
     name = str(file)
+    check_input_type(file, folder_ok=False)
     with reading(name), open(file, "rb") as f:
         head = f.read(33)
     if len(head) < 33 or head[:8] != _PNG_SIGNATURE:
@@ -106,6 +116,8 @@ def _png_header(file: Path) -> tuple[int, int, int]:
         )
     if w * h > MAX_FRAME_PIXELS:
         raise InputError(f"{name}: frames of {w}x{h} pixels are too large")
+    # filtered rows (2 B/px), OpenCV's uint16 image (2), float32 frame and its copy (4 + 4)
+    check_frame_budget(name, h, w, _PNG_BYTES_PER_PX)
     return h, w, interlace
 
 

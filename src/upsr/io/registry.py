@@ -139,10 +139,12 @@ REGISTRY: dict[str, Format] = {
         ),
         Format(
             "rosbag",
-            "ROS 1 .bag (RealSense .bag included) or ROS 2 bag folder: a depth image topic "
-            "(16UC1 mm, 32FC1 m)",
-            (".bag",),
+            "ROS 1 .bag (RealSense .bag included), ROS 2 bag folder or RealSense .db3: a depth "
+            "image topic (16UC1 mm, 32FC1 m; compressedDepth / 16-bit PNG compressed); "
+            "written as a ROS 2 bag folder (32FC1 m + CameraInfo)",
+            (".bag", ".db3"),
             "rosbag",
+            writable=True,
             folder=False,
         ),
         Format(
@@ -195,11 +197,12 @@ def module(name: str) -> Any:
 def detect_file(path: Path) -> str | None:
     """Format of a file from its suffix (None: not one of this package's).
 
-    A ``.db3``/``.mcap`` file inside a ROS 2 bag folder (one holding ``metadata.yaml``) is the
+    A ``.db3`` file is a ROS 2 bag (its folder's when it holds ``metadata.yaml``, else the file
+    alone, as librealsense 2.59+ records); an ``.mcap`` file inside a ROS 2 bag folder is the
     bag.
     """
     suffix = path.suffix.lower()
-    if suffix in (".db3", ".mcap") and (path.parent / "metadata.yaml").is_file():
+    if suffix == ".mcap" and (path.parent / "metadata.yaml").is_file():
         return "rosbag"
     for f in REGISTRY.values():
         if suffix in f.suffixes:

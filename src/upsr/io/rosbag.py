@@ -15,19 +15,38 @@ longest namespace with the depth topic (``/camera/depth/image_raw`` →
 from __future__ import annotations
 
 import contextlib
-from collections.abc import Iterator
+import os
+import re
+from collections.abc import Iterator, Sequence
 from pathlib import Path
-from typing import Any
+from typing import Any, BinaryIO
 
 import numpy as np
 
 from upsr.errors import InputError
 from upsr.io._base import VideoInfo, reading
 from upsr.io._common import check_frame_size
+from upsr.io._rosmsg import (
+    CompressedMsg,
+    ImageMsg,
+    decode_compressed_depth,
+    is_compressed_depth,
+    parse_compressed,
+    parse_image,
+)
 from upsr.io.registry import ReadOptions, require
 from upsr.method.validation import as_depth_frame
 
-__all__ = ["DEPTH_ENCODINGS", "decode_depth_image", "frames", "intrinsics", "probe"]
+__all__ = [
+    "DEPTH_ENCODINGS",
+    "FrameSink",
+    "decode_depth_image",
+    "frames",
+    "intrinsics",
+    "probe",
+    "timestamps",
+    "writes_folder",
+]
 
 #: Encodings read as depth: (numpy type code, mm per raw unit).
 DEPTH_ENCODINGS: dict[str, tuple[str, float]] = {
@@ -40,9 +59,16 @@ _CAMERA_INFO = "sensor_msgs/msg/CameraInfo"
 _COMPRESSED = "sensor_msgs/msg/CompressedImage"
 
 
+_REALSENSE_UNITS = re.compile(r"option/Depth[ _]Units(/value)?$")
+
+
 def _bag_path(path: Path) -> Path:
     if path.is_file() and path.suffix.lower() in (".db3", ".mcap"):
-        return path.parent  # a storage file of a ROS 2 bag: the bag is its folder
+        if (path.parent / "metadata.yaml").is_file():
+            return path.parent  # a storage file of a ROS 2 bag: the bag is its folder
+        if path.suffix.lower() == ".mcap":
+            raise InputError(f"{path}: an .mcap file is read inside its bag folder (metadata.yaml)")
+        return path  # a lone .db3 (librealsense 2.59+): read from its sqlite tables
     if path.is_dir() and not (path / "metadata.yaml").is_file():
         raise InputError(f"{path}: a ROS 2 bag is a folder holding metadata.yaml; none here")
     if path.is_file() and path.suffix.lower() != ".bag":
@@ -53,13 +79,19 @@ def _bag_path(path: Path) -> Path:
 @contextlib.contextmanager
 def _open(path: Path) -> Iterator[Any]:
     require("rosbags", "reading ROS bags")
-    from rosbags.highlevel import AnyReader
-    from rosbags.typesys import Stores, get_typestore
-
     bag = _bag_path(path)
-    with reading(str(path)):
-        reader = AnyReader([bag], default_typestore=get_typestore(Stores.LATEST))
-        reader.open()
+    if bag.is_file() and bag.suffix.lower() == ".db3":
+        from upsr.io._db3 import Db3Reader
+
+        with reading(str(path)):
+            reader: Any = Db3Reader(bag)
+    else:
+        from rosbags.highlevel import AnyReader
+        from rosbags.typesys import Stores, get_typestore
+
+        with reading(str(path)):
+            reader = AnyReader([bag], default_typestore=get_typestore(Stores.LATEST))
+            reader.open()
     try:
         yield reader
     finally:
@@ -67,28 +99,48 @@ def _open(path: Path) -> Iterator[Any]:
             reader.close()
 
 
+def _is2(reader: Any) -> bool:
+    return bool(getattr(reader, "is2", getattr(reader, "is_ros2", False)))
+
+
+def _parse(reader: Any, conn: Any, raw: bytes) -> Any:
+    """An Image / CompressedImage parsed tolerantly; other types through rosbags."""
+    if conn.msgtype == _IMAGE:
+        return parse_image(raw, cdr=_is2(reader))
+    if conn.msgtype == _COMPRESSED:
+        return parse_compressed(raw, cdr=_is2(reader))
+    return reader.deserialize(raw, conn.msgtype)
+
+
 def _first(reader: Any, conn: Any) -> Any:
     for c, _, raw in reader.messages(connections=[conn]):
-        return reader.deserialize(raw, c.msgtype)
+        return _parse(reader, c, raw)
     return None
 
 
-def _is_depth(topic: str, encoding: str) -> bool:
-    enc = encoding.lower()
+def _is_depth(topic: str, msg: Any) -> bool:
+    if isinstance(msg, CompressedMsg):
+        return is_compressed_depth(msg.format)
+    enc = str(msg.encoding).lower()
     return enc in DEPTH_ENCODINGS and (enc != "mono16" or "depth" in topic.lower())
+
+
+def _describe(msg: Any) -> str:
+    return msg.format if isinstance(msg, CompressedMsg) else str(msg.encoding)
 
 
 def _depth_connection(reader: Any, topic: str | None, name: str) -> tuple[Any, Any]:
     """(connection, first message) of the depth topic."""
-    images = [c for c in reader.connections if c.msgtype == _IMAGE]
+    images = [c for c in reader.connections if c.msgtype in (_IMAGE, _COMPRESSED)]
     if topic is not None:
         chosen = [c for c in reader.connections if c.topic == topic]
         if not chosen:
             topics = ", ".join(sorted({c.topic for c in images})) or "none"
             raise InputError(f"{name}: no topic {topic!r} (image topics: {topics})")
-        if chosen[0].msgtype != _IMAGE:
+        if chosen[0].msgtype not in (_IMAGE, _COMPRESSED):
             raise InputError(
-                f"{name}: topic {topic!r} holds {chosen[0].msgtype}, not sensor_msgs/Image"
+                f"{name}: topic {topic!r} holds {chosen[0].msgtype}, not sensor_msgs/Image "
+                f"or sensor_msgs/CompressedImage"
             )
         images = chosen
     found: list[tuple[Any, Any]] = []
@@ -101,26 +153,32 @@ def _depth_connection(reader: Any, topic: str | None, name: str) -> tuple[Any, A
         msg = _first(reader, c)
         if msg is None:
             others.append(f"{c.topic} (no messages)")
-        elif _is_depth(c.topic, str(msg.encoding)):
+        elif _is_depth(c.topic, msg):
             found.append((c, msg))
         else:
-            others.append(f"{c.topic} ({msg.encoding})")
+            others.append(f"{c.topic} ({_describe(msg)})")
     if not found:
-        compressed = sorted({c.topic for c in reader.connections if c.msgtype == _COMPRESSED})
-        hint = (
-            f"; compressed image topics are not supported: {', '.join(compressed)}"
-            if compressed
-            else ""
-        )
         what = f"topic {topic!r} is not" if topic is not None else "no topic is"
         raise InputError(
             f"{name}: {what} a depth image (sensor_msgs/Image with encoding 16UC1, 32FC1, "
-            f"or mono16 on a depth topic); image topics: {', '.join(others) or 'none'}{hint}"
+            f"or mono16 on a depth topic; sensor_msgs/CompressedImage compressedDepth or "
+            f"16-bit PNG); image topics: {', '.join(others) or 'none'}"
         )
     if len(found) > 1:
         names = ", ".join(c.topic for c, _ in found)
         raise InputError(f"{name}: several depth topics ({names}): choose one with --topic")
     return found[0]
+
+
+def _decode(msg: Any, units_mm: float | None, name: str) -> np.ndarray:
+    """A parsed depth message → float32 (h, w) mm."""
+    if isinstance(msg, CompressedMsg):
+        frame = decode_compressed_depth(msg, name)
+        if msg.format.split(";")[0].strip().lower() != "32fc1" and units_mm is not None:
+            frame *= np.float32(units_mm)
+        return frame
+    units = msg.depth_units_m if isinstance(msg, ImageMsg) else None
+    return decode_depth_image(msg, units_mm=units * 1000.0 if units else units_mm, name=name)
 
 
 def decode_depth_image(
@@ -198,15 +256,33 @@ def _best_match(reader: Any, depth_topic: str, msgtype: str, suffix: str = "") -
 
 
 def _depth_units_mm(reader: Any, depth_topic: str, name: str) -> float | None:
-    """RealSense: mm per raw unit from ``…/option/Depth Units/value`` (std_msgs/Float32)."""
-    conn = _best_match(reader, depth_topic, "std_msgs/msg/Float32", "option/Depth Units/value")
-    if conn is None:
+    """RealSense: mm per raw unit from its Depth Units option.
+
+    The option topic is spelled ``…/option/Depth Units/value`` (librealsense < 2.5x),
+    ``…/option/Depth_Units/value`` (2.5x) or ``…/option/Depth_Units`` ; its message is a
+    std_msgs/Float32 (ROS 1 ``.bag``) or a std_msgs/String holding the number (``.db3``).
+    """
+    conns = [
+        c
+        for c in reader.connections
+        if c.msgtype in ("std_msgs/msg/Float32", "std_msgs/msg/Float64", "std_msgs/msg/String")
+        and _REALSENSE_UNITS.search(c.topic)
+    ]
+    if not conns:
         return None
+    conns.sort(key=lambda c: (-_namespace_score(c.topic, depth_topic), c.topic))
     with reading(name):
-        msg = _first(reader, conn)
+        msg = _first(reader, conns[0])
     if msg is None:
         return None
-    units = float(msg.data)
+    try:
+        units = (
+            float(str(msg.data).strip().split()[0])
+            if isinstance(msg.data, str)
+            else float(msg.data)
+        )
+    except (ValueError, IndexError):
+        raise InputError(f"{name}: RealSense Depth Units {msg.data!r} is not a number") from None
     if not (np.isfinite(units) and 0 < units < 1):
         raise InputError(f"{name}: RealSense Depth Units {units!r} m is not a valid unit")
     return units * 1000.0
@@ -217,9 +293,13 @@ def probe(path: Path, opts: ReadOptions, fmt: str = "rosbag") -> VideoInfo:
     name = str(path)
     with _open(path) as reader, reading(name):
         conn, msg = _depth_connection(reader, opts.topic, name)
-        frame = decode_depth_image(msg, name=f"{name} {conn.topic} message 0")
+        frame = _decode(msg, None, f"{name} {conn.topic} message 0")
         count = sum(c.msgcount for c in reader.connections if c.topic == conn.topic)
-    dtype = np.dtype(DEPTH_ENCODINGS[str(msg.encoding).lower()][0])
+    if isinstance(msg, CompressedMsg):
+        enc = msg.format.split(";")[0].strip().lower()
+        dtype = np.dtype("f4" if enc == "32fc1" else "u2")
+    else:
+        dtype = np.dtype(DEPTH_ENCODINGS[str(msg.encoding).lower()][0])
     return VideoInfo(count, frame.shape[0], frame.shape[1], dtype, "rosbag", topic=conn.topic)
 
 
@@ -251,8 +331,7 @@ def frames(
                 if item is None:
                     break
                 c, _, raw = item
-                msg = reader.deserialize(raw, c.msgtype)
-                frame = decode_depth_image(msg, units_mm=units, name=label)
+                frame = _decode(_parse(reader, c, raw), units, label)
             if shape is None:
                 shape = frame.shape
             elif frame.shape != shape:
@@ -264,28 +343,94 @@ def frames(
             k += 1
 
 
+def timestamps(path: Path, opts: ReadOptions, fmt: str = "rosbag") -> np.ndarray:
+    """int64 (T,) time of every depth frame, ns.
+
+    The header stamp of each depth message; RealSense recordings whose header stamps are not
+    the frame times (``.db3`` of librealsense 2.59 holds the time since the recording began)
+    take the ``timestamp=`` (ms) of the ``…/image/metadata`` messages, which is what the SDK's
+    playback reports; messages whose header stamps are all 0 take the bag's receive times.
+    """
+    name = str(path)
+    with _open(path) as reader, reading(name):
+        conn, _ = _depth_connection(reader, opts.topic, name)
+        conns = [c for c in reader.connections if c.topic == conn.topic]
+        header, received = [], []
+        for c, t, raw in reader.messages(connections=conns):
+            header.append(_parse(reader, c, raw).stamp_ns)
+            received.append(t)
+        meta = _realsense_meta_stamps(reader, conn.topic)
+    if meta is not None and len(meta) == len(header):
+        return np.asarray(meta, np.int64)
+    if header and not any(header):
+        return np.asarray(received, np.int64)
+    return np.asarray(header, np.int64)
+
+
+def _realsense_meta_stamps(reader: Any, depth_topic: str) -> list[int] | None:
+    m = re.match(r"(.*/Depth_\d+)/image/", depth_topic)
+    if m is None:
+        return None
+    topic = m.group(1) + "/image/metadata"
+    conns = [
+        c for c in reader.connections if c.topic == topic and c.msgtype == "std_msgs/msg/String"
+    ]
+    if not conns:
+        return None  # ROS 1 RealSense bags: KeyValue metadata, header stamps are the frame times
+    out = []
+    for c, _, raw in reader.messages(connections=conns):
+        text = str(reader.deserialize(raw, c.msgtype).data)
+        found = re.search(r"(?:^|;)timestamp=([0-9.eE+-]+)", text)
+        if found is None:
+            return None
+        out.append(round(float(found.group(1)) * 1e6))
+    return out
+
+
+def _camera_from_string(text: str, w: int, h: int) -> Any:
+    """librealsense 2.59's ``…/Depth_0/camera_info`` String: ``width=..;fx=..;ppx=..``."""
+    from upsr.geometry.camera import PinholeCamera
+
+    kv = dict(p.split("=", 1) for p in text.split(";") if "=" in p)
+    try:
+        return PinholeCamera(
+            float(kv["fx"]), float(kv["fy"]), float(kv["ppx"]), float(kv["ppy"]), w, h
+        )
+    except (KeyError, ValueError, InputError):
+        return None
+
+
 def intrinsics(path: Path, opts: ReadOptions, fmt: str = "rosbag") -> Any:
     """The depth camera's intrinsics from its CameraInfo topic, or None.
 
     Returns
     -------
-    upsr.research.synth.render.PinholeCamera or None
+    upsr.geometry.camera.PinholeCamera or None
         fx, fy, cx, cy from K (ROS pixel coordinates: pixel (i, j) centred at (u, v) = (j, i),
-        as in SPEC §1), width and height of the depth images.
+        as in SPEC §1), width and height of the depth images. RealSense ``.db3`` recordings
+        without a CameraInfo: their ``…/Depth_0/camera_info`` string (fx, fy, ppx, ppy).
     """
     from upsr.geometry.camera import PinholeCamera
 
     name = str(path)
     with _open(path) as reader, reading(name):
         conn, msg = _depth_connection(reader, opts.topic, name)
+        frame = _decode(msg, None, name)
+        h, w = frame.shape
         info_conn = _best_match(reader, conn.topic, _CAMERA_INFO)
-        if info_conn is None:
-            return None
-        info = _first(reader, info_conn)
-    if info is None:
-        return None
+        info = None if info_conn is None else _first(reader, info_conn)
+        if info is None:
+            m = re.match(r"(.*/Depth_\d+)/", conn.topic)
+            if m is None:
+                return None
+            strs = [
+                c
+                for c in reader.connections
+                if c.topic == m.group(1) + "/camera_info" and c.msgtype == "std_msgs/msg/String"
+            ]
+            text = _first(reader, strs[0]) if strs else None
+            return None if text is None else _camera_from_string(str(text.data), w, h)
     k = np.asarray(getattr(info, "k", getattr(info, "K", None)), dtype=np.float64).reshape(-1)
-    h, w = int(msg.height), int(msg.width)
     if k.size != 9 or not np.isfinite(k).all() or k[0] <= 0 or k[4] <= 0:
         return None  # an uncalibrated camera publishes K = 0
     iw, ih = int(info.width), int(info.height)
@@ -295,3 +440,137 @@ def intrinsics(path: Path, opts: ReadOptions, fmt: str = "rosbag") -> Any:
             f"are {w}x{h}"
         )
     return PinholeCamera(float(k[0]), float(k[4]), float(k[2]), float(k[5]), w, h)
+
+
+# ---------------------------------------------------------------------------------------------
+# writing: a ROS 2 bag folder (sqlite3) of sensor_msgs/Image 32FC1 + sensor_msgs/CameraInfo
+# ---------------------------------------------------------------------------------------------
+#: Topics of the bags written (the depth in metres, REP 117: NaN = no measurement).
+OUTPUT_TOPIC = "/camera/depth/image_raw"
+OUTPUT_INFO_TOPIC = "/camera/depth/camera_info"
+#: Frame period used when no timestamps are given (30 fps), ns.
+DEFAULT_PERIOD_NS = 33_333_333
+
+
+def writes_folder(dest: Path) -> bool:
+    """A ROS 2 bag is a folder (``metadata.yaml`` + one ``.db3``)."""
+    return True
+
+
+class FrameSink:
+    """Stream frames into a ROS 2 bag folder (``rosbags`` writer, sqlite3 storage).
+
+    Depth is written as ``sensor_msgs/Image`` ``32FC1`` (metres; NaN where there is no
+    measurement, REP 117) on :data:`OUTPUT_TOPIC`, stamped with the input's timestamps when
+    :meth:`set_meta` gave them (else 30 fps from 0); with a camera, a ``sensor_msgs/CameraInfo``
+    (K, P, size; no distortion) on :data:`OUTPUT_INFO_TOPIC` with every frame.
+    """
+
+    def __init__(
+        self,
+        dest: Path,
+        temp: Path,
+        fh: BinaryIO | None,
+        *,
+        shape_px: tuple[int, int],
+        depth_scale: float,
+        n_frames: int | None,
+    ) -> None:
+        require("rosbags", "writing ROS bags")
+        from rosbags.rosbag2 import Writer
+        from rosbags.typesys import Stores, get_typestore
+
+        self.dest, self.temp, self.shape = dest, temp, shape_px
+        self._ts = get_typestore(Stores.ROS2_HUMBLE)
+        self._inner = temp / "bag"
+        self._writer = Writer(self._inner, version=8)
+        self._writer.open()
+        self._stamps: Sequence[int] | None = None
+        self._camera: Any = None
+        self._frame_id = "camera_depth_optical_frame"
+        self._conn = self._writer.add_connection(
+            OUTPUT_TOPIC, "sensor_msgs/msg/Image", typestore=self._ts
+        )
+        self._info_conn: Any = None
+
+    def set_meta(
+        self,
+        *,
+        timestamps_ns: Sequence[int] | None = None,
+        camera: Any = None,
+        frame_names: Sequence[str] | None = None,
+    ) -> None:
+        """Stamps (ns, one per frame) and the output camera (a PinholeCamera) of the bag."""
+        self._stamps = None if timestamps_ns is None else [int(t) for t in timestamps_ns]
+        self._camera = camera
+        if camera is not None and self._info_conn is None:
+            self._info_conn = self._writer.add_connection(
+                OUTPUT_INFO_TOPIC, "sensor_msgs/msg/CameraInfo", typestore=self._ts
+            )
+
+    def _header(self, stamp: int) -> Any:
+        t = self._ts.types["builtin_interfaces/msg/Time"](
+            sec=stamp // 1_000_000_000, nanosec=stamp % 1_000_000_000
+        )
+        return self._ts.types["std_msgs/msg/Header"](stamp=t, frame_id=self._frame_id)
+
+    def write(self, frame_mm: np.ndarray, t: int) -> None:
+        """Append frame ``t`` (float32 mm, 0 = no measurement)."""
+        if self._stamps is not None:
+            if t >= len(self._stamps):
+                raise InputError(f"{self.dest}: frame {t} has no timestamp")
+            stamp = self._stamps[t]
+        else:
+            stamp = t * DEFAULT_PERIOD_NS
+        h, w = self.shape
+        m = (np.asarray(frame_mm, np.float32) / np.float32(1000.0)).astype("<f4")
+        m[~(m > 0)] = np.nan
+        msg = self._ts.types["sensor_msgs/msg/Image"](
+            header=self._header(stamp),
+            height=h,
+            width=w,
+            encoding="32FC1",
+            is_bigendian=0,
+            step=4 * w,
+            data=np.ascontiguousarray(m).view(np.uint8).reshape(-1),
+        )
+        self._writer.write(self._conn, stamp, self._ts.serialize_cdr(msg, "sensor_msgs/msg/Image"))
+        if self._info_conn is not None:
+            info = camera_info_message(self._ts, self._camera, self._header(stamp))
+            self._writer.write(
+                self._info_conn, stamp, self._ts.serialize_cdr(info, "sensor_msgs/msg/CameraInfo")
+            )
+
+    def close(self) -> None:
+        """Finish the bag and move its files into the output folder."""
+        self._writer.close()
+        for entry in os.listdir(self._inner):
+            os.replace(self._inner / entry, self.temp / entry)
+        os.rmdir(self._inner)
+
+    def abort(self) -> None:
+        """Stop writing (the caller removes the temporary folder)."""
+        with contextlib.suppress(Exception):
+            self._writer.close()
+
+
+def camera_info_message(ts: Any, camera: Any, header: Any) -> Any:
+    """A ``sensor_msgs/CameraInfo`` (ROS 2) of a PinholeCamera: K, P = [K | 0], no distortion."""
+    k = np.asarray(camera.K, np.float64).reshape(3, 3)
+    p = np.concatenate([k, np.zeros((3, 1))], axis=1).reshape(-1)
+    roi = ts.types["sensor_msgs/msg/RegionOfInterest"](
+        x_offset=0, y_offset=0, height=0, width=0, do_rectify=False
+    )
+    return ts.types["sensor_msgs/msg/CameraInfo"](
+        header=header,
+        height=int(camera.height),
+        width=int(camera.width),
+        distortion_model="plumb_bob",
+        d=np.zeros(5),
+        k=k.reshape(-1),
+        r=np.eye(3).reshape(-1),
+        p=p,
+        binning_x=0,
+        binning_y=0,
+        roi=roi,
+    )

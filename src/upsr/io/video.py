@@ -46,7 +46,9 @@ folders of the output are created (and removed again if the writing fails).
 from __future__ import annotations
 
 import contextlib
+import errno
 import os
+import stat
 import weakref
 from collections.abc import Iterable, Iterator, Sequence
 from pathlib import Path
@@ -59,7 +61,9 @@ from upsr._atomic import (
     AtomicWriter,
     new_temp_dir,
     new_temp_file,
+    publish,
     remove,
+    remove_stale,
     temp_name,
     write_bytes_atomic,
     write_text_atomic,
@@ -73,6 +77,7 @@ from upsr.io._base import (
     check_depth_scale,
     check_fmt,
     check_frame_range,
+    check_input_type,
 )
 from upsr.method.validation import as_depth_frame
 
@@ -101,13 +106,8 @@ def _format_module(fmt: str) -> Any:
 
 
 def _input_format(path: Path, fmt: str | None) -> str:
-    try:
-        exists = path.exists()
-        is_dir = path.is_dir()
-    except OSError as e:
-        raise InputError(f"{path}: cannot access ({e.strerror or e})") from None
-    if not exists:
-        raise InputError(f"{path}: no such file or folder")
+    # by type, before anything opens it (a FIFO with no writer would block open() for ever)
+    is_dir = stat.S_ISDIR(check_input_type(path).st_mode)
     from upsr.io import registry as formats
 
     if fmt is not None:
@@ -356,10 +356,10 @@ def check_output_path(
     out = Path(output_path)
     if isinstance(input_paths, (str, os.PathLike)):
         input_paths = [input_paths]
-    out_res = out.resolve()
+    out_res = _resolve(out, "output")
     for inp in input_paths:
         inp = Path(inp)
-        in_res = inp.resolve()
+        in_res = _resolve(inp, "input")
         same = out_res == in_res
         if not same and os.path.exists(out) and os.path.exists(inp):
             with contextlib.suppress(OSError):
@@ -369,6 +369,29 @@ def check_output_path(
         if out_res in in_res.parents:
             raise InputError(
                 f"output folder {out} contains the input {inp}: choose another output path"
+            )
+        if in_res in out_res.parents and in_res.is_dir():
+            raise InputError(
+                f"output {out} is inside the input folder {inp.name or inp}: choose another output"
+            )
+    try:
+        st_out = os.lstat(out)
+    except (FileNotFoundError, NotADirectoryError):  # a parent that is a file: checked below
+        st_out = None
+    except OSError as e:
+        raise InputError(f"output {out}: cannot access ({e.strerror or e})") from None
+    if st_out is not None:
+        try:
+            st_target = os.stat(out)
+        except OSError:  # a dangling link: replaced like a file
+            st_target = st_out
+        mode = st_target.st_mode
+        dangling = st_target is st_out and stat.S_ISLNK(mode)
+        if not (stat.S_ISREG(mode) or stat.S_ISDIR(mode) or dangling):
+            from upsr.io._base import file_kind
+
+            raise InputError(
+                f"output {out} is {file_kind(mode)}: refusing to write to or replace it"
             )
     f = _output_format(out, fmt)
     if os.path.lexists(out):
@@ -412,6 +435,17 @@ def check_output_path(
     return out
 
 
+def _resolve(p: Path, what: str) -> Path:
+    try:
+        return p.resolve()
+    except RuntimeError:  # Python < 3.13: "Symlink loop"
+        raise InputError(f"{what} {p}: symbolic link loop") from None
+    except OSError as e:
+        if e.errno == errno.ELOOP:
+            raise InputError(f"{what} {p}: symbolic link loop") from None
+        raise InputError(f"{what} {p}: cannot access ({e.strerror or e})") from None
+
+
 def _cleanup(temps: list[Path], created_dirs: list[Path]) -> None:
     for p in temps:
         remove(p)
@@ -430,10 +464,11 @@ class VideoWriter(AtomicWriter):
     path : str or path-like
         ``.npy`` (float32 mm), ``.npz`` (float32 mm, key ``"depth"``), ``.tif``/``.tiff``
         (float32, one page per frame), ``.exr`` (one float32 ``Z`` frame), or a folder name
-        without suffix (16-bit PNG frames ``000000.png``, …; EXR frames with ``fmt="exr"``).
+        without suffix (16-bit PNG frames ``000000.png``, …; EXR frames with ``fmt="exr"``; a
+        ROS 2 bag with ``fmt="rosbag"``).
     n_frames : int, optional
         Expected number of frames: writing more, or closing after fewer, raises InputError.
-    fmt : {"npy", "npz", "png", "tiff", "exr"}, optional
+    fmt : {"npy", "npz", "png", "tiff", "exr", "rosbag"}, optional
         Force the format instead of guessing it from the path.
     depth_scale : float
         PNG: raw units per metre (1000: mm, TUM: 5000); raw = round(mm · depth_scale / 1000).
@@ -441,6 +476,14 @@ class VideoWriter(AtomicWriter):
         TIFF and EXR: the float value written is mm · depth_scale / 1000 (1000: mm, 1: m).
     overwrite : bool
         Replace an existing output (see :func:`check_output_path`).
+    frame_names : sequence of str, optional
+        PNG/EXR folder outputs: the frames' file names without suffix (e.g. the input's, from
+        :func:`upsr.io.read_frame_names`) instead of ``000000``, …; ignored by file outputs.
+    timestamps_ns : sequence of int, optional
+        Frame times (ns): ``.npz`` outputs store them as ``timestamps``; ROS bags stamp their
+        messages with them; other formats ignore them.
+    camera : PinholeCamera, optional
+        ROS bag outputs: the output camera, written as ``sensor_msgs/CameraInfo``.
 
     Use it as a context manager: the output appears at ``path`` only when the block ends
     without an exception; otherwise nothing is left behind. Every format streams to disk (the
@@ -461,7 +504,15 @@ class VideoWriter(AtomicWriter):
         fmt: str | None = None,
         depth_scale: float = 1000.0,
         overwrite: bool = False,
+        frame_names: Sequence[str] | None = None,
+        timestamps_ns: Sequence[int] | np.ndarray | None = None,
+        camera: Any = None,
     ) -> None:
+        from upsr.io.identity import check_frame_names, check_timestamps
+
+        self.frame_names = None if frame_names is None else check_frame_names(frame_names, n_frames)
+        self.timestamps_ns = None if timestamps_ns is None else check_timestamps(timestamps_ns)
+        self.camera = camera
         self.path = Path(path)
         self.format = _output_format(self.path, fmt)
         self.depth_scale = check_depth_scale(depth_scale)
@@ -476,6 +527,7 @@ class VideoWriter(AtomicWriter):
         self._temp: Path | None = None
         self._temps: list[Path] = []
         self._created: list[Path] = []
+        self._sidecars: list[tuple[Path, Path]] = []
         self._closed = False
         self._finalizer = weakref.finalize(self, _cleanup, self._temps, self._created)
 
@@ -492,6 +544,7 @@ class VideoWriter(AtomicWriter):
             os.mkdir(d)
             self._created.append(d)
         impl = _format_module(self.format)
+        remove_stale(self.path)  # .part files and folders of dead writers (SIGKILL)
         fh: BinaryIO | None = None
         if impl.writes_folder(self.path):
             self._temp = new_temp_dir(self.path)
@@ -512,6 +565,8 @@ class VideoWriter(AtomicWriter):
                 with contextlib.suppress(OSError):
                     fh.close()
             raise
+        if hasattr(self._sink, "set_meta"):  # ROS bags: stamps and CameraInfo
+            self._sink.set_meta(timestamps_ns=self.timestamps_ns, camera=self.camera)
 
     def write(self, frame: npt.ArrayLike) -> None:
         """Append one (h, w) depth frame in mm (0 or NaN = no measurement)."""
@@ -546,6 +601,15 @@ class VideoWriter(AtomicWriter):
             assert self._temp is not None and self._sink is not None
             self._sink.close()
             self._sink = None
+            from upsr.io.identity import finish_output
+
+            finish_output(
+                self.format,
+                self._temp,
+                self.frames_written,
+                frame_names=self.frame_names,
+                timestamps_ns=self.timestamps_ns,
+            )
             self._install()
         except BaseException:
             self.abort()
@@ -553,14 +617,58 @@ class VideoWriter(AtomicWriter):
         self._closed = True
         self._finalizer.detach()
 
+    def add_sidecar(self, path: PathLike, data: bytes | str) -> None:
+        """Publish ``data`` at ``path`` together with the video (e.g. ``OUTPUT.intrinsics.json``).
+
+        Written to a temporary now (a full disk fails here, before the video is complete) and
+        moved into place just before the video, replacing an older sidecar: when the video is
+        visible its sidecars are too; if the video cannot be published they are removed again.
+        """
+        if self._closed:
+            raise ValueError("add_sidecar on a closed VideoWriter")
+        dest = Path(path)
+        raw = data.encode("utf-8") if isinstance(data, str) else bytes(data)
+        dest.parent.mkdir(parents=True, exist_ok=True)
+        tmp, fh = new_temp_file(dest, "tmp")
+        self._temps.append(tmp)
+        with fh:
+            fh.write(raw)
+            fh.flush()
+            os.fsync(fh.fileno())
+        self._sidecars.append((tmp, dest))
+
     def _install(self) -> None:
         tmp, dest = self._temp, self.path
         assert tmp is not None
+        if not self.overwrite and os.path.lexists(dest):  # before touching its sidecars
+            raise InputError(
+                f"output {dest} already exists (use --overwrite / overwrite=True to replace it)"
+            )
+        published: list[Path] = []
+        try:
+            for side_tmp, side in self._sidecars:  # sidecars first: the video marks completion
+                os.replace(side_tmp, side)
+                published.append(side)
+            self._install_video(tmp, dest)
+        except InputError:  # another writer published this output meanwhile: its sidecars
+            raise
+        except BaseException:
+            for side in published:
+                remove(side)
+            raise
+        self._temps.clear()
+
+    def _install_video(self, tmp: Path, dest: Path) -> None:
+        exists_msg = (
+            f"output {dest} already exists (use --overwrite / overwrite=True to replace it)"
+        )
+        if not self.overwrite:
+            try:  # no-replace: of two writers finishing the same output, one fails here
+                publish(tmp, dest, replace=False)
+            except FileExistsError:
+                raise InputError(exists_msg) from None
+            return
         if os.path.lexists(dest):
-            if not self.overwrite:
-                raise InputError(
-                    f"output {dest} already exists (use --overwrite / overwrite=True to replace it)"
-                )
             check_output_path((), dest, True, fmt=self.format)
             if _folder_output(self.format, dest) and not dest.is_symlink():
                 trash = temp_name(dest, "old")
@@ -568,10 +676,8 @@ class VideoWriter(AtomicWriter):
                 self._temps.append(trash)
                 os.replace(tmp, dest)
                 remove(trash)
-                self._temps.clear()
                 return
-        os.replace(tmp, dest)
-        self._temps.clear()
+        publish(tmp, dest, replace=True)
 
     def abort(self) -> None:
         """Discard everything written; nothing appears at the output path. Idempotent."""
@@ -596,10 +702,12 @@ def write_video(
     fmt: str | None = None,
     depth_scale: float = 1000.0,
     overwrite: bool = False,
+    **meta: Any,
 ) -> Path:
     """Write a (T, h, w) depth video (array or iterable of frames) atomically; return the path.
 
-    See :class:`VideoWriter` for the formats and options.
+    See :class:`VideoWriter` for the formats and options (``meta``: ``frame_names``,
+    ``timestamps_ns``, ``camera``).
     """
     if isinstance(frames, np.ndarray):
         if frames.ndim != 3:
@@ -608,7 +716,7 @@ def write_video(
     else:
         n = len(frames) if isinstance(frames, Sequence) else None
     with VideoWriter(
-        path, n_frames=n, fmt=fmt, depth_scale=depth_scale, overwrite=overwrite
+        path, n_frames=n, fmt=fmt, depth_scale=depth_scale, overwrite=overwrite, **meta
     ) as writer:
         for frame in frames:  # type: ignore[union-attr]
             writer.write(frame)

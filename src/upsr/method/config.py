@@ -16,13 +16,35 @@ import numpy as np
 
 from upsr.errors import InputError
 
-__all__ = ["FLOW_GRID_MIN_WIDTH_PX", "DeblurConfig", "UPSRConfig"]
+__all__ = [
+    "FLOW_GRID_MIN_WIDTH_PX",
+    "MAX_BTV_RADIUS_PX",
+    "MAX_N_FRAMES",
+    "MAX_SCALE",
+    "DeblurConfig",
+    "UPSRConfig",
+]
 
 #: Width (px) from which a flow grid is fine enough for DIS's fixed-size (8 px) patches, also
 #: at the 4× coarser finest level of the "ultrafast" preset (``UPSRConfig.flow_scale``,
 #: ``UPSRConfig.refine_preset``). Measured: 64-px-wide ToF frames at r = 4 register better on
 #: a 192 px grid (s = 3) than on 128 px (s = 2) or 256 px (s = 4).
 FLOW_GRID_MIN_WIDTH_PX = 192
+
+#: Upper bounds of the options: beyond them a run cannot finish in any sensible time or memory
+#: (a BTV radius of 100000 px allocated 22 GB), so they are refused with one line.
+MAX_SCALE = 16
+MAX_N_FRAMES = 256
+#: Depth-valued options (mm): 1000 km, far beyond any depth (``validation.MAX_DEPTH_MM``).
+MAX_DEPTH_PARAM_MM = 1e9
+#: Spatial stds (high-res px): kernels grow with them.
+MAX_SIGMA_PX = 64.0
+MAX_BTV_RADIUS_PX = 10
+MAX_SPLAT_RADIUS_PX = 16.0
+MAX_ITERATIONS = 1000
+MAX_TOLERANCE = 1e6
+#: Speckles (px): the largest output frame (MAX_SCALE² · the largest input frame).
+MAX_SPECKLE_PX = MAX_SCALE * MAX_SCALE * (1 << 28)
 
 BlurModel = Literal["none", "box", "gaussian"]
 FlowBackendName = Literal["dis", "farneback"]
@@ -59,7 +81,7 @@ class DeblurConfig:
         1–9 % higher, but the extra steps fit the noise, not the surfaces).
     step_mm : float or None
         First step length β₀ (mm). ``None``: a robust estimate of the noise left in the fused
-        image (:func:`upsr.method.deblurring.estimate_noise_mm` at a lag of r px), at least 0.5 mm.
+        image (:func:`upsr.method.noise.estimate_noise_mm` at a lag of r px), at least 0.5 mm.
     step_decay : float
         Geometric decay of the step: β_k = β₀ · step_decay^k.
     edge_mm : float or None
@@ -68,7 +90,7 @@ class DeblurConfig:
         plain BTV.
     smooth_sigma_mm : float or None
         Beyond the paper: a final edge-preserving smoothing of each surface
-        (:func:`upsr.method.deblurring.smooth_surfaces`) with this range std (mm), which turns the
+        (:func:`upsr.method.smoothing.smooth_surfaces`) with this range std (mm), which turns the
         staircase of dense upsampling on slanted surfaces into ramps. ``None`` disables it.
     smooth_sigma_px : float or None
         Its spatial std in high-res px; ``None``: r/2.
@@ -88,35 +110,29 @@ class DeblurConfig:
     smooth_sigma_px: float | None = None
 
     def __post_init__(self) -> None:
-        _check(
-            self.smooth_sigma_mm is None or self.smooth_sigma_mm > 0,
-            "deblur smooth_sigma_mm must be > 0 or None",
-        )
-        _check(
-            self.smooth_sigma_px is None or self.smooth_sigma_px > 0,
-            "deblur smooth_sigma_px must be > 0 or None",
-        )
-        _check(self.lam >= 0 and math.isfinite(self.lam), "deblur lam must be a finite number >= 0")
-        _check(0 < self.alpha <= 1, "deblur alpha must be in (0, 1]")
-        _check(
-            isinstance(self.radius_px, int) and self.radius_px >= 1,
-            "deblur radius_px (P) must be an integer >= 1",
-        )
+        _number("deblur lam", self.lam, 0, MAX_DEPTH_PARAM_MM)
+        _number("deblur alpha", self.alpha, 0, 1, lo_open=True)
+        _number("deblur radius_px (P)", self.radius_px, 1, MAX_BTV_RADIUS_PX, integer=True)
         _check(
             self.blur in ("none", "box", "gaussian"),
-            f"deblur blur must be 'none', 'box' or 'gaussian', not {self.blur!r}",
+            f"deblur blur must be 'none', 'box' or 'gaussian', not {_show(self.blur)}",
         )
-        _check(self.blur_sigma_px > 0, "deblur blur_sigma_px must be > 0")
-        _check(
-            isinstance(self.iterations, int) and self.iterations >= 0,
-            "deblur iterations must be an integer >= 0",
+        _number("deblur blur_sigma_px", self.blur_sigma_px, 0, MAX_SIGMA_PX, lo_open=True)
+        _number("deblur iterations", self.iterations, 0, MAX_ITERATIONS, integer=True)
+        _number("deblur step_mm", self.step_mm, 0, MAX_DEPTH_PARAM_MM, lo_open=True, none=True)
+        _number("deblur step_decay", self.step_decay, 0, 1, lo_open=True)
+        _number("deblur edge_mm", self.edge_mm, 0, MAX_DEPTH_PARAM_MM, lo_open=True, none=True)
+        _number(
+            "deblur smooth_sigma_mm",
+            self.smooth_sigma_mm,
+            0,
+            MAX_DEPTH_PARAM_MM,
+            lo_open=True,
+            none=True,
         )
-        _check(
-            self.step_mm is None or (self.step_mm > 0 and math.isfinite(self.step_mm)),
-            "deblur step_mm must be > 0 (or None for automatic)",
+        _number(
+            "deblur smooth_sigma_px", self.smooth_sigma_px, 0, MAX_SIGMA_PX, lo_open=True, none=True
         )
-        _check(0 < self.step_decay <= 1, "deblur step_decay must be in (0, 1]")
-        _check(self.edge_mm is None or self.edge_mm > 0, "deblur edge_mm must be > 0 or None")
 
 
 @dataclass(frozen=True)
@@ -167,7 +183,7 @@ class UPSRConfig:
     noise_mm : float or None
         Noise std of the input (mm), which sets the edge threshold (≥ 4·noise) and the margin of
         the spurious-motion test. ``None``: estimated once per video from its first N frames
-        (:func:`upsr.method.deblurring.estimate_noise_mm`). Give it (with ``depth_range_mm``) to
+        (:func:`upsr.method.noise.estimate_noise_mm`). Give it (with ``depth_range_mm``) to
         process a chunk of a longer video exactly as the whole video would be.
     refine : bool
         Paper eq. 19: re-estimate each frame's motion against its already registered neighbour
@@ -276,74 +292,63 @@ class UPSRConfig:
     deblur: DeblurConfig = field(default_factory=DeblurConfig)
 
     def __post_init__(self) -> None:
-        _check(
-            _is_int(self.scale) and self.scale >= 1,
-            f"scale r must be an integer >= 1, got {self.scale!r}",
+        _number("scale r", self.scale, 1, MAX_SCALE, integer=True)
+        _number("n_frames N", self.n_frames, 1, MAX_N_FRAMES, integer=True)
+        _number("prefilter_sigma_mm", self.prefilter_sigma_mm, 0, MAX_DEPTH_PARAM_MM, lo_open=True)
+        _number("flow_scale", self.flow_scale, 1, int(self.scale), integer=True, none=True)
+        _number(
+            "prefilter_sigma_px", self.prefilter_sigma_px, 0, MAX_SIGMA_PX, lo_open=True, none=True
         )
         _check(
-            _is_int(self.n_frames) and self.n_frames >= 1,
-            f"n_frames N must be an integer >= 1, got {self.n_frames!r}",
-        )
-        _check(self.prefilter_sigma_mm > 0, "prefilter_sigma_mm must be > 0")
-        _check(
-            self.flow_scale is None
-            or (_is_int(self.flow_scale) and 1 <= self.flow_scale <= self.scale),
-            f"flow_scale must be an integer in 1..r={self.scale} (or None), "
-            f"got {self.flow_scale!r}",
-        )
-        _check(
-            self.prefilter_sigma_px is None or self.prefilter_sigma_px > 0,
-            "prefilter_sigma_px must be > 0 or None",
+            _is_str(self.flow) and len(self.flow) <= 64,
+            f"flow must be a backend name, not {_show(self.flow)}",
         )
         _check(
             self.flow_preset in ("ultrafast", "fast", "medium"),
-            f"flow_preset must be 'ultrafast', 'fast' or 'medium', not {self.flow_preset!r}",
+            f"flow_preset must be 'ultrafast', 'fast' or 'medium', not {_show(self.flow_preset)}",
         )
         _check(
             self.refine_preset in (None, "ultrafast", "fast", "medium"),
-            f"refine_preset must be 'ultrafast', 'fast' or 'medium', not {self.refine_preset!r}",
+            "refine_preset must be 'ultrafast', 'fast' or 'medium', not "
+            f"{_show(self.refine_preset)}",
         )
         if self.depth_range_mm is not None:
-            near, far = self.depth_range_mm
-            _check(
-                math.isfinite(near) and math.isfinite(far) and 0 <= near < far,
-                "depth_range_mm must be (near, far) with 0 <= near < far",
-            )
-        _check(
-            self.noise_mm is None or (math.isfinite(self.noise_mm) and self.noise_mm >= 0),
-            "noise_mm must be a finite number >= 0 (or None to estimate it)",
+            try:
+                near, far = self.depth_range_mm
+            except (TypeError, ValueError):
+                raise InputError("depth_range_mm must be (near, far) or None") from None
+            near = _number("depth_range_mm near", near, 0, MAX_DEPTH_PARAM_MM)
+            far = _number("depth_range_mm far", far, 0, MAX_DEPTH_PARAM_MM)
+            _check(near < far, "depth_range_mm must be (near, far) with 0 <= near < far")
+        _number("noise_mm", self.noise_mm, 0, MAX_DEPTH_PARAM_MM, none=True)
+        _number(
+            "zero_motion_tolerance",
+            self.zero_motion_tolerance,
+            0,
+            MAX_TOLERANCE,
+            lo_open=True,
+            none=True,
         )
-        _check(0 <= self.min_valid_fraction < 1, "min_valid_fraction must be in [0, 1)")
-        _check(
-            self.speckle_px is None or (_is_int(self.speckle_px) and self.speckle_px >= 0),
-            f"speckle_px must be an integer >= 0 (or None), got {self.speckle_px!r}",
-        )
-        _check(self.edge_mm > 0, "edge_mm must be > 0")
-        _check(
-            self.trust_k is None
-            or (
-                not isinstance(self.trust_k, bool)
-                and math.isfinite(self.trust_k)
-                and self.trust_k > 0
-            ),
-            f"trust_k must be a finite number > 0 (or None), got {self.trust_k!r}",
-        )
-        _check(
-            self.trust_noise_mm is None
-            or (math.isfinite(self.trust_noise_mm) and self.trust_noise_mm >= 0),
-            "trust_noise_mm must be a finite number >= 0 (or None to estimate it)",
+        _number("min_valid_fraction", self.min_valid_fraction, 0, 1, hi_open=True)
+        _number("speckle_px", self.speckle_px, 0, MAX_SPECKLE_PX, integer=True, none=True)
+        _number("edge_mm", self.edge_mm, 0, MAX_DEPTH_PARAM_MM, lo_open=True)
+        _number("edge_weight_px", self.edge_weight_px, 0, MAX_SIGMA_PX, lo_open=True, none=True)
+        _number("edge_weight_floor", self.edge_weight_floor, 0, 1)
+        _number(
+            "splat_radius_px", self.splat_radius_px, 0, MAX_SPLAT_RADIUS_PX, lo_open=True, none=True
         )
         _check(
-            self.min_trusted is None or (_is_int(self.min_trusted) and self.min_trusted >= 1),
-            f"min_trusted must be an integer >= 1 (or None), got {self.min_trusted!r}",
+            isinstance(self.deblur, DeblurConfig),
+            f"deblur must be a DeblurConfig, not {_show(self.deblur)}",
         )
-        _check(
-            _is_int(self.radial_radius_px) and self.radial_radius_px >= 1,
-            f"radial_radius_px must be an integer >= 1, got {self.radial_radius_px!r}",
-        )
+        _number("trust_k", self.trust_k, 0, MAX_TOLERANCE, lo_open=True, none=True)
+        _number("trust_noise_mm", self.trust_noise_mm, 0, MAX_DEPTH_PARAM_MM, none=True)
+        _number("min_trusted", self.min_trusted, 1, MAX_N_FRAMES, integer=True, none=True)
+        _number("radial_radius_px", self.radial_radius_px, 1, MAX_BTV_RADIUS_PX, integer=True)
         _check(
             self.fusion_estimator in ("auto", "median", "mean"),
-            f"fusion_estimator must be 'auto', 'median' or 'mean', not {self.fusion_estimator!r}",
+            "fusion_estimator must be 'auto', 'median' or 'mean', not "
+            f"{_show(self.fusion_estimator)}",
         )
         _check(
             self.mode in ("windowed", "recursive"),
@@ -422,6 +427,67 @@ class UPSRConfig:
 
 def _is_int(value: Any) -> bool:
     return isinstance(value, (int, np.integer)) and not isinstance(value, bool)
+
+
+def _is_str(value: Any) -> bool:
+    return isinstance(value, str)
+
+
+def _show(value: Any) -> str:
+    """``repr(value)``, at most 40 characters (messages stay one short line)."""
+    try:
+        text = repr(value)
+    except Exception:  # a hostile __repr__
+        text = f"<{type(value).__name__}>"
+    return text if len(text) <= 40 else text[:37] + "..."
+
+
+def _number(
+    name: str,
+    value: Any,
+    lo: float,
+    hi: float,
+    *,
+    integer: bool = False,
+    none: bool = False,
+    lo_open: bool = False,
+    hi_open: bool = False,
+) -> Any:
+    """Check a numeric option: a finite number (an integer if ``integer``) in its bounds.
+
+    Bounds are ``lo <= value <= hi`` (``<`` where ``lo_open`` / ``hi_open``); None is accepted
+    if ``none``. Huge integers, inf, NaN, strings: InputError (never OverflowError/TypeError).
+    Returns the value as a float (an int if ``integer``), or None.
+    """
+    if value is None and none:
+        return None
+    lo_s = "(" if lo_open else "["
+    hi_s = ")" if hi_open else "]"
+    bounds = f"{lo_s}{lo:g}, {hi:g}{hi_s}" + (" or None" if none else "")
+    kind = "an integer" if integer else "a number"
+    if integer:
+        ok = _is_int(value)
+        v: Any = int(value) if ok else None
+    else:
+        ok = isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(
+            value, bool
+        )
+        v = None
+        if ok:
+            try:
+                v = float(value)
+            except (OverflowError, ValueError):  # an int beyond float range
+                ok = False
+            ok = ok and math.isfinite(v)
+    if not ok:
+        raise InputError(f"{name} must be {kind} in {bounds}, got {_show(value)}")
+    if not (v > lo if lo_open else v >= lo):
+        rel = ">" if lo_open else ">="
+        raise InputError(f"{name} must be {kind} {rel} {lo:g}, got {_show(value)}")
+    if not (v < hi if hi_open else v <= hi):
+        rel = "<" if hi_open else "<="
+        raise InputError(f"{name} must be {kind} {rel} {hi:g}, got {_show(value)}")
+    return v
 
 
 def _check(condition: bool, message: str) -> None:

@@ -34,6 +34,13 @@ def upsample_nearest(y: npt.ArrayLike, r: int) -> np.ndarray:
     Returns
     -------
     ndarray, shape (..., r·h, r·w), same dtype as ``y``.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> upsample_nearest(np.array([[1000, 0]], np.float32), 2)
+    array([[1000., 1000.,    0.,    0.],
+           [1000., 1000.,    0.,    0.]], dtype=float32)
     """
     r = _check_scale(r)
     y = np.asarray(y)
@@ -86,6 +93,12 @@ def decimate(x: npt.ArrayLike, r: int) -> np.ndarray:
     Returns
     -------
     ndarray, shape (..., h, w), float64 for integer input, else ``x``'s dtype.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> decimate(np.ones((2, 4)), 2)
+    array([[4., 4.]])
     """
     r = _check_scale(r)
     x = np.asarray(x)

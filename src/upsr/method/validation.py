@@ -11,7 +11,11 @@ import numpy.typing as npt
 
 from upsr.errors import InputError
 
-__all__ = ["as_depth_frame", "as_depth_video"]
+__all__ = ["MAX_DEPTH_MM", "as_depth_frame", "as_depth_video"]
+
+#: Largest depth accepted (mm): 1 km. Depth cameras measure metres; a larger value is a unit
+#: error or garbage (and 1e38 mm overflows float32 arithmetic into ±inf downstream).
+MAX_DEPTH_MM = 1e6
 
 
 def as_depth_frame(frame: npt.ArrayLike, *, name: str = "frame") -> np.ndarray:
@@ -40,13 +44,21 @@ def as_depth_frame(frame: npt.ArrayLike, *, name: str = "frame") -> np.ndarray:
         raise InputError(f"{name}: expected a 2-D depth frame (h, w), got shape {arr.shape}")
     if arr.size == 0:
         raise InputError(f"{name}: empty depth frame of shape {arr.shape}")
-    out = arr.astype(np.float32, copy=True)
+    if np.issubdtype(arr.dtype, np.floating) and np.isinf(arr).any():
+        raise InputError(f"{name}: depth contains ±inf (use 0 or NaN for 'no measurement')")
+    with np.errstate(over="ignore", invalid="ignore"):  # > float32 max: inf, refused below
+        out = arr.astype(np.float32, copy=True)
     if np.issubdtype(arr.dtype, np.floating):
-        if np.isinf(out).any():
-            raise InputError(f"{name}: depth contains ±inf (use 0 or NaN for 'no measurement')")
-        np.nan_to_num(out, copy=False, nan=0.0)
+        np.nan_to_num(out, copy=False, nan=0.0, posinf=np.inf, neginf=-np.inf)
     if (out < 0).any():
         raise InputError(f"{name}: depth contains negative values (min {float(out.min()):g} mm)")
+    top = float(out.max())
+    if top > MAX_DEPTH_MM:
+        big = float(np.nanmax(arr)) if np.issubdtype(arr.dtype, np.floating) else top
+        raise InputError(
+            f"{name}: depth {big:.3g} mm is beyond {MAX_DEPTH_MM:g} mm (1 km): wrong units "
+            f"or corrupt data"
+        )
     return out
 
 

@@ -28,6 +28,7 @@ Complete windows are finished on ``workers`` threads side by side (same output).
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 import os
 import threading
 import time
@@ -63,7 +64,15 @@ from upsr.method.trust import (
 )
 from upsr.method.validation import as_depth_frame, as_depth_video
 
-__all__ = ["STAGES", "UPSR", "finish_fused", "super_resolve", "window_start"]
+__all__ = [
+    "STAGES",
+    "UPSR",
+    "finish_fused",
+    "fix_video_statistics",
+    "pinned_config",
+    "super_resolve",
+    "window_start",
+]
 
 #: The stages of :attr:`UPSR.timings`.
 STAGES = ("prefilter", "flow", "registration", "fusion", "deblur")
@@ -74,6 +83,51 @@ def finish_fused(fused_mm: np.ndarray, cfg: UPSRConfig) -> np.ndarray:
     then the removal of isolated outliers (:func:`upsr.method.outliers.remove_speckles`)."""
     out = deblur(fused_mm, cfg.deblur, scale=cfg.scale)
     return remove_speckles(out, cfg.speckle_size_px, cfg.edge_mm)
+
+
+def fix_video_statistics(
+    front: MotionFrontEnd, first_frames: np.ndarray, cfg: UPSRConfig
+) -> tuple[str, float]:
+    """Fix every choice UP-SR makes once per video from its first N low-res frames (T, h, w).
+
+    The front-end's depth range and noise estimate (:meth:`MotionFrontEnd.fix_statistics`),
+    and the fusion's estimator and trust noise from the shape of the temporal noise
+    (:func:`upsr.method.trust.noise_shape`): the median for Laplacian noise, the mean of the
+    trusted samples for Gaussian or quantised noise.
+
+    Returns
+    -------
+    (str, float)
+        The estimator ("median" or "mean") and the σ (mm) of the trust tolerance.
+    """
+    front.fix_statistics(first_frames)
+    kurtosis, temporal_mm = noise_shape(first_frames, front.edge_mm)
+    est = cfg.fusion_estimator
+    estimator = choose_estimator(kurtosis) if est == "auto" else est
+    if cfg.trust_noise_mm is not None:
+        trust_mm = cfg.trust_noise_mm
+    elif cfg.noise_mm is not None:  # a given noise is the noise
+        trust_mm = cfg.noise_mm
+    else:
+        trust_mm = max(front.noise_mm or 0.0, temporal_mm)
+    return estimator, trust_mm
+
+
+def pinned_config(first_frames: np.ndarray, cfg: UPSRConfig) -> UPSRConfig:
+    """``cfg`` with every per-video choice fixed from the first N frames (T, h, w) mm.
+
+    A chunk of a video run with this config gives exactly what the whole run gives for its
+    frames (``upsr batch`` splits long recordings so).
+    """
+    front = MotionFrontEnd(cfg, first_frames.shape[-1])
+    estimator, trust_mm = fix_video_statistics(front, first_frames, cfg)
+    return dataclasses.replace(
+        cfg,
+        depth_range_mm=front.depth_range_mm,
+        noise_mm=front.noise_mm,
+        fusion_estimator=estimator,
+        trust_noise_mm=trust_mm,
+    )
 
 
 def window_start(t: int, n_total: int, cfg: UPSRConfig) -> int:
@@ -189,7 +243,7 @@ class UPSR:
         self._next_submit = 0
         self._any_valid = False
         # temporal noise of static pixels (std, estimator), fixed from the first window
-        self._temporal_mm = 0.0
+        self._trust_noise_mm = 0.0
         est = self.config.fusion_estimator
         self._estimator = "median" if est == "auto" else est
         self._lowres: dict[int, np.ndarray] = {}
@@ -246,13 +300,8 @@ class UPSR:
         self._count = t + 1
         if self._count == cfg.n_frames:
             # per-video statistics, fixed once from the first window (never per frame)
-            front.fix_statistics(self._lowres[k] for k in sorted(self._lowres))
             first = np.stack([self._lowres[k] for k in sorted(self._lowres)])
-            kurtosis, temporal_mm = noise_shape(first, front.edge_mm)
-            if cfg.noise_mm is None:  # a given noise is the noise (chunks of a video)
-                self._temporal_mm = temporal_mm
-            if cfg.fusion_estimator == "auto":
-                self._estimator = choose_estimator(kurtosis)
+            self._estimator, self._trust_noise_mm = fix_video_statistics(front, first, cfg)
         if front.ready:
             for k in sorted(self._pre):
                 if k not in self._guide:
@@ -296,7 +345,7 @@ class UPSR:
                 lowres = remove_mixed_pixels(lowres, self._front.edge_mm)
             noise = cfg.trust_noise_mm
             if noise is None:
-                noise = max(self._front.noise_mm or 0.0, self._temporal_mm)
+                noise = self._trust_noise_mm
             offsets = None
             if cfg.radial_compensation and cfg.n_frames > 1:
                 offsets = radial_offsets(

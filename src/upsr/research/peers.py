@@ -35,43 +35,6 @@ def _as_video(depth: npt.ArrayLike) -> tuple[np.ndarray, bool]:
 
 
 @nb.njit(cache=True, nogil=True)
-def _bilateral_kernel(video, sr, spatial, rad):  # pragma: no cover - numba
-    """Masked bilateral of each frame of ``video`` (T, h, w); see :func:`masked_bilateral`."""
-    t_total, h, w = video.shape
-    out = np.zeros_like(video)
-    for t in range(t_total):
-        for i in range(h):
-            for j in range(w):
-                z = video[t, i, j]
-                s = sr[t, i, j]
-                if z <= 0:
-                    continue
-                if s <= 0:
-                    out[t, i, j] = z
-                    continue
-                inv = 1.0 / (2.0 * s * s)
-                num = 0.0
-                den = 0.0
-                for dy in range(-rad, rad + 1):
-                    ii = i + dy
-                    if ii < 0 or ii >= h:
-                        continue
-                    for dx in range(-rad, rad + 1):
-                        jj = j + dx
-                        if jj < 0 or jj >= w:
-                            continue
-                        q = video[t, ii, jj]
-                        if q <= 0:
-                            continue
-                        d = q - z
-                        wt = spatial[dy + rad, dx + rad] * math.exp(-d * d * inv)
-                        num += wt * q
-                        den += wt
-                out[t, i, j] = num / den
-    return out
-
-
-@nb.njit(cache=True, nogil=True)
 def _bilateral_blocks_kernel(low, sr, table, r, k):  # pragma: no cover - numba
     """:func:`masked_bilateral` of the nearest upsampling of ``low``, computed per block.
 
@@ -175,17 +138,11 @@ def masked_bilateral(
     sr = sr[None] if single else sr
     if not np.isfinite(sr).all() or (sr < 0).any():
         raise InputError("sigma_range_mm must be finite and >= 0")
-    spatial = np.array(
-        [
-            [
-                math.exp(-(dy * dy + dx * dx) / (2.0 * sigma_space_px**2))
-                for dx in range(-rad, rad + 1)
-            ]
-            for dy in range(-rad, rad + 1)
-        ],
-        np.float64,
+    # the per-block kernel at r = 1: each "block" is one pixel, the table its spatial weights
+    table, k = _block_table(1, sigma_space_px, rad)
+    out = _bilateral_blocks_kernel(
+        np.ascontiguousarray(video), np.ascontiguousarray(sr), table, 1, k
     )
-    out = _bilateral_kernel(np.ascontiguousarray(video), np.ascontiguousarray(sr), spatial, rad)
     return out[0] if single else out
 
 

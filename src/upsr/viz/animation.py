@@ -59,7 +59,48 @@ def to_palette_image(image_bgr: npt.ArrayLike) -> Any:
     return rgb.quantize(palette=palette, dither=image.Dither.FLOYDSTEINBERG)
 
 
-class GifWriter(AtomicWriter):
+class _TempFileWriter(AtomicWriter):
+    """A writer that fills a hidden temporary file and publishes it on :meth:`close`.
+
+    Subclasses implement ``_finish()`` (complete the file; raise on failure) and
+    ``_release()`` (drop their handle without finishing).
+    """
+
+    path: Path
+    _temp: Path | None = None
+
+    def _finish(self) -> None:  # pragma: no cover - overridden
+        raise NotImplementedError
+
+    def _release(self) -> None:  # pragma: no cover - overridden
+        raise NotImplementedError
+
+    def _started(self) -> bool:  # pragma: no cover - overridden
+        raise NotImplementedError
+
+    def close(self) -> Path:
+        """Finish the file and move it into place. Returns its path."""
+        if not self._started():
+            raise InputError(f"{self.path}: no frames written")
+        try:
+            self._finish()
+            assert self._temp is not None
+            os.replace(self._temp, self.path)
+            self._temp = None
+        except BaseException:
+            self.abort()
+            raise
+        return self.path
+
+    def abort(self) -> None:
+        """Discard the partial file."""
+        self._release()
+        if self._temp is not None:
+            remove(self._temp)
+            self._temp = None
+
+
+class GifWriter(_TempFileWriter):
     """Write an animated GIF frame by frame; the file appears only when :meth:`close` succeeds.
 
     Parameters
@@ -106,36 +147,25 @@ class GifWriter(AtomicWriter):
         self._fh.write(b"".join(chunks))
         self.frames_written += 1
 
-    def close(self) -> Path:
-        """Finish the file and move it into place. Returns its path."""
-        if self._fh is None:
-            raise InputError(f"{self.path}: no frames written")
-        try:
-            self._fh.write(b";")  # GIF trailer
-            self._fh.flush()
-            os.fsync(self._fh.fileno())
-            self._fh.close()
-            self._fh = None
-            assert self._temp is not None
-            os.replace(self._temp, self.path)
-            self._temp = None
-        except BaseException:
-            self.abort()
-            raise
-        return self.path
+    def _started(self) -> bool:
+        return self._fh is not None
 
-    def abort(self) -> None:
-        """Discard the partial file."""
+    def _finish(self) -> None:
+        assert self._fh is not None
+        self._fh.write(b";")  # GIF trailer
+        self._fh.flush()
+        os.fsync(self._fh.fileno())
+        self._fh.close()
+        self._fh = None
+
+    def _release(self) -> None:
         if self._fh is not None:
             with contextlib.suppress(OSError):
                 self._fh.close()
             self._fh = None
-        if self._temp is not None:
-            remove(self._temp)
-            self._temp = None
 
 
-class Mp4Writer(AtomicWriter):
+class Mp4Writer(_TempFileWriter):
     """Write an H.264 MP4 (yuv420p, faststart) frame by frame; it appears only on :meth:`close`.
 
     Parameters
@@ -205,29 +235,19 @@ class Mp4Writer(AtomicWriter):
             raise
         self.frames_written += 1
 
-    def close(self) -> Path:
-        """Finish the video and move it into place. Returns its path."""
-        if self._gen is None:
-            raise InputError(f"{self.path}: no frames written")
-        try:
-            gen, self._gen = self._gen, None
-            gen.close()  # ffmpeg finishes the file (moov atom first) and exits
-            assert self._temp is not None
-            if not self._temp.is_file() or self._temp.stat().st_size == 0:
-                raise OSError(f"{self.path}: ffmpeg wrote no MP4 data")
-            os.replace(self._temp, self.path)
-            self._temp = None
-        except BaseException:
-            self.abort()
-            raise
-        return self.path
+    def _started(self) -> bool:
+        return self._gen is not None
 
-    def abort(self) -> None:
-        """Stop ffmpeg and discard the partial file."""
+    def _finish(self) -> None:
+        gen, self._gen = self._gen, None
+        gen.close()  # ffmpeg finishes the file (moov atom first) and exits
+        assert self._temp is not None
+        if not self._temp.is_file() or self._temp.stat().st_size == 0:
+            raise OSError(f"{self.path}: ffmpeg wrote no MP4 data")
+
+    def _release(self) -> None:
+        """Stop ffmpeg."""
         if self._gen is not None:
             with contextlib.suppress(Exception):
                 self._gen.close()
             self._gen = None
-        if self._temp is not None:
-            remove(self._temp)
-            self._temp = None

@@ -70,7 +70,8 @@ def test_batch_failures_and_resume(videos, tmp_path: Path, capsys) -> None:
     assert "1 done, 0 skipped (output exists), 2 failed" in cap.out
     assert "bad.npy: unsupported .npy format" in cap.err and "N=5 > 3 frames in" in cap.err
     np.testing.assert_array_equal(np.load(out / "b.npy"), ref["b"])
-    assert sorted(p.name for p in out.iterdir()) == ["b.npy"]  # nothing partial
+    assert sorted(p.name for p in out.iterdir()) == [".upsr-batch", "b.npy"]  # nothing partial
+    assert [p.name for p in (out / ".upsr-batch" / "outputs").iterdir()] == ["b.npy.json"]
     # default N shrinks to a short recording, as in `upsr run`
     assert main(["batch", str(short), "--out", str(out), "-r", "1", "-q", "-w", "1"]) == 0
     assert np.load(out / "short.npy").shape == (3, 20, 24)

@@ -359,12 +359,12 @@ def test_empty_frame_in_the_middle_is_fine(
 @pytest.mark.parametrize(
     ("args", "match"),
     [
-        (["-r", "0"], "scale r must be an integer >= 1"),
-        (["-r", "-2"], "scale r must be an integer >= 1"),
+        (["-r", "0"], "--scale (-r) must be an integer >= 1"),
+        (["-r", "-2"], "--scale (-r) must be an integer >= 1"),
         (["-r", "1.5"], "--scale"),
         (["-r", "x"], "--scale"),
-        (["-r", "2", "-n", "0"], "n_frames N must be an integer >= 1"),
-        (["-r", "2", "-n", "-1"], "n_frames N"),
+        (["-r", "2", "-n", "0"], "--frames (-n) must be an integer >= 1"),
+        (["-r", "2", "-n", "-1"], "--frames (-n)"),
         (["-r", "2", "-n", "6"], "N=6 > 5 frames"),
         (["-r", "2", "-n", "3", "--lam", "-1"], "lam"),
         (["-r", "2", "-n", "3", "--alpha", "0"], "alpha"),

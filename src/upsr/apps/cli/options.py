@@ -317,8 +317,14 @@ def config_from_options(
 ) -> UPSRConfig:
     """The :class:`UPSRConfig` of the method options shared by ``upsr run`` and ``upsr batch``
     (``None``: the default; ``frames=None``: N = 9)."""
+    from upsr.errors import InputError
     from upsr.method.config import UPSRConfig
 
+    # named as the user gave them (the config's own messages name its fields)
+    if isinstance(scale, int) and scale < 1:
+        raise InputError(f"--scale (-r) must be an integer >= 1, got {scale}")
+    if isinstance(frames, int) and frames < 1:
+        raise InputError(f"--frames (-n) must be an integer >= 1, got {frames}")
     options: dict[str, Any] = {}
     for name, value in (
         ("deblur_lam", lam),

@@ -40,6 +40,11 @@ class Shading(str, Enum):
     depth = "depth"
 
 
+#: bounds of ``compare --fps`` (frames per second) and ``view --width`` (px)
+FPS_RANGE = (0.1, 240.0)
+MAX_VIEW_WIDTH = 8192
+
+
 def frame_index(frame: int, n: int, path: Path) -> int:
     """``--frame`` (negative: from the end) as an index into the ``n`` frames of ``path``."""
     if not -n <= frame < n:
@@ -186,6 +191,8 @@ def compare(
         raise InputError(f"output {output} already exists (use --overwrite to replace it)")
     if error_max is not None and not (math.isfinite(error_max) and error_max > 0):
         raise InputError(f"--error-max must be > 0, got {error_max}")
+    if not FPS_RANGE[0] <= fps <= FPS_RANGE[1]:  # also NaN; a GIF's frame time is 1/fps
+        raise InputError(f"--fps must be {FPS_RANGE[0]:g}..{FPS_RANGE[1]:g}, got {fps:g}")
     rng = _parse_range(depth_range, "--range")
     read = read_options(key, topic, input_format, depth_scale)
     lo_info = io.probe(lowres, key=key, fmt=read["fmt"], topic=topic)
@@ -267,8 +274,11 @@ def view(
         raise InputError(f"{output}: the view is written as a .png file")
     if output.exists() and not overwrite:
         raise InputError(f"output {output} already exists (use --overwrite to replace it)")
-    if width < 16:
-        raise InputError(f"--width must be >= 16, got {width}")
+    if not 16 <= width <= MAX_VIEW_WIDTH:  # the picture is width x about width px
+        raise InputError(f"--width must be 16..{MAX_VIEW_WIDTH}, got {width}")
+    for name, value in (("--yaw", yaw), ("--pitch", pitch), ("--edge-mm", edge_mm)):
+        if not math.isfinite(value):
+            raise InputError(f"{name} must be a finite number, got {value}")
     read = read_options(key, topic, input_format, depth_scale)
     info = io.probe(input_path, key=key, fmt=read["fmt"], topic=topic)
     k = frame_index(frame, info.n_frames, input_path)

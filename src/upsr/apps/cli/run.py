@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import dataclasses
+import os
 import sys
 import time
 from collections.abc import Iterator
@@ -161,6 +162,9 @@ def run(
         keep_all_motion=keep_all_motion,
         recursive=recursive,
     )
+    most = max(64, 2 * (os.cpu_count() or 1))  # each holds 2 windows in flight
+    if workers is not None and workers > most:
+        raise InputError(f"--workers must be 0..{most}, got {workers}")
     in_fmt, out_fmt = fmt(input_format), fmt(output_format)
     info = io.probe(input_path, key=key, fmt=in_fmt, topic=topic)
     camera = input_camera(input_path, info, intrinsics, fmt=in_fmt, topic=topic)

@@ -20,22 +20,14 @@ coordinate ((i + 0.5)·r − 0.5, (j + 0.5)·r − 0.5). Depth is float32 mm, 0 
 names are loaded lazily (PEP 562).
 """
 
-from upsr._lazy import attach
+from upsr._lazy import attach, by_module
 
 __getattr__, __dir__, __all__ = attach(
     __name__,
     submodules=["learned", "multi_frame", "single_frame"],
-    names={
-        "FlowPair": "multi_frame",
-        "PatchSISR": "learned",
-        "bicubic": "single_frame",
-        "bicubic_noflying": "single_frame",
-        "joint_bilateral_upsampling": "single_frame",
-        "lidarboost": "multi_frame",
-        "nearest": "single_frame",
-        "patch_sisr": "learned",
-        "shift_add": "multi_frame",
-        "train_patch_sisr": "learned",
-        "upsampled_flows": "multi_frame",
-    },
+    names=by_module(
+        single_frame=["nearest", "bicubic", "bicubic_noflying", "joint_bilateral_upsampling"],
+        multi_frame=["FlowPair", "upsampled_flows", "shift_add", "lidarboost"],
+        learned=["PatchSISR", "train_patch_sisr", "patch_sisr"],
+    ),
 )

@@ -83,6 +83,7 @@ __all__ = [
 ]
 
 NAME = "cumulative"
+TITLE = "Cumulative registration (paper Fig. 2)"
 Reference = Literal["centre", "last"]
 VARIANTS: tuple[str, ...] = (
     "none",
@@ -453,13 +454,7 @@ def run_cumulative(
         "summary": write_summary(out_dir / "summary.md", summary),
     }
     return ExperimentResult(
-        name=NAME,
-        title="Cumulative registration (paper Fig. 2)",
-        out=out_dir,
-        rows=rows,
-        files=files,
-        summary=summary,
-        extra={"distance_rows": dist_rows},
+        NAME, TITLE, out_dir, rows, files, summary, {"distance_rows": dist_rows}
     )
 
 

@@ -62,6 +62,7 @@ from upsr.viz.figures import PALETTE, LinePlot, Series, line_plot
 __all__ = ["FACTORS", "run_factors"]
 
 NAME = "factors"
+TITLE = "MSE vs noise for SR factors r = 1, 2, 4 with the model (paper Fig. 7)"
 FACTORS: tuple[int, ...] = (1, 2, 4)
 HR_SIZE = 512
 N_FRAMES = 9
@@ -176,14 +177,7 @@ def run_factors(
         "png_default": write_plot(out_dir / "factors_default.png", _plot(rows, rs, "upsr")),
         "summary": write_summary(out_dir / "summary.md", summary),
     }
-    return ExperimentResult(
-        name=NAME,
-        title="MSE vs noise for SR factors r = 1, 2, 4 with the model (paper Fig. 7)",
-        out=Path(out_dir),
-        rows=rows,
-        files=files,
-        summary=summary,
-    )
+    return ExperimentResult(NAME, TITLE, Path(out_dir), rows, files, summary)
 
 
 def _one_factor(

@@ -71,14 +71,8 @@ import cv2
 import numpy as np
 
 from upsr.errors import InputError
+from upsr.method import motion
 from upsr.method.config import UPSRConfig
-from upsr.method.motion import (
-    FlowBackend,
-    bilateral_prefilter,
-    depth_range,
-    depth_to_u8,
-    make_flow_backend,
-)
 from upsr.method.upsampling import upsample_nearest
 from upsr.research.experiments.common import (
     DEFAULT_DATA,
@@ -109,6 +103,7 @@ __all__ = [
 ]
 
 NAME = "motion-accuracy"
+TITLE = "Motion accuracy vs upsampling factor (paper Table 2)"
 #: Paper, Table 2: ε_r (px at scale R = 8).
 PAPER_ERROR_PX: dict[int, float] = {1: 0.51, 2: 0.25, 4: 0.13, 6: 0.08, 8: 0.06}
 #: Flow estimators tried: UP-SR's backends and presets, and DIS medium scaled with r.
@@ -179,11 +174,11 @@ def motion_guide(frame: np.ndarray, r: int, near_mm: float, far_mm: float) -> np
     """UP-SR's motion front end: nearest upsampling by r, bilateral prefilter, 8-bit mapping."""
     cfg = UPSRConfig(scale=r)
     up = upsample_nearest(frame, r)
-    pre = bilateral_prefilter(up, cfg.prefilter_sigma_mm, cfg.spatial_sigma_px)
-    return depth_to_u8(pre, near_mm, far_mm)
+    pre = motion.bilateral_prefilter(up, cfg.prefilter_sigma_mm, cfg.spatial_sigma_px)
+    return motion.depth_to_u8(pre, near_mm, far_mm)
 
 
-def dis_scaled(r: int) -> FlowBackend:
+def dis_scaled(r: int) -> motion.FlowBackend:
     """DIS medium with its patch size, stride and pre-blur in low-res pixels (``dis-medium-r``).
 
     Patch 8·r and stride 3·r high-res px (DIS medium's 8 and 3 px at r = 1), flow down to the
@@ -207,13 +202,13 @@ def dis_scaled(r: int) -> FlowBackend:
     return flow
 
 
-def _estimator(name: str, r: int = 1) -> FlowBackend:
+def _estimator(name: str, r: int = 1) -> motion.FlowBackend:
     if name == "dis-medium-r":
         return dis_scaled(r)
     if name in ("dis-ultrafast", "dis-fast", "dis-medium"):
-        return make_flow_backend("dis", name[4:])
+        return motion.make_flow_backend("dis", name[4:])
     if name == "farneback":
-        return make_flow_backend("farneback")
+        return motion.make_flow_backend("farneback")
     raise InputError(f"unknown estimator {name!r} (choose from {', '.join(ESTIMATORS)})")
 
 
@@ -264,7 +259,7 @@ def measure_motion_accuracy(
             f"no valid interior pixel in a {first.shape[1]}x{first.shape[0]} depth image "
             f"(margin {margin_px} px)"
         )
-    near, far = depth_range(np.stack([first, second]))
+    near, far = motion.depth_range(np.stack([first, second]))
     rows: list[dict[str, Any]] = []
     for r in rs:
         t0 = time.perf_counter()
@@ -503,11 +498,5 @@ def run_motion_accuracy(
         "summary": write_summary(out_dir / "summary.md", summary),
     }
     return ExperimentResult(
-        name=NAME,
-        title="Motion accuracy vs upsampling factor (paper Table 2)",
-        out=Path(out_dir),
-        rows=sel,
-        files=files,
-        summary=summary,
-        extra={"all_rows": rows, "selected": selected},
+        NAME, TITLE, Path(out_dir), sel, files, summary, {"all_rows": rows, "selected": selected}
     )

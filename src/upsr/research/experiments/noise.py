@@ -62,6 +62,7 @@ from upsr.viz.figures import PALETTE, LinePlot, Series, line_plot
 __all__ = ["DEBLUR_GRID", "METHODS", "run_noise", "search_deblur"]
 
 NAME = "noise"
+TITLE = "MSE vs noise on Samba, all methods (paper Fig. 6)"
 METHODS: tuple[str, ...] = (
     "nearest",
     "bicubic",
@@ -231,13 +232,7 @@ def run_noise(
         "summary": write_summary(out_dir / "summary.md", summary),
     }
     return ExperimentResult(
-        name=NAME,
-        title="MSE vs noise on Samba, all methods (paper Fig. 6)",
-        out=Path(out_dir),
-        rows=rows,
-        files=files,
-        summary=summary,
-        extra={"search_rows": search_rows},
+        NAME, TITLE, Path(out_dir), rows, files, summary, {"search_rows": search_rows}
     )
 
 

@@ -188,6 +188,15 @@ def _check_shape(lowres_shape: tuple[int, int]) -> tuple[int, int]:
     return h, w
 
 
+def _sizes(
+    lowres_shape: tuple[int, int], scale: int, n_frames: int, seed: int
+) -> tuple[int, int, int, int, np.random.Generator]:
+    """Checked (h, w, r, T) and the scene's random generator."""
+    h, w = _check_shape(lowres_shape)
+    r, n = _check_int(scale, "scale", 1), _check_int(n_frames, "n_frames", 1)
+    return h, w, r, n, np.random.default_rng(_check_int(seed, "seed", 0))
+
+
 def _check_int(value: int, name: str, minimum: int) -> int:
     if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < minimum:
         raise InputError(f"{name} must be an integer >= {minimum}, got {value!r}")
@@ -410,9 +419,7 @@ def deforming_body(
     -------
     RealisticVideo
     """
-    h, w = _check_shape(lowres_shape)
-    r, n = _check_int(scale, "scale", 1), _check_int(n_frames, "n_frames", 1)
-    rng = np.random.default_rng(_check_int(seed, "seed", 0))
+    h, w, r, n, rng = _sizes(lowres_shape, scale, n_frames, seed)
     cam = PinholeCamera.from_fov(w, h, fov_x_deg)
     fr = _Frame(cam)
     z0 = float(body_depth_mm)
@@ -512,9 +519,7 @@ def camera_toward_wall(
     RealisticVideo
         ``moving`` is every valid pixel (the camera moves).
     """
-    h, w = _check_shape(lowres_shape)
-    r, n = _check_int(scale, "scale", 1), _check_int(n_frames, "n_frames", 1)
-    rng = np.random.default_rng(_check_int(seed, "seed", 0))
+    h, w, r, n, rng = _sizes(lowres_shape, scale, n_frames, seed)
     cam = PinholeCamera.from_fov(w, h, fov_x_deg)
     fr = _Frame(cam)
     zw = float(wall_depth_mm)
@@ -570,16 +575,14 @@ def moving_camera_room(
     fov_x_deg : float
         Horizontal field of view (degrees).
     seed : int
-        Box layout.
+        Seed of the box layout.
 
     Returns
     -------
     RealisticVideo
-        ``moving`` is every valid pixel (the camera moves).
+        Every pixel is measured (a closed room) and, as the camera moves, ``moving``.
     """
-    h, w = _check_shape(lowres_shape)
-    r, n = _check_int(scale, "scale", 1), _check_int(n_frames, "n_frames", 1)
-    rng = np.random.default_rng(_check_int(seed, "seed", 0))
+    h, w, r, n, rng = _sizes(lowres_shape, scale, n_frames, seed)
     cam = PinholeCamera.from_fov(w, h, fov_x_deg)
     floor_y = 1.4  # y down: the floor is below the camera
     room = [_box((0.0, floor_y - 1.3, 1.75), (2.0, 1.3, 2.75))]  # seen from inside

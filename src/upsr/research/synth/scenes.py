@@ -296,7 +296,8 @@ def dynamic_scene(
         Speed of the object (low-res px / frame).
     flying_pixels : float
         Probability that a low-res pixel at a depth edge is replaced by a foreground /
-        background mix (ToF mixed pixels, :func:`~upsr.research.synth.degradation.flying_pixel_artefacts`).
+        background mix (ToF mixed pixels,
+        :func:`~upsr.research.synth.degradation.flying_pixel_artefacts`).
         0 disables it.
 
     Returns

@@ -1,0 +1,271 @@
+"""Depth units: the checks the command line runs before any processing.
+
+:func:`resolve_depth_scales`
+    Input and output depth scales kept apart (raw units per metre): ``--depth-scale`` is the
+    input's (the old spelling), ``--input-depth-scale`` / ``--output-depth-scale`` name each.
+:func:`check_depth_range`
+    The depth of the first frame(s), after scaling, against the plausible range of the sensor
+    (default 50 mm – 100 m): values far outside mean a wrong unit (metres read as mm, TUM's
+    1/5000 m read as mm, …); the message says which scale would fit.
+:func:`detect_tum_scale`
+    A folder of PNGs read as plain mm PNGs whose values and names look like TUM RGB-D (5000
+    units per metre): the message says to use ``--input-format tum``.
+:func:`check_output_capacity`
+    Whether an output can hold the video (a single ``.exr`` holds one frame; 16-bit PNG tops
+    out at 65535 raw units), checked before processing.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+import warnings
+from collections.abc import Iterable
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from upsr.errors import InputError
+from upsr.io._base import PathLike, check_depth_scale
+
+__all__ = [
+    "SENSOR_RANGES_MM",
+    "DepthRange",
+    "DepthUnitWarning",
+    "check_depth_range",
+    "check_output_capacity",
+    "detect_tum_scale",
+    "resolve_depth_scales",
+]
+
+#: Plausible depth (mm) of each sensor: (nearest, farthest) a valid pixel can have.
+SENSOR_RANGES_MM: dict[str, tuple[float, float]] = {
+    "default": (50.0, 100_000.0),
+    "realsense": (50.0, 65_535.0),  # D4xx: ~0.1 m minimum-Z at low resolution, 16-bit units
+    "kinect": (300.0, 12_000.0),  # Kinect v1 / Xtion (NYU, TUM)
+    "kinect2": (300.0, 12_000.0),
+    "tof": (50.0, 15_000.0),
+    "lidar": (50.0, 300_000.0),
+}
+
+
+class DepthUnitWarning(UserWarning):
+    """Depth values outside the plausible range of the sensor (probably a wrong unit)."""
+
+
+@dataclass(frozen=True)
+class DepthRange:
+    """What :func:`check_depth_range` measured.
+
+    Attributes
+    ----------
+    median_mm, p01_mm, p99_mm : float
+        Median, 1st and 99th percentile of the valid depth (mm).
+    outside : float
+        Fraction of the valid pixels outside [min_mm, max_mm].
+    message : str or None
+        One line when the range is implausible (None: fine).
+    """
+
+    median_mm: float
+    p01_mm: float
+    p99_mm: float
+    outside: float
+    message: str | None
+
+
+def resolve_depth_scales(
+    depth_scale: float | None = None,
+    input_depth_scale: float | None = None,
+    output_depth_scale: float | None = None,
+) -> tuple[float, float]:
+    """(input, output) depth scales, raw units per metre.
+
+    The rule: ``depth_scale`` (``--depth-scale``) is the input's only; the output is in mm
+    (1000) unless ``output_depth_scale`` says otherwise. Giving ``depth_scale`` and a different
+    ``input_depth_scale`` is refused.
+    """
+    if depth_scale is not None and input_depth_scale is not None:
+        if check_depth_scale(depth_scale) != check_depth_scale(input_depth_scale):
+            raise InputError(
+                f"--depth-scale {depth_scale} and --input-depth-scale {input_depth_scale} "
+                f"disagree: give one (both are the input's raw units per metre)"
+            )
+    inp = input_depth_scale if input_depth_scale is not None else depth_scale
+    s_in = check_depth_scale(1000.0 if inp is None else inp)
+    s_out = check_depth_scale(1000.0 if output_depth_scale is None else output_depth_scale)
+    return s_in, s_out
+
+
+def _scale_hint(median_mm: float, lo: float, hi: float, depth_scale: float) -> str:
+    """Which input depth scale would bring the median to a typical 1.5 m."""
+    for label, factor in (
+        ("metres (--input-depth-scale 1)", 1000.0),
+        ("cm (--input-depth-scale 100)", 10.0),
+        ("TUM's 1/5000 m (--input-format tum or --input-depth-scale 5000)", 0.2),
+        ("0.1 mm (--input-depth-scale 10000)", 0.1),
+        ("µm (--input-depth-scale 1000000)", 0.001),
+    ):
+        guess = median_mm * factor * depth_scale / 1000.0
+        if lo <= guess <= hi and 200.0 <= guess <= 20_000.0:
+            return f"; the raw values look like {label}"
+    return ""
+
+
+def check_depth_range(
+    frames_mm: np.ndarray | Iterable[np.ndarray],
+    *,
+    sensor: str = "default",
+    min_mm: float | None = None,
+    max_mm: float | None = None,
+    depth_scale: float = 1000.0,
+    name: str = "input",
+    action: str = "warn",
+    max_outside: float = 0.05,
+) -> DepthRange:
+    """Check that depth (mm, after scaling) lies in the sensor's plausible range.
+
+    Parameters
+    ----------
+    frames_mm : ndarray (h, w) or (T, h, w), or iterable of frames
+        Depth in mm (0 / NaN = none), e.g. the first frame read.
+    sensor : str
+        A key of :data:`SENSOR_RANGES_MM` (default 50 mm – 100 m).
+    min_mm, max_mm : float, optional
+        Override the sensor's range.
+    depth_scale : float
+        The input depth scale used (for the hint of the message).
+    name : str
+        The input, for the message.
+    action : {"warn", "refuse", "ignore"}
+        When more than ``max_outside`` of the valid pixels (or the median) leave the range:
+        warn (:class:`DepthUnitWarning`), raise InputError, or only report.
+
+    Returns
+    -------
+    DepthRange
+    """
+    if sensor not in SENSOR_RANGES_MM:
+        raise InputError(f"unknown sensor {sensor!r} (one of: {', '.join(SENSOR_RANGES_MM)})")
+    if action not in ("warn", "refuse", "ignore"):
+        raise ValueError(f"action must be warn, refuse or ignore, got {action!r}")
+    lo, hi = SENSOR_RANGES_MM[sensor]
+    lo = lo if min_mm is None else float(min_mm)
+    hi = hi if max_mm is None else float(max_mm)
+    arrays = [frames_mm] if isinstance(frames_mm, np.ndarray) else list(frames_mm)
+    vals = np.concatenate([np.asarray(a, np.float64).reshape(-1) for a in arrays])
+    vals = vals[np.isfinite(vals) & (vals > 0)]
+    if vals.size == 0:
+        return DepthRange(math.nan, math.nan, math.nan, 0.0, None)
+    p01, med, p99 = (float(v) for v in np.percentile(vals, [1, 50, 99]))
+    outside = float(np.mean((vals < lo) | (vals > hi)))
+    message = None
+    if outside > max_outside or not lo <= med <= hi:
+        message = (
+            f"{name}: {100 * outside:.0f}% of the valid depth lies outside the plausible "
+            f"{lo:g}–{hi:g} mm of a {sensor} sensor (median {med:.4g} mm, 1–99% "
+            f"{p01:.4g}–{p99:.4g} mm): wrong depth units?"
+            f"{_scale_hint(med, lo, hi, depth_scale)}"
+        )
+        if action == "refuse":
+            raise InputError(message)
+        if action == "warn":
+            warnings.warn(message, DepthUnitWarning, stacklevel=2)
+    return DepthRange(med, p01, p99, outside, message)
+
+
+_TUM_NAME = re.compile(r"^[0-9]{9,10}\.[0-9]{3,9}$")
+
+
+def detect_tum_scale(
+    path: PathLike, raw: np.ndarray, *, frame_names: Iterable[str] | None = None
+) -> str | None:
+    """A one-line message when a PNG input read as plain mm PNGs looks like TUM RGB-D.
+
+    TUM RGB-D stores 5000 units per metre: an indoor scene (0.5–5 m) gives raw values of
+    2500–25000, i.e. 2.5–25 m when taken as mm. Flagged when the raw values fit TUM's range
+    (median 2500–40000, 99th percentile > 10000, beyond a Kinect's 8–10 m when read as mm) and
+    either the names are TUM timestamps (``1305031102.175304``) or the folder sits in a TUM
+    sequence (``rgb.txt``/``depth.txt`` beside it), or the values alone exclude mm (99th
+    percentile > 20000, i.e. 20 m for a Kinect-type sensor).
+
+    Parameters
+    ----------
+    path : path-like
+        The PNG file or folder.
+    raw : ndarray
+        Raw 16-bit values of one or more frames (as stored, before any scale).
+    frame_names : iterable of str, optional
+        The frames' stems (default: looked up from ``path``).
+
+    Returns
+    -------
+    str or None
+        The message (None: does not look like TUM).
+    """
+    p = Path(path)
+    v = np.asarray(raw).reshape(-1)
+    v = v[v > 0].astype(np.float64)
+    if v.size == 0:
+        return None
+    med, p99 = (float(x) for x in np.percentile(v, [50, 99]))
+    if not (2500 <= med <= 40_000 and p99 > 10_000):
+        return None
+    if frame_names is None:
+        frame_names = [p.stem] if p.is_file() else sorted(x.stem for x in p.glob("*.png"))
+    names = list(frame_names)
+    folder = p if p.is_dir() else p.parent
+    named = bool(names) and all(_TUM_NAME.match(n) for n in names)
+    sequence = any((folder.parent / f).is_file() for f in ("rgb.txt", "depth.txt"))
+    if named or sequence or p99 > 20_000:
+        why = "TUM timestamp names" if named else "a TUM sequence" if sequence else "the values"
+        return (
+            f"{p}: these PNGs look like TUM RGB-D depth ({why}; median raw {med:.0f} = "
+            f"{med / 5000:.2f} m at 5000 units/m, {med / 1000:.2f} m if read as mm): use "
+            f"--input-format tum (or --input-depth-scale 5000); --input-depth-scale 1000 "
+            f"keeps them as mm"
+        )
+    return None
+
+
+def check_output_capacity(
+    path: PathLike,
+    n_frames: int,
+    *,
+    fmt: str | None = None,
+    max_depth_mm: float | None = None,
+    depth_scale: float = 1000.0,
+) -> None:
+    """Refuse, before processing, an output that cannot hold ``n_frames`` frames.
+
+    - a single ``.exr`` file holds one frame (write a folder: ``--format exr`` and a name
+      without suffix);
+    - a 16-bit PNG folder holds raw values ≤ 65535: with ``max_depth_mm`` (the input's
+      largest depth) beyond 65535 / depth_scale m, refused with the scale that fits.
+
+    Raises
+    ------
+    InputError
+        With one line saying what to change.
+    """
+    from upsr.io.video import _folder_output, _output_format
+
+    p = Path(path)
+    f = _output_format(p, fmt)
+    if n_frames < 1:
+        raise InputError(f"{p}: nothing to write ({n_frames} frames)")
+    if f == "exr" and not _folder_output(f, p) and n_frames > 1:
+        raise InputError(
+            f"{p}: a single .exr file holds one frame, the video has {n_frames}: write a "
+            f"folder of EXR frames (--format exr and an output name without suffix)"
+        )
+    if f == "png" and max_depth_mm is not None:
+        raw_max = max_depth_mm * check_depth_scale(depth_scale) / 1000.0
+        if raw_max > 65535:
+            fit = math.floor(65535 * 1000.0 / max_depth_mm)
+            raise InputError(
+                f"{p}: 16-bit PNG holds at most 65535 raw units: depth up to "
+                f"{max_depth_mm:.0f} mm at {depth_scale:g} units/m needs {raw_max:.0f}; use "
+                f"--output-depth-scale {fit} or less, or a float format (.npy, .tif, .exr)"
+            )

@@ -1,0 +1,258 @@
+"""Recordings of real tools: librealsense .bag / .db3, image_transport compressed depth, and
+the ROS 2 bags upsr writes (issue 15).
+
+The RealSense files of ``data/realsense`` were written by librealsense itself (2.56: ROS 1
+``.bag``; 2.59: ``.db3`` without metadata.yaml) through ``data/make_realsense_fixtures.py``,
+which also stored what the SDK's own playback returns (``NAME.sdk.npz``). pyrealsense2 is not
+needed to read them; when it is installed, a live playback is compared too.
+"""
+
+from __future__ import annotations
+
+import importlib.util
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import upsr.io as uio
+from upsr.errors import InputError
+from upsr.geometry.camera import PinholeCamera
+from upsr.io._rosmsg import (
+    CompressedMsg,
+    decode_compressed_depth,
+    encode_compressed_depth,
+    parse_image,
+    rvl_decode,
+    rvl_encode,
+)
+
+pytest.importorskip("rosbags")
+
+DATA = Path(__file__).parent / "data" / "realsense"
+RECORDINGS = ["rs256_1mm.bag", "rs256_100um.bag", "rs259_1mm.db3", "rs259_100um.db3"]
+
+
+def _sdk(name: str) -> dict[str, np.ndarray]:
+    with np.load(DATA / f"{name}.sdk.npz") as z:
+        return {k: z[k] for k in z.files}
+
+
+@pytest.mark.parametrize("name", RECORDINGS)
+def test_realsense_recording_equals_sdk_playback(name: str) -> None:
+    path = DATA / name
+    assert path.stat().st_size < 200_000
+    ref = _sdk(name)
+    info = uio.probe(path)
+    assert info.format == "rosbag" and info.shape == ref["depth_mm"].shape
+    depth = uio.read_video(path)
+    np.testing.assert_allclose(depth, ref["depth_mm"], rtol=0, atol=1e-3)
+    cam = uio.read_intrinsics(path)
+    fx, fy, cx, cy, w, h = ref["intrinsics"]
+    assert (cam.width, cam.height) == (int(w), int(h))
+    np.testing.assert_allclose([cam.fx, cam.fy, cam.cx, cam.cy], [fx, fy, cx, cy], atol=1e-6)
+    stamps = uio.read_timestamps(path)
+    np.testing.assert_allclose(stamps / 1e6, ref["timestamps_ms"], rtol=0, atol=1e-3)
+
+
+def test_depth_units_are_applied() -> None:
+    """100 µm units: the same scene in mm as at 1 mm (not 10x too large)."""
+    for kind in ("rs256", "rs259"):
+        a = uio.read_video(DATA / f"{kind}_1mm{'.bag' if kind == 'rs256' else '.db3'}")
+        b = uio.read_video(DATA / f"{kind}_100um{'.bag' if kind == 'rs256' else '.db3'}")
+        both = (a > 0) & (b > 0)
+        assert np.abs(a[both] - b[both]).max() <= 0.5 + 1e-3
+
+
+def test_librealsense_image_trailer() -> None:
+    """librealsense's Image records end with float32 depth units after data."""
+    from rosbags.rosbag1 import Reader
+
+    with Reader(DATA / "rs256_100um.bag") as r:
+        conn = next(c for c in r.connections if c.topic.endswith("Depth_0/image/data"))
+        _, _, raw = next(iter(r.messages(connections=[conn])))
+    msg = parse_image(raw, cdr=False)
+    assert (msg.width, msg.height, msg.encoding) == (64, 48, "mono16")
+    assert msg.depth_units_m == pytest.approx(1e-4)
+
+
+@pytest.mark.skipif(importlib.util.find_spec("pyrealsense2") is None, reason="no pyrealsense2")
+@pytest.mark.parametrize("name", RECORDINGS)
+def test_realsense_live_sdk_playback(name: str) -> None:
+    spec = importlib.util.spec_from_file_location(
+        "make_realsense_fixtures", DATA.parent / "make_realsense_fixtures.py"
+    )
+    assert spec is not None and spec.loader is not None
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    ref = mod.playback(DATA / name)
+    np.testing.assert_allclose(uio.read_video(DATA / name), ref["depth_mm"], atol=1e-3)
+    np.testing.assert_allclose(
+        uio.read_timestamps(DATA / name) / 1e6, ref["timestamps_ms"], atol=1e-3
+    )
+
+
+# ---------------------------------------------------------------------------------------------
+# image_transport compressedDepth / compressed
+# ---------------------------------------------------------------------------------------------
+def _scene(t: int) -> np.ndarray:
+    y, x = np.mgrid[0:12, 0:16]
+    d = (800 + 30 * x + 11 * y + 5 * t).astype(np.uint16)
+    d[(x + y + t) % 7 == 0] = 0
+    return d
+
+
+def _compressed(ts, fmt: str, data: bytes, stamp_ns: int):
+    hdr = ts.types["std_msgs/msg/Header"]
+    time = ts.types["builtin_interfaces/msg/Time"](sec=stamp_ns // 10**9, nanosec=stamp_ns % 10**9)
+    header = (
+        hdr(seq=0, stamp=time, frame_id="cam")
+        if "seq" in hdr.__dataclass_fields__
+        else hdr(stamp=time, frame_id="cam")
+    )
+    return ts.types["sensor_msgs/msg/CompressedImage"](
+        header=header, format=fmt, data=np.frombuffer(data, np.uint8)
+    )
+
+
+def _write_bag(path: Path, ros2: bool, topics: dict[str, list[tuple[str, bytes]]]) -> Path:
+    from rosbags.typesys import Stores, get_typestore
+
+    if ros2:
+        from rosbags.rosbag2 import Writer
+
+        ts = get_typestore(Stores.ROS2_HUMBLE)
+        w = Writer(path, version=8)
+        ser = ts.serialize_cdr
+    else:
+        from rosbags.rosbag1 import Writer
+
+        ts = get_typestore(Stores.ROS1_NOETIC)
+        w = Writer(path)
+        ser = ts.serialize_ros1
+    mt = "sensor_msgs/msg/CompressedImage"
+    with w:
+        for topic, msgs in topics.items():
+            conn = w.add_connection(topic, mt, typestore=ts)
+            for k, (fmt, data) in enumerate(msgs):
+                stamp = 5 * 10**9 + k * 10**8
+                w.write(conn, stamp, ser(_compressed(ts, fmt, data, stamp), mt))
+    return path
+
+
+def _jpeg() -> bytes:
+    import cv2
+
+    return cv2.imencode(".jpg", np.full((12, 16, 3), 128, np.uint8))[1].tobytes()
+
+
+@pytest.mark.parametrize("ros2", [False, True])
+@pytest.mark.parametrize("codec", ["png", "rvl"])
+def test_compressed_depth_16uc1(tmp_path: Path, ros2: bool, codec: str) -> None:
+    frames = [_scene(t) for t in range(3)]
+    msgs = [encode_compressed_depth(f, "16UC1", codec) for f in frames]
+    path = _write_bag(
+        tmp_path / ("bag2" if ros2 else "a.bag"),
+        ros2,
+        {
+            "/camera/depth/image_raw/compressedDepth": msgs,
+            "/camera/color/image_raw/compressed": [("bgr8; jpeg compressed bgr8", _jpeg())] * 3,
+        },
+    )
+    info = uio.probe(path)
+    assert info.topic == "/camera/depth/image_raw/compressedDepth" and info.shape == (3, 12, 16)
+    np.testing.assert_array_equal(uio.read_video(path), np.stack(frames).astype(np.float32))
+    np.testing.assert_array_equal(uio.read_timestamps(path), 5 * 10**9 + np.arange(3) * 10**8)
+
+
+def test_compressed_depth_32fc1_inverse_depth(tmp_path: Path) -> None:
+    m = _scene(0).astype(np.float64) / 1000.0
+    fmt, data = encode_compressed_depth(m, "32FC1", "png")
+    path = _write_bag(tmp_path / "b2", True, {"/d/compressedDepth": [(fmt, data)]})
+    got = uio.read_video(path)[0]
+    assert ((got > 0) == (m > 0)).all()
+    # quantised inverse depth: the error grows as depth²; at ~1.5 m it is well under 1 mm
+    np.testing.assert_allclose(got[m > 0], 1000 * m[m > 0], atol=0.5)
+    msg = CompressedMsg(0, fmt, data)
+    import struct
+
+    _, qa, qb = struct.unpack_from("<iff", data)
+    raw = np.floor(qa / m[m > 0] + qb)
+    np.testing.assert_allclose(
+        decode_compressed_depth(msg)[m > 0], 1000 * qa / (raw - qb), rtol=1e-5
+    )
+
+
+def test_compressed_png_16bit(tmp_path: Path) -> None:
+    import cv2
+
+    frames = [_scene(t) for t in range(2)]
+    msgs = [("16UC1; png compressed", cv2.imencode(".png", f)[1].tobytes()) for f in frames]
+    path = _write_bag(tmp_path / "c.bag", False, {"/camera/depth/image_raw/compressed": msgs})
+    np.testing.assert_array_equal(uio.read_video(path), np.stack(frames).astype(np.float32))
+
+
+def test_compressed_colour_only_is_refused(tmp_path: Path) -> None:
+    path = _write_bag(tmp_path / "d.bag", False, {"/rgb/compressed": [("bgr8; jpeg", _jpeg())]})
+    with pytest.raises(InputError, match=r"no topic is a depth image.*rgb/compressed"):
+        uio.probe(path)
+
+
+def test_rvl_round_trip() -> None:
+    rng = np.random.default_rng(3)
+    v = rng.integers(0, 65535, 500).astype(np.uint16)
+    v[rng.random(500) < 0.3] = 0
+    v[100:180] = 0
+    assert (rvl_decode(rvl_encode(v), v.size) == v).all()
+    with pytest.raises(InputError):
+        rvl_decode(rvl_encode(v)[:8], v.size)
+
+
+# ---------------------------------------------------------------------------------------------
+# writing ROS 2 bags
+# ---------------------------------------------------------------------------------------------
+def test_rosbag_output_reads_back(tmp_path: Path) -> None:
+    from rosbags.highlevel import AnyReader
+
+    rng = np.random.default_rng(1)
+    video = (rng.uniform(400, 5000, (3, 10, 14))).astype(np.float32)
+    video[:, 2, 3] = 0
+    stamps = np.array([1_000_000_000, 1_033_300_000, 1_066_600_000])
+    cam = PinholeCamera(50.5, 51.25, 31.7, 23.2, 64, 48).scaled(2)
+    cam = PinholeCamera(cam.fx, cam.fy, cam.cx, cam.cy, 14, 10)
+    out = uio.write_video(tmp_path / "sr", video, fmt="rosbag", timestamps_ns=stamps, camera=cam)
+    assert (out / "metadata.yaml").is_file()
+    np.testing.assert_allclose(uio.read_video(out), video, rtol=1e-6)
+    np.testing.assert_array_equal(uio.read_timestamps(out), stamps)
+    assert uio.read_intrinsics(out) == cam
+    with AnyReader([out]) as r:
+        topics = {c.topic: c for c in r.connections}
+        assert topics["/camera/depth/image_raw"].msgcount == 3
+        assert topics["/camera/depth/camera_info"].msgcount == 3
+        infos = list(r.messages(connections=[topics["/camera/depth/camera_info"]]))
+        for (c, t, raw), s in zip(infos, stamps, strict=True):
+            info = r.deserialize(raw, c.msgtype)
+            assert t == s and info.header.stamp.sec * 10**9 + info.header.stamp.nanosec == s
+            np.testing.assert_allclose(info.k.reshape(3, 3), cam.K)
+            assert (info.width, info.height) == (14, 10)
+        c, _, raw = next(iter(r.messages(connections=[topics["/camera/depth/image_raw"]])))
+        img = r.deserialize(raw, c.msgtype)
+        assert img.encoding == "32FC1"
+        assert np.isnan(np.frombuffer(img.data.tobytes(), "<f4").reshape(10, 14)[2, 3])
+
+
+def test_rosbag_output_default_stamps_and_no_camera(tmp_path: Path) -> None:
+    out = uio.write_video(tmp_path / "sr", np.full((2, 4, 5), 1000.0, np.float32), fmt="rosbag")
+    np.testing.assert_array_equal(uio.read_timestamps(out), [0, 33_333_333])
+    assert uio.read_intrinsics(out) is None
+
+
+def test_lone_db3_and_mcap(tmp_path: Path) -> None:
+    lone = tmp_path / "x.mcap"
+    lone.write_bytes(b"\x89MCAP0\r\n")
+    with pytest.raises(InputError):
+        uio.probe(lone, fmt="rosbag")
+    bad = tmp_path / "x.db3"
+    bad.write_bytes(b"not sqlite at all" * 10)
+    with pytest.raises(InputError, match=r"x\.db3"):
+        uio.probe(bad)
