@@ -360,6 +360,7 @@ def recursive_update(
         _offset_kernel(
             reg,
             meas,
+            -1,  # (no frame of reg is the reference)
             float(edge_mm),
             STATE_NOISE_FACTOR * float(sigma_mm),
             int(radial_radius_px),
@@ -468,7 +469,11 @@ class RecursiveUPSR:
         cfg = self.config
         if cfg.trust_noise_mm is not None:
             return float(cfg.trust_noise_mm)
-        return max(self._front.noise_mm or 0.0, self._temporal_mm)  # type: ignore[union-attr]
+        spatial = self._front.noise_mm or 0.0  # type: ignore[union-attr]
+        # the temporal differences of the first two frames also see the motion (a moving
+        # camera: twice the noise), which the windowed mode's first window averages out;
+        # they are the noise only where the spatial estimate sees none (quantised depth)
+        return spatial if spatial >= 1.0 else max(spatial, self._temporal_mm)
 
     def push(self, frame: npt.ArrayLike) -> np.ndarray:
         """Add the next low-res frame (h, w) in mm; return its high-res frame (r·h, r·w)."""
