@@ -28,7 +28,7 @@ import numpy.typing as npt
 
 from upsr._numba import SAFE_FASTMATH
 from upsr.method.registration import interpolation_tables, weight_table
-from upsr.method.trust import trust_arrays
+from upsr.method.trust import surface_alternatives, trust_arrays
 
 __all__ = [
     "OUTSIDE",
@@ -250,6 +250,10 @@ def _register_fuse_kernel(
     anchor,
     tol,
     offsets,
+    alt_lo,
+    alt_tlo,
+    alt_hi,
+    alt_thi,
     min_trusted,
     use_mean,
     out,
@@ -295,40 +299,34 @@ def _register_fuse_kernel(
         on_jd = np.empty(m_on, np.float64)
         on_anc = np.empty(m_on, np.float32)  # the reference's anchor (0: none, no trust test)
         on_tol = np.empty(m_on, np.float32)
-        # at a depth edge: the anchor of the low-res neighbour (another surface) on the side
-        # of the pixel within its block, in x and in y (0: none), whose samples may compete
-        on_ax = np.zeros(m_on, np.float32)
-        on_tx = np.zeros(m_on, np.float32)
-        on_ay = np.zeros(m_on, np.float32)
-        on_ty = np.zeros(m_on, np.float32)
+        # at a depth edge: the nearest and the farthest other surface among the low-res
+        # neighbours (0: none), whose samples compete (trust.surface_alternatives)
+        on_ax = np.empty(m_on, np.float32)
+        on_tx = np.empty(m_on, np.float32)
+        on_ay = np.empty(m_on, np.float32)
+        on_ty = np.empty(m_on, np.float32)
         fi = np.float64(i)
         li = low_of[i]
         anc_row = anchor[li]
         tol_row = tol[li]
-        quarter = 0.0  # the half of the block on that side
-        dy = fi - centre_of[i]
-        ny = li + 1 if dy > quarter else (li - 1 if dy < -quarter else -1)
-        ny = ny if 0 <= ny < anchor.shape[0] else -1
+        lo_row_a = alt_lo[li]
+        lo_row_t = alt_tlo[li]
+        hi_row_a = alt_hi[li]
+        hi_row_t = alt_thi[li]
         for q in range(m_on):
             j = on[q]
             on_jd[q] = np.float64(j)
             on_a[q] = cols[j, 0]
             on_b[q] = cols[j, 1]
             on_fx[q] = fx[j]
-            on_low[q] = low_of[j]
-            lj = on_low[q]
-            a0 = anc_row[lj]
-            on_anc[q] = a0
+            lj = low_of[j]
+            on_low[q] = lj
+            on_anc[q] = anc_row[lj]
             on_tol[q] = tol_row[lj]
-            if a0 > 0:
-                dx = on_jd[q] - centre_of[j]
-                nx = lj + 1 if dx > quarter else (lj - 1 if dx < -quarter else -1)
-                if 0 <= nx < w_low and abs(anc_row[nx] - a0) > edge_mm:
-                    on_ax[q] = anc_row[nx]
-                    on_tx[q] = tol_row[nx]
-                if ny >= 0 and abs(anchor[ny, lj] - a0) > edge_mm:
-                    on_ay[q] = anchor[ny, lj]
-                    on_ty[q] = tol[ny, lj]
+            on_ax[q] = lo_row_a[lj]
+            on_tx[q] = lo_row_t[lj]
+            on_ay[q] = hi_row_a[lj]
+            on_ty[q] = hi_row_t[lj]
         # one output row at a time, every frame's sample of each of those pixels: loops
         # over the row (SIMD where they can)
         raw = np.empty((n, m_on), np.float32)  # the sample; NaN: outside its frame (abstains)
@@ -439,11 +437,11 @@ def _register_fuse_kernel(
                 continue
             m = nv[q]
             if on_anc[q] > 0:
-                # the reference measured depth here: never 0; with too few samples trusted
-                # by its anchor, the anchor (the reference denoised on its surface); else the
-                # estimate of the trusted samples, or, with samples of the neighbouring
+                # the reference measured depth here: never 0; with too few trusted samples,
+                # the anchor (the reference denoised on its surface); else the estimate of
+                # the samples trusted by the anchor, or, with samples of a neighbouring
                 # surface at an edge too, the competition of the surfaces below
-                if n_own[q] < min_trusted:
+                if m < min_trusted or (m == n_own[q] and n_own[q] < min_trusted):
                     out[i, j] = on_anc[q]
                     continue
                 if m == n_own[q]:
@@ -702,6 +700,7 @@ def register_and_fuse(
     offsets: npt.ArrayLike | None = None,
     min_trusted: int = 1,
     estimator: str = "median",
+    alternatives: tuple[npt.ArrayLike, ...] | None = None,
 ) -> np.ndarray:
     """Registration (eq. 20) and invalid-aware median fusion (eq. 28) in one compiled pass.
 
@@ -750,6 +749,10 @@ def register_and_fuse(
     estimator : {"median", "mean"}
         Estimate of the samples of the winning surface: their median (eq. 28, ML for Laplace
         noise) or their mean (ML for Gaussian noise; between quantisation steps).
+    alternatives : tuple of 4 array_like (h, w), optional
+        The other surfaces whose samples are trusted too at a depth edge, and their
+        tolerances (:func:`upsr.method.trust.surface_alternatives`); computed from ``anchor``
+        and ``tolerance`` when not given.
 
     Returns
     -------
@@ -774,6 +777,9 @@ def register_and_fuse(
     if estimator not in ("median", "mean"):
         raise ValueError(f"estimator must be 'median' or 'mean', not {estimator!r}")
     anc, tol, offs = trust_arrays(anchor, tolerance, offsets, (n, h, w))
+    if alternatives is None:
+        alternatives = surface_alternatives(anc, tol, edge_mm)
+    alts = [np.ascontiguousarray(a, np.float32).reshape(h, w) for a in alternatives]
     out = np.empty((hh, ww), np.float32)
     _register_fuse_kernel(
         lr,
@@ -798,6 +804,7 @@ def register_and_fuse(
         anc,
         tol,
         offs,
+        *alts,
         max(int(min_trusted), 1),
         estimator == "mean",
         out,
