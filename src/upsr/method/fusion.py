@@ -20,14 +20,14 @@ background, even for an even number of samples: no flying pixels.
 
 from __future__ import annotations
 
-import functools
-
 import numba as nb
 import numpy as np
 import numpy.typing as npt
 
 from upsr._numba import SAFE_FASTMATH
 from upsr.method.registration import interpolation_tables, weight_table
+from upsr.method.sorting import _centre_sorted, _network, _sort_columns, sorting_network
+from upsr.method.splat import splat_nearest, splat_points
 from upsr.method.trust import surface_alternatives, trust_arrays
 
 __all__ = [
@@ -41,59 +41,6 @@ __all__ = [
 
 #: Marker of a registered sample that fell outside its frame (abstains in the fusion).
 OUTSIDE = np.float32(np.nan)
-
-
-@nb.njit(cache=True, nogil=True, inline="always")
-def _median_sorted(vals, lo, hi):  # pragma: no cover - numba
-    """Median of the sorted vals[lo:hi] (mean of the two middle values for an even count)."""
-    m = lo + (hi - lo) // 2
-    if (hi - lo) % 2 == 1:
-        return vals[m]
-    return 0.5 * (vals[m - 1] + vals[m])
-
-
-def sorting_network(n: int) -> np.ndarray:
-    """Comparators (i, j), i < j, of Batcher's odd–even merge sort for n keys, as an (m, 2) array.
-
-    Built for the next power of two and pruned of every comparator that touches a padding
-    position ≥ n (padding keys are +∞, already in place, so those never swap). For the usual
-    window lengths: 9 keys in 28 compare-exchanges, branch-free, instead of an insertion sort.
-    """
-    size = 1
-    while size < n:
-        size *= 2
-    pairs: list[tuple[int, int]] = []
-
-    def merge(lo: int, length: int, step: int) -> None:
-        double = step * 2
-        if double < length:
-            merge(lo, length, double)
-            merge(lo + step, length, double)
-            pairs.extend((i, i + step) for i in range(lo + step, lo + length - step, double))
-        else:
-            pairs.append((lo, lo + step))
-
-    def sort(lo: int, length: int) -> None:
-        if length > 1:
-            half = length // 2
-            sort(lo, half)
-            sort(lo + half, half)
-            merge(lo, length, 1)
-
-    sort(0, size)
-    kept = [(i, j) for i, j in pairs if j < n]
-    return np.array(kept, np.int64).reshape(-1, 2)
-
-
-@nb.njit(cache=True, nogil=True, inline="always")
-def _centre_sorted(vals, lo, hi, use_mean):  # pragma: no cover - numba
-    """The estimate of the sorted vals[lo:hi]: their median, or their mean (``use_mean``)."""
-    if use_mean:
-        acc = 0.0
-        for p in range(lo, hi):
-            acc += vals[p]
-        return np.float32(acc / (hi - lo))
-    return _median_sorted(vals, lo, hi)
 
 
 @nb.njit(cache=True, nogil=True, inline="always")
@@ -209,21 +156,6 @@ def _median_kernel(
                 edge_mm,
                 network,
             )
-
-
-@nb.njit(cache=True, nogil=True, fastmath=SAFE_FASTMATH)
-def _sort_columns(a, network):  # pragma: no cover - numba
-    """Sort every column of a (n, m) at once: a branch-free min/max sorting network whose
-    compare-exchanges are loops over the row (SIMD; a function of its own so that LLVM
-    vectorises them)."""
-    m = a.shape[1]
-    for c in range(network.shape[0]):
-        ap = a[network[c, 0]]
-        aq = a[network[c, 1]]
-        for j in range(m):
-            lo = min(ap[j], aq[j])
-            aq[j] = max(ap[j], aq[j])
-            ap[j] = lo
 
 
 @nb.njit(cache=True, nogil=True, parallel=True, fastmath=SAFE_FASTMATH)
@@ -510,11 +442,6 @@ def _register_fuse_kernel(
             )
 
 
-@functools.lru_cache(maxsize=16)
-def _network(n: int) -> np.ndarray:
-    return sorting_network(n)
-
-
 def temporal_median(
     stack: npt.ArrayLike,
     ref: int | None = None,
@@ -585,101 +512,14 @@ def temporal_median(
     return out
 
 
-@nb.njit(cache=True, nogil=True)
-def _splat_kernel(values, positions, radius, best_d, best_v):  # pragma: no cover - numba
-    n, h, w = values.shape
-    hh, ww = best_d.shape
-    for k in range(n):
-        for i in range(h):
-            for j in range(w):
-                qx = positions[k, i, j, 0]
-                qy = positions[k, i, j, 1]
-                v = values[k, i, j]
-                y0 = max(int(np.ceil(qy - radius)), 0)
-                y1 = min(int(np.floor(qy + radius)), hh - 1)
-                x0 = max(int(np.ceil(qx - radius)), 0)
-                x1 = min(int(np.floor(qx + radius)), ww - 1)
-                for u in range(y0, y1 + 1):
-                    for vv in range(x0, x1 + 1):
-                        d = (u - qy) ** 2 + (vv - qx) ** 2
-                        if d < best_d[u, vv]:
-                            best_d[u, vv] = d
-                            best_v[u, vv] = v
-
-
-def splat_points(
-    values: npt.ArrayLike,
-    positions_px: npt.ArrayLike,
-    shape: tuple[int, int],
-    radius_px: float = 1.0,
-) -> np.ndarray:
-    """Nearest forward-registered sample per high-res pixel (shift-and-add, Farsiu et al. 2004).
-
-    Each low-res pixel of frame t is a point sample of the scene at its centre (high-res
-    coordinate (i+0.5)·r − 0.5, ``SPEC.md`` §1). Moved to the reference with its own motion
-    C_{t→t0}, the samples of a moving surface land at sub-pixel positions that outline the
-    surface at the reference time far more precisely than the r×r blocks of dense upsampling.
-    The depth of the nearest sample within ``radius_px`` tells on which surface each high-res
-    pixel lies (the guide of :func:`temporal_median`).
-
-    Parameters
-    ----------
-    values : array_like (N, h, w)
-        The low-res frames of the window (mm, 0 = no return).
-    positions_px : array_like (N, h, w, 2)
-        Where each sample lands on the reference grid, (x, y) in high-res px
-        (:func:`upsr.method.registration.trace_to_reference`).
-    shape : (H, W)
-        Size of the high-res grid.
-    radius_px : float
-        Largest distance (high-res px) between a pixel and the sample it takes.
-
-    Returns
-    -------
-    ndarray float32 (H, W): the nearest sample's depth, NaN where none is in reach.
-    """
-    vals = np.ascontiguousarray(values, dtype=np.float32)
-    pos = np.ascontiguousarray(positions_px, dtype=np.float32)
-    best_d = np.full(shape, radius_px * radius_px, np.float64)
-    best_v = np.full(shape, np.nan, np.float32)
-    _splat_kernel(vals, pos, float(radius_px), best_d, best_v)
-    return best_v
-
-
-def splat_nearest(
-    lowres: npt.ArrayLike, to_reference: npt.ArrayLike, scale: int, radius_px: float = 1.0
-) -> np.ndarray:
-    """:func:`splat_points` with dense motion fields to the reference on the high-res grid.
-
-    Parameters
-    ----------
-    lowres : array_like (N, h, w)
-        The low-res frames of the window (mm, 0 = no return).
-    to_reference : array_like (N, r·h, r·w, 2)
-        Motion of each frame to the reference on its own high-res grid
-        (:func:`upsr.method.registration.flows_to_reference`), read at the high-res pixel nearest to
-        each low-res pixel centre.
-    scale : int
-        SR factor r.
-    radius_px : float
-        Largest distance (high-res px) between a pixel and the sample it takes.
-
-    Returns
-    -------
-    ndarray float32 (r·h, r·w): the nearest sample's depth, NaN where none is in reach.
-    """
-    lr = np.asarray(lowres, dtype=np.float32)
-    maps = np.asarray(to_reference, dtype=np.float32)
-    _, h, w = lr.shape
-    hh, ww = maps.shape[1:3]
-    centre_y = np.arange(h) * scale + 0.5 * scale - 0.5
-    centre_x = np.arange(w) * scale + 0.5 * scale - 0.5
-    yi = np.minimum((centre_y + 0.5).astype(np.intp), hh - 1)
-    xi = np.minimum((centre_x + 0.5).astype(np.intp), ww - 1)
-    pos = maps[:, yi[:, None], xi[None, :], :].copy()
-    pos[..., 0] += centre_x[None, None, :]
-    pos[..., 1] += centre_y[None, :, None]
-    return splat_points(lr, pos, (hh, ww), radius_px)
+def _trust_inputs(anchor, tolerance, offsets, alternatives, lr, edge_mm):
+    """The trust arrays of :func:`register_and_fuse` as its kernel reads them."""
+    n, h, w = lr.shape
+    anc, tol, offs = trust_arrays(anchor, tolerance, offsets, (n, h, w))
+    if alternatives is None:
+        alternatives = surface_alternatives(anc, tol, edge_mm)
+    alts = [np.ascontiguousarray(a, np.float32).reshape(h, w) for a in alternatives]
+    return anc, tol, offs, alts
 
 
 def register_and_fuse(
@@ -750,9 +590,7 @@ def register_and_fuse(
         Estimate of the samples of the winning surface: their median (eq. 28, ML for Laplace
         noise) or their mean (ML for Gaussian noise; between quantisation steps).
     alternatives : tuple of 4 array_like (h, w), optional
-        The other surfaces whose samples are trusted too at a depth edge, and their
-        tolerances (:func:`upsr.method.trust.surface_alternatives`); computed from ``anchor``
-        and ``tolerance`` when not given.
+        :func:`upsr.method.trust.surface_alternatives` (default: from anchor and tolerance).
 
     Returns
     -------
@@ -768,18 +606,12 @@ def register_and_fuse(
     hh, ww = h * scale, w * scale
     (cols, fx), (rows, fy), ratio = interpolation_tables((hh, ww), mp.shape[1:3])
     table, step = weight_table(scale, weight_sigma_px)
-    gd = (
-        np.zeros((hh, ww), np.float32)
-        if guide is None
-        else np.ascontiguousarray(guide, dtype=np.float32)
-    )
+    gd = np.zeros((hh, ww), np.float32) if guide is None else np.asarray(guide, np.float32)
+    gd = np.ascontiguousarray(gd)
     measured = (lr > 0).any(axis=0) if measured_only else np.ones((h, w), np.bool_)
     if estimator not in ("median", "mean"):
         raise ValueError(f"estimator must be 'median' or 'mean', not {estimator!r}")
-    anc, tol, offs = trust_arrays(anchor, tolerance, offsets, (n, h, w))
-    if alternatives is None:
-        alternatives = surface_alternatives(anc, tol, edge_mm)
-    alts = [np.ascontiguousarray(a, np.float32).reshape(h, w) for a in alternatives]
+    anc, tol, offs, alts = _trust_inputs(anchor, tolerance, offsets, alternatives, lr, edge_mm)
     out = np.empty((hh, ww), np.float32)
     _register_fuse_kernel(
         lr,
