@@ -20,15 +20,15 @@ background, even for an even number of samples: no flying pixels.
 
 from __future__ import annotations
 
-import functools
-
 import numba as nb
 import numpy as np
 import numpy.typing as npt
 
 from upsr._numba import SAFE_FASTMATH
 from upsr.method.registration import interpolation_tables, weight_table
-from upsr.method.trust import trust_arrays
+from upsr.method.sorting import _centre_sorted, _network, _sort_columns, sorting_network
+from upsr.method.splat import splat_nearest, splat_points
+from upsr.method.trust import surface_alternatives, trust_arrays
 
 __all__ = [
     "OUTSIDE",
@@ -41,59 +41,6 @@ __all__ = [
 
 #: Marker of a registered sample that fell outside its frame (abstains in the fusion).
 OUTSIDE = np.float32(np.nan)
-
-
-@nb.njit(cache=True, nogil=True, inline="always")
-def _median_sorted(vals, lo, hi):  # pragma: no cover - numba
-    """Median of the sorted vals[lo:hi] (mean of the two middle values for an even count)."""
-    m = lo + (hi - lo) // 2
-    if (hi - lo) % 2 == 1:
-        return vals[m]
-    return 0.5 * (vals[m - 1] + vals[m])
-
-
-def sorting_network(n: int) -> np.ndarray:
-    """Comparators (i, j), i < j, of Batcher's odd–even merge sort for n keys, as an (m, 2) array.
-
-    Built for the next power of two and pruned of every comparator that touches a padding
-    position ≥ n (padding keys are +∞, already in place, so those never swap). For the usual
-    window lengths: 9 keys in 28 compare-exchanges, branch-free, instead of an insertion sort.
-    """
-    size = 1
-    while size < n:
-        size *= 2
-    pairs: list[tuple[int, int]] = []
-
-    def merge(lo: int, length: int, step: int) -> None:
-        double = step * 2
-        if double < length:
-            merge(lo, length, double)
-            merge(lo + step, length, double)
-            pairs.extend((i, i + step) for i in range(lo + step, lo + length - step, double))
-        else:
-            pairs.append((lo, lo + step))
-
-    def sort(lo: int, length: int) -> None:
-        if length > 1:
-            half = length // 2
-            sort(lo, half)
-            sort(lo + half, half)
-            merge(lo, length, 1)
-
-    sort(0, size)
-    kept = [(i, j) for i, j in pairs if j < n]
-    return np.array(kept, np.int64).reshape(-1, 2)
-
-
-@nb.njit(cache=True, nogil=True, inline="always")
-def _centre_sorted(vals, lo, hi, use_mean):  # pragma: no cover - numba
-    """The estimate of the sorted vals[lo:hi]: their median, or their mean (``use_mean``)."""
-    if use_mean:
-        acc = 0.0
-        for p in range(lo, hi):
-            acc += vals[p]
-        return np.float32(acc / (hi - lo))
-    return _median_sorted(vals, lo, hi)
 
 
 @nb.njit(cache=True, nogil=True, inline="always")
@@ -211,21 +158,6 @@ def _median_kernel(
             )
 
 
-@nb.njit(cache=True, nogil=True, fastmath=SAFE_FASTMATH)
-def _sort_columns(a, network):  # pragma: no cover - numba
-    """Sort every column of a (n, m) at once: a branch-free min/max sorting network whose
-    compare-exchanges are loops over the row (SIMD; a function of its own so that LLVM
-    vectorises them)."""
-    m = a.shape[1]
-    for c in range(network.shape[0]):
-        ap = a[network[c, 0]]
-        aq = a[network[c, 1]]
-        for j in range(m):
-            lo = min(ap[j], aq[j])
-            aq[j] = max(ap[j], aq[j])
-            ap[j] = lo
-
-
 @nb.njit(cache=True, nogil=True, parallel=True, fastmath=SAFE_FASTMATH)
 def _register_fuse_kernel(
     lowres,
@@ -250,6 +182,10 @@ def _register_fuse_kernel(
     anchor,
     tol,
     offsets,
+    alt_lo,
+    alt_tlo,
+    alt_hi,
+    alt_thi,
     min_trusted,
     use_mean,
     out,
@@ -295,40 +231,34 @@ def _register_fuse_kernel(
         on_jd = np.empty(m_on, np.float64)
         on_anc = np.empty(m_on, np.float32)  # the reference's anchor (0: none, no trust test)
         on_tol = np.empty(m_on, np.float32)
-        # at a depth edge: the anchor of the low-res neighbour (another surface) on the side
-        # of the pixel within its block, in x and in y (0: none), whose samples may compete
-        on_ax = np.zeros(m_on, np.float32)
-        on_tx = np.zeros(m_on, np.float32)
-        on_ay = np.zeros(m_on, np.float32)
-        on_ty = np.zeros(m_on, np.float32)
+        # at a depth edge: the nearest and the farthest other surface among the low-res
+        # neighbours (0: none), whose samples compete (trust.surface_alternatives)
+        on_ax = np.empty(m_on, np.float32)
+        on_tx = np.empty(m_on, np.float32)
+        on_ay = np.empty(m_on, np.float32)
+        on_ty = np.empty(m_on, np.float32)
         fi = np.float64(i)
         li = low_of[i]
         anc_row = anchor[li]
         tol_row = tol[li]
-        quarter = 0.0  # the half of the block on that side
-        dy = fi - centre_of[i]
-        ny = li + 1 if dy > quarter else (li - 1 if dy < -quarter else -1)
-        ny = ny if 0 <= ny < anchor.shape[0] else -1
+        lo_row_a = alt_lo[li]
+        lo_row_t = alt_tlo[li]
+        hi_row_a = alt_hi[li]
+        hi_row_t = alt_thi[li]
         for q in range(m_on):
             j = on[q]
             on_jd[q] = np.float64(j)
             on_a[q] = cols[j, 0]
             on_b[q] = cols[j, 1]
             on_fx[q] = fx[j]
-            on_low[q] = low_of[j]
-            lj = on_low[q]
-            a0 = anc_row[lj]
-            on_anc[q] = a0
+            lj = low_of[j]
+            on_low[q] = lj
+            on_anc[q] = anc_row[lj]
             on_tol[q] = tol_row[lj]
-            if a0 > 0:
-                dx = on_jd[q] - centre_of[j]
-                nx = lj + 1 if dx > quarter else (lj - 1 if dx < -quarter else -1)
-                if 0 <= nx < w_low and abs(anc_row[nx] - a0) > edge_mm:
-                    on_ax[q] = anc_row[nx]
-                    on_tx[q] = tol_row[nx]
-                if ny >= 0 and abs(anchor[ny, lj] - a0) > edge_mm:
-                    on_ay[q] = anchor[ny, lj]
-                    on_ty[q] = tol[ny, lj]
+            on_ax[q] = lo_row_a[lj]
+            on_tx[q] = lo_row_t[lj]
+            on_ay[q] = hi_row_a[lj]
+            on_ty[q] = hi_row_t[lj]
         # one output row at a time, every frame's sample of each of those pixels: loops
         # over the row (SIMD where they can)
         raw = np.empty((n, m_on), np.float32)  # the sample; NaN: outside its frame (abstains)
@@ -439,11 +369,11 @@ def _register_fuse_kernel(
                 continue
             m = nv[q]
             if on_anc[q] > 0:
-                # the reference measured depth here: never 0; with too few samples trusted
-                # by its anchor, the anchor (the reference denoised on its surface); else the
-                # estimate of the trusted samples, or, with samples of the neighbouring
+                # the reference measured depth here: never 0; with too few trusted samples,
+                # the anchor (the reference denoised on its surface); else the estimate of
+                # the samples trusted by the anchor, or, with samples of a neighbouring
                 # surface at an edge too, the competition of the surfaces below
-                if n_own[q] < min_trusted:
+                if m < min_trusted or (m == n_own[q] and n_own[q] < min_trusted):
                     out[i, j] = on_anc[q]
                     continue
                 if m == n_own[q]:
@@ -510,11 +440,6 @@ def _register_fuse_kernel(
                 network,
                 use_mean,
             )
-
-
-@functools.lru_cache(maxsize=16)
-def _network(n: int) -> np.ndarray:
-    return sorting_network(n)
 
 
 def temporal_median(
@@ -587,101 +512,14 @@ def temporal_median(
     return out
 
 
-@nb.njit(cache=True, nogil=True)
-def _splat_kernel(values, positions, radius, best_d, best_v):  # pragma: no cover - numba
-    n, h, w = values.shape
-    hh, ww = best_d.shape
-    for k in range(n):
-        for i in range(h):
-            for j in range(w):
-                qx = positions[k, i, j, 0]
-                qy = positions[k, i, j, 1]
-                v = values[k, i, j]
-                y0 = max(int(np.ceil(qy - radius)), 0)
-                y1 = min(int(np.floor(qy + radius)), hh - 1)
-                x0 = max(int(np.ceil(qx - radius)), 0)
-                x1 = min(int(np.floor(qx + radius)), ww - 1)
-                for u in range(y0, y1 + 1):
-                    for vv in range(x0, x1 + 1):
-                        d = (u - qy) ** 2 + (vv - qx) ** 2
-                        if d < best_d[u, vv]:
-                            best_d[u, vv] = d
-                            best_v[u, vv] = v
-
-
-def splat_points(
-    values: npt.ArrayLike,
-    positions_px: npt.ArrayLike,
-    shape: tuple[int, int],
-    radius_px: float = 1.0,
-) -> np.ndarray:
-    """Nearest forward-registered sample per high-res pixel (shift-and-add, Farsiu et al. 2004).
-
-    Each low-res pixel of frame t is a point sample of the scene at its centre (high-res
-    coordinate (i+0.5)·r − 0.5, ``SPEC.md`` §1). Moved to the reference with its own motion
-    C_{t→t0}, the samples of a moving surface land at sub-pixel positions that outline the
-    surface at the reference time far more precisely than the r×r blocks of dense upsampling.
-    The depth of the nearest sample within ``radius_px`` tells on which surface each high-res
-    pixel lies (the guide of :func:`temporal_median`).
-
-    Parameters
-    ----------
-    values : array_like (N, h, w)
-        The low-res frames of the window (mm, 0 = no return).
-    positions_px : array_like (N, h, w, 2)
-        Where each sample lands on the reference grid, (x, y) in high-res px
-        (:func:`upsr.method.registration.trace_to_reference`).
-    shape : (H, W)
-        Size of the high-res grid.
-    radius_px : float
-        Largest distance (high-res px) between a pixel and the sample it takes.
-
-    Returns
-    -------
-    ndarray float32 (H, W): the nearest sample's depth, NaN where none is in reach.
-    """
-    vals = np.ascontiguousarray(values, dtype=np.float32)
-    pos = np.ascontiguousarray(positions_px, dtype=np.float32)
-    best_d = np.full(shape, radius_px * radius_px, np.float64)
-    best_v = np.full(shape, np.nan, np.float32)
-    _splat_kernel(vals, pos, float(radius_px), best_d, best_v)
-    return best_v
-
-
-def splat_nearest(
-    lowres: npt.ArrayLike, to_reference: npt.ArrayLike, scale: int, radius_px: float = 1.0
-) -> np.ndarray:
-    """:func:`splat_points` with dense motion fields to the reference on the high-res grid.
-
-    Parameters
-    ----------
-    lowres : array_like (N, h, w)
-        The low-res frames of the window (mm, 0 = no return).
-    to_reference : array_like (N, r·h, r·w, 2)
-        Motion of each frame to the reference on its own high-res grid
-        (:func:`upsr.method.registration.flows_to_reference`), read at the high-res pixel nearest to
-        each low-res pixel centre.
-    scale : int
-        SR factor r.
-    radius_px : float
-        Largest distance (high-res px) between a pixel and the sample it takes.
-
-    Returns
-    -------
-    ndarray float32 (r·h, r·w): the nearest sample's depth, NaN where none is in reach.
-    """
-    lr = np.asarray(lowres, dtype=np.float32)
-    maps = np.asarray(to_reference, dtype=np.float32)
-    _, h, w = lr.shape
-    hh, ww = maps.shape[1:3]
-    centre_y = np.arange(h) * scale + 0.5 * scale - 0.5
-    centre_x = np.arange(w) * scale + 0.5 * scale - 0.5
-    yi = np.minimum((centre_y + 0.5).astype(np.intp), hh - 1)
-    xi = np.minimum((centre_x + 0.5).astype(np.intp), ww - 1)
-    pos = maps[:, yi[:, None], xi[None, :], :].copy()
-    pos[..., 0] += centre_x[None, None, :]
-    pos[..., 1] += centre_y[None, :, None]
-    return splat_points(lr, pos, (hh, ww), radius_px)
+def _trust_inputs(anchor, tolerance, offsets, alternatives, lr, edge_mm):
+    """The trust arrays of :func:`register_and_fuse` as its kernel reads them."""
+    n, h, w = lr.shape
+    anc, tol, offs = trust_arrays(anchor, tolerance, offsets, (n, h, w))
+    if alternatives is None:
+        alternatives = surface_alternatives(anc, tol, edge_mm)
+    alts = [np.ascontiguousarray(a, np.float32).reshape(h, w) for a in alternatives]
+    return anc, tol, offs, alts
 
 
 def register_and_fuse(
@@ -702,6 +540,7 @@ def register_and_fuse(
     offsets: npt.ArrayLike | None = None,
     min_trusted: int = 1,
     estimator: str = "median",
+    alternatives: tuple[npt.ArrayLike, ...] | None = None,
 ) -> np.ndarray:
     """Registration (eq. 20) and invalid-aware median fusion (eq. 28) in one compiled pass.
 
@@ -750,6 +589,8 @@ def register_and_fuse(
     estimator : {"median", "mean"}
         Estimate of the samples of the winning surface: their median (eq. 28, ML for Laplace
         noise) or their mean (ML for Gaussian noise; between quantisation steps).
+    alternatives : tuple of 4 array_like (h, w), optional
+        :func:`upsr.method.trust.surface_alternatives` (default: from anchor and tolerance).
 
     Returns
     -------
@@ -765,15 +606,12 @@ def register_and_fuse(
     hh, ww = h * scale, w * scale
     (cols, fx), (rows, fy), ratio = interpolation_tables((hh, ww), mp.shape[1:3])
     table, step = weight_table(scale, weight_sigma_px)
-    gd = (
-        np.zeros((hh, ww), np.float32)
-        if guide is None
-        else np.ascontiguousarray(guide, dtype=np.float32)
-    )
+    gd = np.zeros((hh, ww), np.float32) if guide is None else np.asarray(guide, np.float32)
+    gd = np.ascontiguousarray(gd)
     measured = (lr > 0).any(axis=0) if measured_only else np.ones((h, w), np.bool_)
     if estimator not in ("median", "mean"):
         raise ValueError(f"estimator must be 'median' or 'mean', not {estimator!r}")
-    anc, tol, offs = trust_arrays(anchor, tolerance, offsets, (n, h, w))
+    anc, tol, offs, alts = _trust_inputs(anchor, tolerance, offsets, alternatives, lr, edge_mm)
     out = np.empty((hh, ww), np.float32)
     _register_fuse_kernel(
         lr,
@@ -798,6 +636,7 @@ def register_and_fuse(
         anc,
         tol,
         offs,
+        *alts,
         max(int(min_trusted), 1),
         estimator == "mean",
         out,

@@ -37,6 +37,7 @@ __all__ = [
     "radial_offsets",
     "reference_anchor",
     "remove_mixed_pixels",
+    "surface_alternatives",
     "surface_support",
     "trust_arrays",
 ]
@@ -191,6 +192,89 @@ def reference_anchor(
     tol = np.empty(z.shape, np.float32)
     _anchor_kernel(z, float(edge_mm), float(sigma_mm), float(k), TOLERANCE_FLOOR_MM, anchor, tol)
     return anchor, tol
+
+
+@nb.njit(cache=True, nogil=True, inline="always")
+def _run(anchor, i, j, di, dj, a0, edge, reach):  # pragma: no cover - numba
+    """How many pixels beyond (i, j) in direction (di, dj), up to ``reach``, lie on a0's
+    surface (the image border counts as the surface going on)."""
+    h, w = anchor.shape
+    for s in range(1, reach + 1):
+        a = i + s * di
+        b = j + s * dj
+        if a < 0 or a >= h or b < 0 or b >= w:
+            return reach
+        u = anchor[a, b]
+        if not (u > 0 and abs(u - a0) <= edge):
+            return s - 1
+    return reach
+
+
+@nb.njit(cache=True, nogil=True)
+def _alternatives_kernel(anchor, tol, edge, lo, tlo, hi, thi):  # pragma: no cover - numba
+    h, w = anchor.shape
+    for i in range(h):
+        for j in range(w):
+            lo[i, j] = 0.0
+            tlo[i, j] = 0.0
+            hi[i, j] = 0.0
+            thi[i, j] = 0.0
+            a0 = anchor[i, j]
+            if not a0 > 0:
+                continue
+            # a thin part (its surface at most 2 px wide across x or y) keeps its own samples
+            wx = 1 + _run(anchor, i, j, 0, -1, a0, edge, 2) + _run(anchor, i, j, 0, 1, a0, edge, 2)
+            wy = 1 + _run(anchor, i, j, -1, 0, a0, edge, 2) + _run(anchor, i, j, 1, 0, a0, edge, 2)
+            if wx < 3 or wy < 3:
+                continue
+            best_lo = np.inf
+            best_hi = -np.inf
+            for a in range(max(i - 1, 0), min(i + 2, h)):
+                for b in range(max(j - 1, 0), min(j + 2, w)):
+                    u = anchor[a, b]
+                    if not (u > 0 and abs(u - a0) > edge):
+                        continue
+                    if u < best_lo:
+                        best_lo = u
+                        lo[i, j] = u
+                        tlo[i, j] = tol[a, b]
+                    if u > best_hi:
+                        best_hi = u
+                        hi[i, j] = u
+                        thi[i, j] = tol[a, b]
+
+
+def surface_alternatives(
+    anchor: npt.ArrayLike, tolerance: npt.ArrayLike, edge_mm: float
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The other surfaces next to each reference pixel at a depth edge, whose samples compete.
+
+    At a depth edge of the reference the true edge lies somewhere inside the pixel's r×r
+    block: the samples of the neighbouring surface are trusted too (within its own tolerance)
+    and the surfaces compete in the fusion (vote weights, forward-splat guide), so the edge
+    lands at a sub-pixel position. Not for thin parts: a pixel whose surface is at most 2
+    low-res px wide across x or y keeps only its own samples (a thin fast leg the flow did
+    not follow is not voted away by the wall behind it).
+
+    Parameters
+    ----------
+    anchor, tolerance : array_like (h, w)
+        From :func:`reference_anchor`.
+    edge_mm : float
+        Depth step that separates two surfaces.
+
+    Returns
+    -------
+    near, near_tol, far, far_tol : ndarray float32 (h, w)
+        The nearest and the farthest anchor among the 3×3 neighbours that lie more than
+        ``edge_mm`` from the pixel's own, and their tolerances; 0 where there is none (no
+        edge, a thin part, no depth in the reference).
+    """
+    anc = np.ascontiguousarray(anchor, np.float32)
+    tol = np.ascontiguousarray(tolerance, np.float32)
+    outs = [np.empty(anc.shape, np.float32) for _ in range(4)]
+    _alternatives_kernel(anc, tol, float(edge_mm), *outs)
+    return outs[0], outs[1], outs[2], outs[3]
 
 
 @nb.njit(cache=True, nogil=True)

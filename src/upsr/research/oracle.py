@@ -17,6 +17,8 @@ only array operations, loops only over the samples of a pixel or over the BTV sh
 
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 import numpy.typing as npt
 
@@ -47,6 +49,7 @@ def temporal_median_numpy(
     guide_bonus: float = 0.35,
     min_valid_fraction: float = 0.5,
     edge_mm: float = 100.0,
+    use_mean: bool = False,
 ) -> np.ndarray:
     """Invalid-aware temporal median, in plain NumPy: the reference of
     :func:`upsr.method.fusion.temporal_median` (same parameters, same result).
@@ -78,6 +81,9 @@ def temporal_median_numpy(
         Threshold on the weighted share of valid samples.
     edge_mm : float
         Gap (mm) between sorted samples that separates two surfaces.
+    use_mean : bool
+        The mean of the winning surface's samples instead of their median (the fusion's
+        ``estimator="mean"``).
 
     Returns
     -------
@@ -100,7 +106,7 @@ def temporal_median_numpy(
         edge=edge,
         guide_bonus=guide_bonus,
     )
-    med = _median_of_range(vals, lo, hi)
+    med = _mean_of_range(vals, lo, hi) if use_mean else _median_of_range(vals, lo, hi)
     return np.where(known, med, np.float32(0.0)).astype(np.float32)
 
 
@@ -234,6 +240,57 @@ def _median_of_range(vals: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.nda
     odd = (hi - lo) % 2 == 1
     with np.errstate(invalid="ignore", over="ignore"):
         return np.where(odd, upper, np.float32(0.5) * (lower + upper))
+
+
+def _mean_of_range(vals: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
+    """The mean of the sorted samples lo..hi−1 of each pixel (float64 sum, float32 result)."""
+    idx = np.arange(vals.shape[0])[:, None, None]
+    inside = (idx >= lo) & (idx < hi)
+    total = np.where(inside, vals, 0.0).sum(axis=0, dtype=np.float64)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return (total / np.maximum(hi - lo, 1)).astype(np.float32)
+
+
+def _trusted_stack(
+    stack: np.ndarray, lowres: np.ndarray, maps: np.ndarray, ref: int, cfg, edge_mm: float, noise
+):
+    """The trust rules of the fusion (:mod:`upsr.method.trust`), on the registered high-res
+    stack: radial offsets subtracted, untrusted samples abstaining (NaN). Returns the stack,
+    the anchor (high-res, 0: none), and the pixels where the output is the anchor."""
+    from upsr.method.trust import (
+        radial_offsets,
+        reference_anchor,
+        surface_alternatives,
+    )
+    from upsr.method.upsampling import upsample_nearest
+
+    n = stack.shape[0]
+    r = cfg.scale
+    up = lambda a: upsample_nearest(a, r)  # noqa: E731
+    offsets = np.zeros(lowres.shape, np.float32)
+    if cfg.radial_compensation and n > 1:
+        offsets = radial_offsets(
+            lowres, maps, r, ref, sigma_mm=noise, edge_mm=edge_mm, radius_px=cfg.radial_radius_px
+        )
+    anchor, tol = reference_anchor(lowres[ref], noise, cfg.trust_k, edge_mm)
+    near, near_tol, far, far_tol = (up(a) for a in surface_alternatives(anchor, tol, edge_mm))
+    a_hr, t_hr = up(anchor), up(tol)
+    v = stack
+    inside = ~np.isnan(v)
+    with np.errstate(invalid="ignore"):
+        vc = v - np.stack([up(o) for o in offsets])
+        has = inside & (v > 0)
+        own = has & (a_hr > 0) & (np.abs(vc - a_hr) <= t_hr)
+        side = (np.abs(vc - near) <= near_tol) | (np.abs(vc - far) <= far_tol)
+    valid = has & ((a_hr <= 0) | own | side)
+    vote = inside & ((a_hr <= 0) | valid)
+    out = np.where(vote, np.where(has, vc, v), np.float32(np.nan)).astype(np.float32)
+    m, n_own = valid.sum(axis=0), own.sum(axis=0)
+    k = cfg.min_trusted_samples
+    fallback = (a_hr > 0) & ((m < k) | ((m == n_own) & (n_own < k)))
+    # only the own surface trusted: its samples alone (no competition with other surfaces)
+    only_own = (a_hr > 0) & (m == n_own)
+    return out, a_hr, fallback, only_own
 
 
 def estimate_noise_mm_numpy(z: npt.ArrayLike, lag_px: int = 1) -> float:
@@ -402,9 +459,10 @@ def super_resolve_straightforward(frames: npt.ArrayLike, config: UPSRConfig) -> 
         sample_offsets,
         warp_nearest,
     )
+    from upsr.method.trust import fill_holes, remove_mixed_pixels, surface_support
     from upsr.method.upsampling import upsample_nearest
     from upsr.method.validation import as_depth_video
-    from upsr.method.windowed import window_start
+    from upsr.method.windowed import fix_video_statistics, window_start
 
     cfg = config
     video = as_depth_video(frames)
@@ -418,11 +476,16 @@ def super_resolve_straightforward(frames: npt.ArrayLike, config: UPSRConfig) -> 
     )
     front.fix_statistics(video[:n], estimate_noise=estimate_noise_mm_numpy)
     edge_mm = front.edge_mm
+    estimator, trust_mm = fix_video_statistics(front, video[:n], cfg)
+    use_mean = estimator == "mean"
     out = np.empty((t_total, h * r, w * r), np.float32)
     for t in range(t_total):
         s = window_start(t, t_total, cfg)
         ref = t - s
-        up = [upsample_nearest(video[k], r) for k in range(s, s + n)]
+        lowres = video[s : s + n]
+        if cfg.remove_mixed:
+            lowres = remove_mixed_pixels(lowres, edge_mm)  # before anything is fused
+        up = [upsample_nearest(f, r) for f in lowres]
         pre = [front.prefilter(video[k]) for k in range(s, s + n)]
         guides = [front.guide(p) for p in pre]
         fwd: list[np.ndarray | None] = [None] * n
@@ -437,21 +500,36 @@ def super_resolve_straightforward(frames: npt.ArrayLike, config: UPSRConfig) -> 
             d = np.stack([sample_offsets(m, r) for m in maps])
             s2 = 2.0 * (cfg.edge_weight_px * r) ** 2
             weights = cfg.edge_weight_floor + (1.0 - cfg.edge_weight_floor) * np.exp(-d * d / s2)
-        lowres = video[s : s + n]
         guide = None
         if cfg.splat_radius_px and n > 1:
             back = flows_to_reference(ref, bwd, fwd, (h * r, w * r))
             guide = splat_nearest(lowres, np.stack(back), r, cfg.splat_radius_px)
-        fused = temporal_median_numpy(
+        fallback = only_own = None
+        if cfg.trust_k is not None:
+            stack, anchor, fallback, only_own = _trusted_stack(
+                stack, lowres, maps, ref, cfg, edge_mm, trust_mm
+            )
+        fuse = functools.partial(
+            temporal_median_numpy,
             stack,
             ref,
             weights=weights,
             guide=guide,
             min_valid_fraction=cfg.min_valid_fraction,
-            edge_mm=edge_mm,
+            use_mean=use_mean,
         )
+        fused = fuse(edge_mm=edge_mm)
+        if fallback is not None:
+            # the reference measured depth: its own surface's samples alone, or the anchor
+            fused = np.where(only_own, fuse(edge_mm=np.inf), fused)
+            fused = np.where(fallback, anchor, fused)
         fused[~upsample_nearest((lowres > 0).any(axis=0), r)] = 0.0
-        out[t] = remove_speckles(
+        res = remove_speckles(
             deblur_numpy(fused, cfg.deblur, scale=r), cfg.speckle_size_px, cfg.edge_mm
         )
+        if fallback is not None:
+            # the speckle filter never erases what the reference measured on a surface
+            keep = upsample_nearest(surface_support(lowres[ref], edge_mm), r)
+            res = np.where(keep & (res == 0) & (fused > 0), fused, res)
+        out[t] = fill_holes(res, r, iterations=64) if cfg.fill_holes else res
     return out

@@ -1,0 +1,86 @@
+"""Sorting networks and medians of sorted samples, the building blocks of the fusion's
+per-pixel estimates (:mod:`upsr.method.fusion`)."""
+
+from __future__ import annotations
+
+import functools
+
+import numba as nb
+import numpy as np
+
+from upsr._numba import SAFE_FASTMATH
+
+__all__ = ["sorting_network"]
+
+
+@nb.njit(cache=True, nogil=True, inline="always")
+def _median_sorted(vals, lo, hi):  # pragma: no cover - numba
+    """Median of the sorted vals[lo:hi] (mean of the two middle values for an even count)."""
+    m = lo + (hi - lo) // 2
+    if (hi - lo) % 2 == 1:
+        return vals[m]
+    return 0.5 * (vals[m - 1] + vals[m])
+
+
+def sorting_network(n: int) -> np.ndarray:
+    """Comparators (i, j), i < j, of Batcher's odd–even merge sort for n keys, as an (m, 2) array.
+
+    Built for the next power of two and pruned of every comparator that touches a padding
+    position ≥ n (padding keys are +∞, already in place, so those never swap). For the usual
+    window lengths: 9 keys in 28 compare-exchanges, branch-free, instead of an insertion sort.
+    """
+    size = 1
+    while size < n:
+        size *= 2
+    pairs: list[tuple[int, int]] = []
+
+    def merge(lo: int, length: int, step: int) -> None:
+        double = step * 2
+        if double < length:
+            merge(lo, length, double)
+            merge(lo + step, length, double)
+            pairs.extend((i, i + step) for i in range(lo + step, lo + length - step, double))
+        else:
+            pairs.append((lo, lo + step))
+
+    def sort(lo: int, length: int) -> None:
+        if length > 1:
+            half = length // 2
+            sort(lo, half)
+            sort(lo + half, half)
+            merge(lo, length, 1)
+
+    sort(0, size)
+    kept = [(i, j) for i, j in pairs if j < n]
+    return np.array(kept, np.int64).reshape(-1, 2)
+
+
+@nb.njit(cache=True, nogil=True, inline="always")
+def _centre_sorted(vals, lo, hi, use_mean):  # pragma: no cover - numba
+    """The estimate of the sorted vals[lo:hi]: their median, or their mean (``use_mean``)."""
+    if use_mean:
+        acc = 0.0
+        for p in range(lo, hi):
+            acc += vals[p]
+        return np.float32(acc / (hi - lo))
+    return _median_sorted(vals, lo, hi)
+
+
+@nb.njit(cache=True, nogil=True, fastmath=SAFE_FASTMATH)
+def _sort_columns(a, network):  # pragma: no cover - numba
+    """Sort every column of a (n, m) at once: a branch-free min/max sorting network whose
+    compare-exchanges are loops over the row (SIMD; a function of its own so that LLVM
+    vectorises them)."""
+    m = a.shape[1]
+    for c in range(network.shape[0]):
+        ap = a[network[c, 0]]
+        aq = a[network[c, 1]]
+        for j in range(m):
+            lo = min(ap[j], aq[j])
+            aq[j] = max(ap[j], aq[j])
+            ap[j] = lo
+
+
+@functools.lru_cache(maxsize=16)
+def _network(n: int) -> np.ndarray:
+    return sorting_network(n)
