@@ -8,7 +8,8 @@ forced. Depth is returned in millimetres (float32, 0 = no measurement).
 from upsr._lazy import attach, by_module
 
 #: The format modules (each: probe, frames and, if writable, a FrameSink) and helpers.
-_MODULES = "color datasets exr identity npy npz paths png pointcloud registry rosbag tiff units video"
+_MODULES = """color datasets exr identity npy npz paths png pointcloud registry rosbag tiff units
+video"""
 #: The reader/writer interface every command uses (defined in :mod:`upsr.io.video`).
 _API = """FORMATS WRITE_FORMATS VideoInfo VideoWriter intrinsics_path
 iter_frames probe read_intrinsics read_video write_bytes_atomic write_text_atomic write_video"""
