@@ -307,7 +307,7 @@ def test_output_onto_another_recordings_input_is_refused(recs, tmp_path: Path, c
     (tmp_path / "a.npy").symlink_to(victim)
     before = victim.read_bytes()
     args = ["batch", tmp_path / "a.npy", d / "b.npy", "--out", out, "-r", 2, "--overwrite"]
-    assert_user_error(*run_cli(capsys, *args), "is the input")
+    assert_user_error(*run_cli(capsys, *args), "choose another output folder")
     assert victim.read_bytes() == before and sorted(p.name for p in out.iterdir()) == ["b.npy"]
 
 

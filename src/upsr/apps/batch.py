@@ -52,7 +52,7 @@ __all__ = [
 ]
 
 WORK_DIR = ".upsr-batch"
-_OUT_SUFFIX = {"npy": ".npy", "npz": ".npz", "tiff": ".tif", "png": "", "exr": ""}
+_OUT_SUFFIX = {"npy": ".npy", "npz": ".npz", "tiff": ".tif", "png": "", "exr": "", "rosbag": ""}
 
 
 # ---------------------------------------------------------------------------------------------
@@ -229,6 +229,8 @@ class Recording:
     camera: Any = None
     work: Path | None = None
     config: UPSRConfig | None = None
+    frame_names: list[str] | None = None
+    timestamps: Any = None
 
 
 @dataclass
@@ -534,8 +536,12 @@ def _prepare(
     workers: int,
     intrinsics: str | None,
     shrink_frames: bool = False,
+    limits: dict[str, Any] | None = None,
 ) -> list[dict[str, Any]]:
-    """Probe, compute the video statistics and plan the chunks of one recording."""
+    """Probe, check the resources, compute the video statistics and plan the chunks of one
+    recording (``limits``: ``out_fmt``, ``max_memory``, ``workers`` of the memory check)."""
+    from upsr.apps._preflight import check_run_resources
+    from upsr.io import identity
     from upsr.io import video as io
 
     info = io.probe(rec.input, key=read["key"], fmt=read["fmt"], topic=read["topic"])
@@ -548,7 +554,20 @@ def _prepare(
             f"{info.n_frames} or less"
         )
     rec.n_frames = info.n_frames
+    lim = limits or {}
+    check_run_resources(
+        info.shape,
+        cfg,
+        workers=lim.get("workers", workers),
+        out_fmt=lim.get("out_fmt", "npy"),
+        output=rec.output,
+        max_memory=lim.get("max_memory"),
+    )
     rec.camera = _camera(rec.input, info, read, intrinsics)
+    rec.frame_names = identity.read_frame_names(rec.input, fmt=read["fmt"])
+    rec.timestamps = identity.read_timestamps(
+        rec.input, fmt=read["fmt"], topic=read["topic"], key=read["key"]
+    )
     first = []
     # the first N frames only (not exhausted: their validity is not the whole video's)
     with contextlib.closing(io.iter_frames(rec.input, **read, stop=cfg.n_frames)) as frames:
@@ -599,25 +618,43 @@ def _camera(inp: Path, info: Any, read: dict[str, Any], intrinsics: str | None) 
     return input_camera(inp, info, intrinsics, fmt=read["fmt"], topic=read["topic"])
 
 
-def _assemble(rec: Recording, cfg: UPSRConfig, out_fmt: str | None, depth_scale: float) -> None:
-    from upsr.geometry.intrinsics import write_intrinsics
+def _assemble(
+    rec: Recording,
+    cfg: UPSRConfig,
+    out_fmt: str | None,
+    depth_scale: float,
+    keep_names: bool = True,
+) -> None:
+    """Write the output of ``rec`` from its chunks, with its intrinsics sidecar (published
+    with the video: a failing sidecar leaves no complete-looking output)."""
+    from upsr.geometry.intrinsics import intrinsics_text
     from upsr.io import video as io
 
+    out_cam = None if rec.camera is None else rec.camera.scaled(cfg.scale)
     with io.VideoWriter(
-        rec.output, n_frames=rec.n_frames, fmt=out_fmt, depth_scale=depth_scale, overwrite=True
+        rec.output,
+        n_frames=rec.n_frames,
+        fmt=out_fmt,
+        depth_scale=depth_scale,
+        overwrite=True,
+        frame_names=rec.frame_names if keep_names else None,
+        timestamps_ns=rec.timestamps,
+        camera=out_cam,
     ) as writer:
+        if out_cam is not None:
+            text = intrinsics_text(
+                out_cam,
+                source=rec.camera,
+                scale=cfg.scale,
+                timestamps_ns=rec.timestamps,
+                frame_names=rec.frame_names,
+            )
+            writer.add_sidecar(io.intrinsics_path(rec.output), text)
         for spec in rec.chunks:
             part = np.load(spec["part"], mmap_mode="r", allow_pickle=False)
             for frame in part:
                 writer.write(np.asarray(frame))
             del part
-    if rec.camera is not None:
-        write_intrinsics(
-            io.intrinsics_path(rec.output),
-            rec.camera.scaled(cfg.scale),
-            source=rec.camera,
-            scale=cfg.scale,
-        )
     _drop_work(rec)
 
 
@@ -646,6 +683,9 @@ def run_batch(
     progress: bool = True,
     log: Callable[[str], None] | None = None,
     shrink_frames: bool = False,
+    output_depth_scale: float = 1000.0,
+    max_memory: int | None = None,
+    keep_names: bool = True,
 ) -> BatchResult:
     """Super-resolve every recording of ``inputs`` into ``out_dir``.
 
@@ -660,8 +700,8 @@ def run_batch(
     config : UPSRConfig
         Method parameters (as ``upsr run``).
     key, topic, input_format, depth_scale
-        Read options, as for :func:`upsr.io.iter_frames`; ``depth_scale`` also applies to
-        PNG output.
+        Read options, as for :func:`upsr.io.iter_frames` (``depth_scale``: the input's raw
+        units per metre).
     intrinsics : str, optional
         ``"fx,fy,cx,cy"`` of the inputs (else read from the format when it carries them).
     scheduler : str, optional
@@ -679,6 +719,13 @@ def run_batch(
         Receives one line per finished, skipped or failed recording.
     shrink_frames : bool
         A recording shorter than N frames uses all its frames (N = T) instead of failing.
+    output_depth_scale : float
+        PNG/TIFF/EXR outputs: raw units per metre (1000: mm).
+    max_memory : int, optional
+        Bytes a recording's work may use (``--max-memory``) instead of what is available:
+        each recording's estimate is checked before its work.
+    keep_names : bool
+        PNG/EXR folder outputs keep the input's frame names (False: 000000, …).
 
     Returns
     -------
@@ -695,6 +742,10 @@ def run_batch(
     _check_out_vs_inputs(out, recs)
     read = {"key": key, "topic": topic, "fmt": input_format, "depth_scale": depth_scale}
     options = _options_record(config, read, out_fmt, intrinsics, shrink_frames)
+    if output_depth_scale != 1000.0:  # (absent at the default: records of earlier batches)
+        options["output_depth_scale"] = output_depth_scale
+    if not keep_names:
+        options["keep_names"] = False
     say = log or (lambda line: None)
     with _batch_folder(out):
         return _run_locked(
@@ -704,7 +755,7 @@ def run_batch(
             options,
             say,
             out_fmt=out_fmt,
-            depth_scale=depth_scale,
+            depth_scale=output_depth_scale,
             intrinsics=intrinsics,
             scheduler=scheduler,
             workers=workers,
@@ -712,6 +763,7 @@ def run_batch(
             overwrite=overwrite,
             progress=progress,
             shrink_frames=shrink_frames,
+            limits={"max_memory": max_memory, "keep_names": keep_names},
         )
 
 
@@ -731,8 +783,10 @@ def _run_locked(
     overwrite: bool,
     progress: bool,
     shrink_frames: bool,
+    limits: dict[str, Any] | None = None,
 ) -> BatchResult:
-    """:func:`run_batch` once it holds the lock of the output folder."""
+    """:func:`run_batch` once it holds the lock of the output folder (``depth_scale``: the
+    output's; ``limits``: ``max_memory``, ``keep_names``)."""
     from tqdm import tqdm
 
     executor: Any = None
@@ -751,6 +805,12 @@ def _run_locked(
             else _LocalExecutor(workers or os.cpu_count() or 1)
         )
         run = _BatchRun(recs, config, say, bar.update, options)
+        local = not scheduler
+        run.limits = {
+            **(limits or {}),
+            "out_fmt": out_fmt,
+            "workers": executor.workers if local else 0,  # Dask: memory of the cluster
+        }
         pending = run.submit_all(
             executor, read, out_fmt, chunk_frames, intrinsics, overwrite, shrink_frames
         )
@@ -983,6 +1043,7 @@ class _BatchRun:
     ) -> None:
         self.recs, self.config, self.say, self.tick = recs, config, say, tick
         self.options = options if options is not None else {}
+        self.limits: dict[str, Any] = {}
 
     def fail(self, rec: Recording, message: str, kind: str) -> None:
         rec.status, rec.error, rec.error_kind = "failed", message, kind
@@ -1024,6 +1085,7 @@ class _BatchRun:
                     executor.workers,
                     intrinsics,
                     shrink_frames,
+                    self.limits,
                 )
             except InputError as e:
                 self.fail(rec, str(e), "input")
@@ -1126,7 +1188,8 @@ class _BatchRun:
             return
         try:
             _write_record(rec, self.options, "writing")
-            _assemble(rec, rec.config or self.config, out_fmt, depth_scale)
+            keep = self.limits.get("keep_names", True)
+            _assemble(rec, rec.config or self.config, out_fmt, depth_scale, keep)
             _write_record(rec, self.options, "done")
         except InputError as e:
             self.fail(rec, str(e), "input")

@@ -33,6 +33,7 @@ __all__ = [
     "PinholeCamera",
     "camera_from_dict",
     "camera_to_dict",
+    "intrinsics_text",
     "load_intrinsics",
     "parse_intrinsics",
     "scale_intrinsics",
@@ -127,6 +128,29 @@ def load_intrinsics(path: str | os.PathLike[str]) -> PinholeCamera:
     return camera_from_dict(d, str(p))
 
 
+def intrinsics_text(
+    camera: PinholeCamera,
+    *,
+    source: PinholeCamera | None = None,
+    scale: int | float | None = None,
+    timestamps_ns: Sequence[int] | None = None,
+    frame_names: Sequence[str] | None = None,
+) -> str:
+    """The JSON text :func:`write_intrinsics` writes (e.g. for ``VideoWriter.add_sidecar``)."""
+    d = camera_to_dict(camera)
+    if scale is not None:
+        d["scale"] = scale
+    if source is not None:
+        d["input"] = camera_to_dict(source)
+        d["input"].pop("intrinsic_matrix")
+    if timestamps_ns is not None:
+        d["timestamps_ns"] = [int(t) for t in timestamps_ns]
+    if frame_names is not None:
+        d["frame_names"] = [str(n) for n in frame_names]
+    d["convention"] = CONVENTION
+    return json.dumps(d, indent=2) + "\n"
+
+
 def write_intrinsics(
     path: str | os.PathLike[str],
     camera: PinholeCamera,
@@ -145,15 +169,7 @@ def write_intrinsics(
     """
     from upsr._atomic import write_text_atomic
 
-    d = camera_to_dict(camera)
-    if scale is not None:
-        d["scale"] = scale
-    if source is not None:
-        d["input"] = camera_to_dict(source)
-        d["input"].pop("intrinsic_matrix")
-    if timestamps_ns is not None:
-        d["timestamps_ns"] = [int(t) for t in timestamps_ns]
-    if frame_names is not None:
-        d["frame_names"] = [str(n) for n in frame_names]
-    d["convention"] = CONVENTION
-    return write_text_atomic(path, json.dumps(d, indent=2) + "\n")
+    text = intrinsics_text(
+        camera, source=source, scale=scale, timestamps_ns=timestamps_ns, frame_names=frame_names
+    )
+    return write_text_atomic(path, text)

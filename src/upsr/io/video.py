@@ -46,7 +46,6 @@ folders of the output are created (and removed again if the writing fails).
 from __future__ import annotations
 
 import contextlib
-import errno
 import os
 import stat
 import weakref
@@ -79,6 +78,7 @@ from upsr.io._base import (
     check_frame_range,
     check_input_type,
 )
+from upsr.io.paths import check_output_path
 from upsr.method.validation import as_depth_frame
 
 __all__ = [
@@ -333,119 +333,6 @@ def read_intrinsics(path: PathLike, *, fmt: str | None = None, topic: str | None
 # ---------------------------------------------------------------------------------------------
 # output
 # ---------------------------------------------------------------------------------------------
-def check_output_path(
-    input_paths: Iterable[PathLike] | PathLike,
-    output_path: PathLike,
-    overwrite: bool = False,
-    *,
-    fmt: str | None = None,
-) -> Path:
-    """Check that writing ``output_path`` is safe; return it as a :class:`~pathlib.Path`.
-
-    Refused (:class:`~upsr.errors.InputError`):
-
-    - an output that is one of the inputs (same path after resolving symlinks, or the same
-      file through a hard link), or a folder that contains an input;
-    - an existing output unless ``overwrite``; with ``overwrite``, an existing folder is only
-      replaced by PNG output and only if it holds nothing but PNG files, and a folder is never
-      replaced by a file or a file by a folder;
-    - an output whose nearest existing ancestor is not a writable folder.
-
-    Missing parent folders are allowed: :class:`VideoWriter` creates them.
-    """
-    out = Path(output_path)
-    if isinstance(input_paths, (str, os.PathLike)):
-        input_paths = [input_paths]
-    out_res = _resolve(out, "output")
-    for inp in input_paths:
-        inp = Path(inp)
-        in_res = _resolve(inp, "input")
-        same = out_res == in_res
-        if not same and os.path.exists(out) and os.path.exists(inp):
-            with contextlib.suppress(OSError):
-                same = os.path.samefile(out, inp)
-        if same:
-            raise InputError(f"output {out} is the input {inp}: choose another output path")
-        if out_res in in_res.parents:
-            raise InputError(
-                f"output folder {out} contains the input {inp}: choose another output path"
-            )
-        if in_res in out_res.parents and in_res.is_dir():
-            raise InputError(
-                f"output {out} is inside the input folder {inp.name or inp}: choose another output"
-            )
-    try:
-        st_out = os.lstat(out)
-    except (FileNotFoundError, NotADirectoryError):  # a parent that is a file: checked below
-        st_out = None
-    except OSError as e:
-        raise InputError(f"output {out}: cannot access ({e.strerror or e})") from None
-    if st_out is not None:
-        try:
-            st_target = os.stat(out)
-        except OSError:  # a dangling link: replaced like a file
-            st_target = st_out
-        mode = st_target.st_mode
-        dangling = st_target is st_out and stat.S_ISLNK(mode)
-        if not (stat.S_ISREG(mode) or stat.S_ISDIR(mode) or dangling):
-            from upsr.io._base import file_kind
-
-            raise InputError(
-                f"output {out} is {file_kind(mode)}: refusing to write to or replace it"
-            )
-    f = _output_format(out, fmt)
-    if os.path.lexists(out):
-        if not overwrite:
-            raise InputError(
-                f"output {out} already exists (use --overwrite / overwrite=True to replace it)"
-            )
-        is_dir = out.is_dir() and not out.is_symlink()
-        if _folder_output(f, out):
-            frame_suffix = f".{f}"
-            if not is_dir:
-                raise InputError(
-                    f"output {out} exists and is not a folder: refusing to replace "
-                    f"it by a folder of {f.upper()} frames"
-                )
-            try:
-                entries = list(os.scandir(out))
-            except OSError as e:
-                raise InputError(f"output {out}: cannot list ({e.strerror or e})") from None
-            other = [
-                e.name
-                for e in entries
-                if not (e.is_file(follow_symlinks=False) and e.name.lower().endswith(frame_suffix))
-            ]
-            if other:
-                raise InputError(
-                    f"refusing to replace folder {out}: it holds other things "
-                    f"than {f.upper()} frames (e.g. {other[0]!r})"
-                )
-        elif is_dir:
-            raise InputError(f"output {out} is a folder: refusing to replace it by a .{f} file")
-    anc = Path(os.path.abspath(out)).parent
-    while not anc.exists() and anc != anc.parent:
-        if os.path.lexists(anc):  # dangling symlink
-            raise InputError(f"cannot create {out}: {anc} is a broken link")
-        anc = anc.parent
-    if not anc.is_dir():
-        raise InputError(f"cannot create {out}: {anc} is not a folder")
-    if not os.access(anc, os.W_OK | os.X_OK):
-        raise InputError(f"cannot create {out}: no permission to write in {anc}")
-    return out
-
-
-def _resolve(p: Path, what: str) -> Path:
-    try:
-        return p.resolve()
-    except RuntimeError:  # Python < 3.13: "Symlink loop"
-        raise InputError(f"{what} {p}: symbolic link loop") from None
-    except OSError as e:
-        if e.errno == errno.ELOOP:
-            raise InputError(f"{what} {p}: symbolic link loop") from None
-        raise InputError(f"{what} {p}: cannot access ({e.strerror or e})") from None
-
-
 def _cleanup(temps: list[Path], created_dirs: list[Path]) -> None:
     for p in temps:
         remove(p)

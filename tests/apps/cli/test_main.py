@@ -60,24 +60,29 @@ def test_internal_error(
     assert rc == 2 and "Traceback" in err and err.strip().endswith("no such file or folder")
 
 
-def test_warnings_are_one_line(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
-    np.save(tmp_path / "in.npy", video() * 40)  # up to ~100 m: does not fit 16-bit mm PNGs
-    rc, _out, err = run_cli(
-        capsys,
-        "run",
-        tmp_path / "in.npy",
-        "-o",
-        tmp_path / "o",
-        "-r",
-        1,
-        "-n",
-        1,
-        "--no-deblur",
-        "-q",
-    )
+def test_warnings_are_one_line(
+    capsys: pytest.CaptureFixture[str], tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    monkeypatch.chdir(tmp_path)  # short names: the message is not shortened
+    np.save("in.npy", video() / 1000)  # metres in a .npy (mm): a unit trap
+    rc, _out, err = run_cli(capsys, "run", "in.npy", "-o", "o.npy", "-r", 1, "-n", 1, "-q")
     assert rc == 0
-    assert err.startswith("upsr: warning: ") and "clipped" in err
-    assert len(err.strip().splitlines()) == 1
+    assert err.startswith("upsr: warning: ") and "plausible" in err and "metres" in err
+    assert len(err.strip().splitlines()) == 1 and len(err.strip()) <= 200
+
+
+def test_png_output_that_cannot_hold_the_depth_is_refused_first(
+    capsys: pytest.CaptureFixture[str], tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    monkeypatch.chdir(tmp_path)
+    np.save("in.npy", video() * 40)  # up to ~100 m: does not fit 16-bit mm PNGs
+    args = ("run", "in.npy", "-o", "o", "-r", 1, "-n", 1, "-q")
+    rc, _out, err = run_cli(capsys, *args)
+    assert rc == 2 and "--output-depth-scale" in err
+    assert len(err.strip().splitlines()) == 1 and len(err.strip()) <= 200
+    assert not (tmp_path / "o").exists()
+    rc, _out, err = run_cli(capsys, *args, "--output-depth-scale", 500)
+    assert rc == 0, err
 
 
 def test_help_texts() -> None:

@@ -35,8 +35,24 @@ METHOD_OPTIONS = {
     "--speckle-px",
     "--no-refine",
     "--keep-all-motion",
+    "--fill-holes",
+    "--trust-k",
+    "--no-trust",
+    "--fusion-estimator",
+    "--no-mixed-removal",
+    "--no-radial",
 }
-READ_OPTIONS = {"--key", "--topic", "--input-format", "--depth-scale", "--intrinsics"}
+READ_OPTIONS = {
+    "--key",
+    "--topic",
+    "--input-format",
+    "--depth-scale",
+    "--input-depth-scale",
+    "--output-depth-scale",
+    "--intrinsics",
+    "--keep-names",
+    "--max-memory",
+}
 
 
 def _params(name: str) -> dict[str, object]:

@@ -16,28 +16,39 @@ from upsr.apps.cli.options import (
     AlphaOpt,
     BlurOpt,
     BtvRadiusOpt,
+    DepthScaleAliasOpt,
+    FillHolesOpt,
     FlowOpt,
     FlowPresetOpt,
     FlowScaleOpt,
     FramesOpt,
+    FusionEstimatorOpt,
     InFormatOpt,
+    InputDepthScaleOpt,
     IterationsOpt,
     KeepAllMotionOpt,
+    KeepNamesOpt,
     KeyOpt,
     LamOpt,
+    MaxMemoryOpt,
     NoDeblurOpt,
+    NoMixedRemovalOpt,
+    NoRadialOpt,
     NoRefineOpt,
-    OutDepthScaleOpt,
+    NoTrustOpt,
     OutFormat,
     OutIntrinsicsOpt,
+    OutputDepthScaleOpt,
     QuietOpt,
     RefinePresetOpt,
     ScaleOpt,
     SpecklePxOpt,
     TopicOpt,
-    config_from_options,
+    TrustKOpt,
     fmt,
+    method_config,
 )
+from upsr.errors import one_line
 
 __all__ = ["batch", "register"]
 
@@ -86,7 +97,9 @@ def batch(
     key: KeyOpt = None,
     topic: TopicOpt = None,
     input_format: InFormatOpt = None,
-    depth_scale: OutDepthScaleOpt = 1000.0,
+    input_depth_scale: InputDepthScaleOpt = None,
+    depth_scale: DepthScaleAliasOpt = None,
+    output_depth_scale: OutputDepthScaleOpt = None,
     no_deblur: NoDeblurOpt = False,
     lam: LamOpt = None,
     alpha: AlphaOpt = None,
@@ -100,6 +113,14 @@ def batch(
     speckle_px: SpecklePxOpt = None,
     no_refine: NoRefineOpt = False,
     keep_all_motion: KeepAllMotionOpt = False,
+    fill_holes: FillHolesOpt = False,
+    trust_k: TrustKOpt = None,
+    no_trust: NoTrustOpt = False,
+    fusion_estimator: FusionEstimatorOpt = None,
+    no_mixed_removal: NoMixedRemovalOpt = False,
+    no_radial: NoRadialOpt = False,
+    keep_names: KeepNamesOpt = True,
+    max_memory: MaxMemoryOpt = None,
     overwrite: Annotated[
         bool, typer.Option("--overwrite", help="Recompute outputs that exist [default: skip].")
     ] = False,
@@ -113,25 +134,13 @@ def batch(
     parallel with results identical to a single run. A failing recording is reported and the
     others go on; exit status 2 (bad input) or 1 (internal error) if any failed.
     """
+    cfg = method_config(locals())  # first: locals() are the options
+    from upsr.apps._preflight import memory_limit
     from upsr.apps.batch import run_batch
+    from upsr.io.units import resolve_depth_scales
 
-    cfg = config_from_options(
-        scale,
-        frames,
-        lam=lam,
-        alpha=alpha,
-        btv_radius=btv_radius,
-        iterations=iterations,
-        blur=blur,
-        flow=flow,
-        flow_preset=flow_preset,
-        flow_scale=flow_scale,
-        refine_preset=refine_preset,
-        speckle_px=speckle_px,
-        no_deblur=no_deblur,
-        no_refine=no_refine,
-        keep_all_motion=keep_all_motion,
-    )
+    mem = memory_limit(max_memory)
+    s_in, s_out = resolve_depth_scales(depth_scale, input_depth_scale, output_depth_scale)
     start = time.perf_counter()
     result = run_batch(
         inputs,
@@ -140,7 +149,10 @@ def batch(
         key=key,
         topic=topic,
         input_format=fmt(input_format),
-        depth_scale=depth_scale,
+        depth_scale=s_in,
+        output_depth_scale=s_out,
+        max_memory=mem,
+        keep_names=keep_names,
         output_format=output_format.value,
         intrinsics=intrinsics,
         scheduler=scheduler,
@@ -160,7 +172,7 @@ def batch(
         msg = " ".join(rec.error.split())
         if str(rec.input) not in msg:
             msg = f"{rec.input}: {msg}"
-        print(f"upsr: error: {msg}", file=sys.stderr)
+        print(one_line(f"upsr: error: {msg}"), file=sys.stderr)
     return result.exit_code
 
 

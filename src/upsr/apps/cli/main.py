@@ -29,7 +29,7 @@ from typing import Annotated, Any
 import typer
 
 from upsr.apps.cli import batch, demo, experiment, live, pictures, pointcloud, run
-from upsr.errors import InputError
+from upsr.errors import InputError, one_line
 
 try:  # typer >= 0.24 vendors click
     from typer._click.exceptions import ClickException, UsageError
@@ -122,7 +122,8 @@ def _one_line(text: object) -> str:
 
 
 def _print_error(message: str) -> None:
-    print(f"upsr: error: {_one_line(message)}", file=sys.stderr, flush=True)
+    """``upsr: error: …`` on one line of at most 200 characters (:func:`upsr.errors.one_line`)."""
+    print(one_line(f"upsr: error: {message}"), file=sys.stderr, flush=True)
 
 
 @contextlib.contextmanager
@@ -132,7 +133,7 @@ def _cli_environment() -> Iterator[None]:
     def show(
         message: Any, category: Any, filename: Any, lineno: Any, file: Any = None, line: Any = None
     ) -> None:
-        print(f"upsr: warning: {_one_line(message)}", file=sys.stderr, flush=True)
+        print(one_line(f"upsr: warning: {message}"), file=sys.stderr, flush=True)
 
     def on_sigterm(signum: int, frame: Any) -> None:
         _State.terminated = True

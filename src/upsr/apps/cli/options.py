@@ -1,9 +1,12 @@
 """The options the ``upsr`` commands share, each defined once (typer ``Annotated`` aliases).
 
-* method options (``upsr run`` and ``upsr batch``): ``--scale``, ``--frames`` and the 13 options
+* method options (``upsr run`` and ``upsr batch``): ``--scale``, ``--frames`` and the 19 options
   of :class:`upsr.method.config.UPSRConfig`, turned into a config by :func:`config_from_options`;
 * read options (every command that reads a video): ``--key``, ``--topic``, ``--input-format``,
   ``--depth-scale``, ``--intrinsics``;
+* units, identity and resources (``upsr run`` and ``upsr batch``): ``--input-depth-scale``,
+  ``--output-depth-scale``, ``--sensor``, ``--strict-units``, ``--keep-names/--renumber``,
+  ``--max-memory``;
 * ``--format`` choices (:class:`OutFormat`), ``--overwrite``, ``--quiet``.
 
 Importing this module does not import NumPy or the method (``upsr --version`` stays fast): the
@@ -27,10 +30,13 @@ __all__ = [
     "Blur",
     "Flow",
     "FlowPreset",
+    "FusionEstimator",
     "InFormat",
     "OutFormat",
+    "Sensor",
     "config_from_options",
     "fmt",
+    "method_config",
     "read_options",
 ]
 
@@ -45,6 +51,8 @@ HELP_DEFAULTS: dict[str, Any] = {
     "deblur.blur": "none",
     "flow": "dis",
     "flow_preset": "medium",
+    "trust_k": 3.0,
+    "fusion_estimator": "auto",
 }
 _D = HELP_DEFAULTS
 
@@ -75,6 +83,24 @@ class OutFormat(str, Enum):
     png = "png"
     tiff = "tiff"
     exr = "exr"
+    rosbag = "rosbag"
+
+
+class Sensor(str, Enum):
+    """Sensors of :data:`upsr.io.units.SENSOR_RANGES_MM` (``--sensor``)."""
+
+    default = "default"
+    realsense = "realsense"
+    kinect = "kinect"
+    kinect2 = "kinect2"
+    tof = "tof"
+    lidar = "lidar"
+
+
+class FusionEstimator(str, Enum):
+    auto = "auto"
+    median = "median"
+    mean = "mean"
 
 
 class Blur(str, Enum):
@@ -130,13 +156,69 @@ DepthScaleOpt = Annotated[
         help="PNG/TIFF/EXR/PGM: raw units per metre (1000 = mm, TUM: 5000, metres: 1).",
     ),
 ]
-#: ``--depth-scale`` of the commands that also write PNG (``run``, ``batch``).
-OutDepthScaleOpt = Annotated[
-    float,
+#: ``--depth-scale`` of the commands that also write (``run``, ``batch``): the input's only.
+DepthScaleAliasOpt = Annotated[
+    float | None,
     typer.Option(
         "--depth-scale",
-        help="PNG/TIFF/EXR/PGM input and PNG output: raw units per metre (1000 = mm, "
-        "TUM: 5000, metres: 1). .npy/.npz always hold mm.",
+        show_default=False,
+        help="Alias of --input-depth-scale (the input's raw units per metre only; the "
+        "output's is --output-depth-scale).",
+    ),
+]
+OutDepthScaleOpt = DepthScaleAliasOpt  # the former name
+InputDepthScaleOpt = Annotated[
+    float | None,
+    typer.Option(
+        "--input-depth-scale",
+        metavar="UNITS_PER_M",
+        show_default=False,
+        help="PNG/TIFF/EXR/PGM input: raw units per metre (1000 = mm, 1 = metres, "
+        "5000 = TUM) [default: 1000]. .npy/.npz always hold mm.",
+    ),
+]
+OutputDepthScaleOpt = Annotated[
+    float | None,
+    typer.Option(
+        "--output-depth-scale",
+        metavar="UNITS_PER_M",
+        show_default=False,
+        help="PNG/TIFF/EXR output: raw units per metre (1000 = mm, 1 = metres) "
+        "[default: 1000]. .npy/.npz/bags: always mm/m.",
+    ),
+]
+SensorOpt = Annotated[
+    Sensor,
+    typer.Option(
+        "--sensor",
+        case_sensitive=False,
+        help="Plausible depth range checked on the first frame (wrong units are warned "
+        "about; refused with --strict-units).",
+    ),
+]
+StrictUnitsOpt = Annotated[
+    bool,
+    typer.Option(
+        "--strict-units",
+        help="Refuse (exit 2) instead of warn when the first frame's depth is implausible "
+        "for --sensor.",
+    ),
+]
+KeepNamesOpt = Annotated[
+    bool,
+    typer.Option(
+        "--keep-names/--renumber",
+        help="PNG/EXR folder output: keep the input's frame names [default] or number the "
+        "frames 000000, 000001, ...",
+    ),
+]
+MaxMemoryOpt = Annotated[
+    str | None,
+    typer.Option(
+        "--max-memory",
+        metavar="SIZE",
+        help="Memory the run may use (e.g. 4G, 512M) instead of what the machine has "
+        "available; also skips the free-disk check [default: available memory].",
     ),
 ]
 IntrinsicsOpt = Annotated[
@@ -296,6 +378,52 @@ RecursiveOpt = Annotated[
 ]
 
 
+FillHolesOpt = Annotated[
+    bool,
+    typer.Option(
+        "--fill-holes",
+        help="fill pixels without depth from the farther (background) side, as depth SDKs "
+        "do: invented depth",
+    ),
+]
+TrustKOpt = Annotated[
+    float | None,
+    typer.Option(
+        "--trust-k",
+        metavar="K",
+        help="Samples vote only within K*noise (+ relief) of the reference's anchor "
+        f"[default: {_D['trust_k']:g}].",
+    ),
+]
+NoTrustOpt = Annotated[
+    bool,
+    typer.Option("--no-trust", help="No trust test: the paper's plain median (eq. 28)."),
+]
+FusionEstimatorOpt = Annotated[
+    FusionEstimator | None,
+    typer.Option(
+        "--fusion-estimator",
+        case_sensitive=False,
+        help="Fusion of the trusted samples: median, mean, or auto (median for "
+        f"heavy-tailed noise, else mean) [default: {_D['fusion_estimator']}].",
+    ),
+]
+NoMixedRemovalOpt = Annotated[
+    bool,
+    typer.Option(
+        "--no-mixed-removal",
+        help="Keep mixed (flying) ToF input pixels instead of treating them as no measurement.",
+    ),
+]
+NoRadialOpt = Annotated[
+    bool,
+    typer.Option(
+        "--no-radial",
+        help="No compensation of depth motion (toward/away from the camera) before fusion.",
+    ),
+]
+
+
 def config_from_options(
     scale: int,
     frames: int | None,
@@ -314,6 +442,12 @@ def config_from_options(
     no_refine: bool = False,
     keep_all_motion: bool = False,
     recursive: bool = False,
+    fill_holes: bool = False,
+    trust_k: float | None = None,
+    no_trust: bool = False,
+    fusion_estimator: Enum | None = None,
+    no_mixed_removal: bool = False,
+    no_radial: bool = False,
 ) -> UPSRConfig:
     """The :class:`UPSRConfig` of the method options shared by ``upsr run`` and ``upsr batch``
     (``None``: the default; ``frames=None``: N = 9)."""
@@ -333,6 +467,7 @@ def config_from_options(
         ("deblur_iterations", iterations),
         ("flow_scale", flow_scale),
         ("speckle_px", speckle_px),
+        ("trust_k", trust_k),
     ):
         if value is not None:
             options[name] = value
@@ -341,6 +476,7 @@ def config_from_options(
         ("flow", flow),
         ("flow_preset", flow_preset),
         ("refine_preset", refine_preset),
+        ("fusion_estimator", fusion_estimator),
     ):
         if choice is not None:
             options[name] = choice.value
@@ -352,4 +488,24 @@ def config_from_options(
         options["zero_motion_tolerance"] = None
     if recursive:
         options["mode"] = "recursive"
+    if no_trust:
+        if trust_k is not None:
+            raise InputError("give --trust-k or --no-trust, not both")
+        options["trust_k"] = None
+    if fill_holes:
+        options["fill_holes"] = True
+    if no_mixed_removal:
+        options["remove_mixed"] = False
+    if no_radial:
+        options["radial_compensation"] = False
     return UPSRConfig.from_options(scale, DEFAULT_FRAMES if frames is None else frames, **options)
+
+
+def method_config(values: dict[str, Any]) -> UPSRConfig:
+    """:func:`config_from_options` of the method options among a command's parameters
+    (``values``: its ``locals()``, with ``scale`` and ``frames``)."""
+    import inspect
+
+    names = set(inspect.signature(config_from_options).parameters) - {"scale", "frames"}
+    options = {k: values[k] for k in names if k in values}
+    return config_from_options(values["scale"], values["frames"], **options)

@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
+import itertools
 import os
 import sys
 import time
@@ -17,28 +19,41 @@ from upsr.apps.cli.options import (
     AlphaOpt,
     BlurOpt,
     BtvRadiusOpt,
+    DepthScaleAliasOpt,
+    FillHolesOpt,
     FlowOpt,
     FlowPresetOpt,
     FlowScaleOpt,
     FramesOpt,
+    FusionEstimatorOpt,
     InFormatOpt,
+    InputDepthScaleOpt,
     IterationsOpt,
     KeepAllMotionOpt,
+    KeepNamesOpt,
     KeyOpt,
     LamOpt,
+    MaxMemoryOpt,
     NoDeblurOpt,
+    NoMixedRemovalOpt,
+    NoRadialOpt,
     NoRefineOpt,
-    OutDepthScaleOpt,
+    NoTrustOpt,
     OutFormat,
     OutIntrinsicsOpt,
+    OutputDepthScaleOpt,
     QuietOpt,
     RecursiveOpt,
     RefinePresetOpt,
     ScaleOpt,
+    Sensor,
+    SensorOpt,
     SpecklePxOpt,
+    StrictUnitsOpt,
     TopicOpt,
-    config_from_options,
+    TrustKOpt,
     fmt,
+    method_config,
 )
 from upsr.errors import InputError
 
@@ -54,12 +69,16 @@ Input formats (by name; --input-format to force):
   .bag          ROS 1 / RealSense bag; a ROS 2 bag folder (metadata.yaml): --topic
   .pgm          NYU raw Kinect disparity (--input-format pgm: plain 16-bit depth)
   tum, sun      --input-format for TUM (raw/5000 m) and SUN RGB-D PNGs
-The intrinsics (--intrinsics, or from the bag) scaled by r go to OUTPUT.intrinsics.json.
+The intrinsics (--intrinsics, or from the bag) scaled by r go to OUTPUT.intrinsics.json
+(with the frame names and timestamps); --color writes the colour on the output grid to
+OUTPUT.color/. Output formats: .npy, .npz, .tif, .exr, a folder of PNGs (or EXRs:
+--format exr), a ROS 2 bag folder (--format rosbag).
 
 \b
 Examples:
   upsr run video.npy -o video_x4.npy -r 4
-  upsr run frames/ -o frames_x2/ -r 2 -n 5 --depth-scale 5000    # TUM PNGs
+  upsr run frames/ -o frames_x2/ -r 2 -n 5 --input-depth-scale 5000   # TUM PNGs
+  upsr run frames/ -o x2.tif -r 2 --input-depth-scale 1 --output-depth-scale 1  # metres
   upsr run capture.npz --key depth -o out.npz -r 2 --no-deblur --flow-preset fast
   upsr run capture.bag --topic /camera/depth/image_rect_raw -o out.npy -r 2
   upsr run video.npy -o video_x2.npy -r 2 --recursive           # causal, latency 0
@@ -105,6 +124,16 @@ WorkersOpt = Annotated[
     ),
 ]
 RunOverwriteOpt = Annotated[bool, typer.Option("--overwrite", help="Replace OUTPUT if it exists.")]
+ColorOpt = Annotated[
+    Path | None,
+    typer.Option(
+        "--color",
+        metavar="PATH",
+        help="Colour image, or folder of one image per frame, registered to the depth: "
+        "resampled to the output grid and written to OUTPUT.color/ (PNG), for RGB-D tools "
+        "such as Open3D.",
+    ),
+]
 
 
 def run(
@@ -113,7 +142,11 @@ def run(
     scale: ScaleOpt,
     frames: FramesOpt = None,
     key: KeyOpt = None,
-    depth_scale: OutDepthScaleOpt = 1000.0,
+    input_depth_scale: InputDepthScaleOpt = None,
+    depth_scale: DepthScaleAliasOpt = None,
+    output_depth_scale: OutputDepthScaleOpt = None,
+    sensor: SensorOpt = Sensor.default,
+    strict_units: StrictUnitsOpt = False,
     output_format: FormatOpt = None,
     input_format: InFormatOpt = None,
     topic: TopicOpt = None,
@@ -132,7 +165,16 @@ def run(
     no_refine: NoRefineOpt = False,
     keep_all_motion: KeepAllMotionOpt = False,
     recursive: RecursiveOpt = False,
+    fill_holes: FillHolesOpt = False,
+    trust_k: TrustKOpt = None,
+    no_trust: NoTrustOpt = False,
+    fusion_estimator: FusionEstimatorOpt = None,
+    no_mixed_removal: NoMixedRemovalOpt = False,
+    no_radial: NoRadialOpt = False,
+    keep_names: KeepNamesOpt = True,
+    color: ColorOpt = None,
     workers: WorkersOpt = None,
+    max_memory: MaxMemoryOpt = None,
     overwrite: RunOverwriteOpt = False,
     quiet: QuietOpt = False,
 ) -> None:
@@ -140,69 +182,162 @@ def run(
 
     Prints one summary line on stdout; the progress bar goes to stderr.
     """
+    cfg = method_config(locals())  # first: locals() are the options
+    from upsr.apps import _preflight as pre
     from upsr.apps._camera import input_camera
+    from upsr.io import units
     from upsr.io import video as io
     from upsr.method.windowed import UPSR
 
-    cfg = config_from_options(
-        scale,
-        frames,
-        lam=lam,
-        alpha=alpha,
-        btv_radius=btv_radius,
-        iterations=iterations,
-        blur=blur,
-        flow=flow,
-        flow_preset=flow_preset,
-        flow_scale=flow_scale,
-        refine_preset=refine_preset,
-        speckle_px=speckle_px,
-        no_deblur=no_deblur,
-        no_refine=no_refine,
-        keep_all_motion=keep_all_motion,
-        recursive=recursive,
-    )
     most = max(64, 2 * (os.cpu_count() or 1))  # each holds 2 windows in flight
     if workers is not None and workers > most:
         raise InputError(f"--workers must be 0..{most}, got {workers}")
+    mem = pre.memory_limit(max_memory)
+    s_in, s_out = units.resolve_depth_scales(depth_scale, input_depth_scale, output_depth_scale)
     in_fmt, out_fmt = fmt(input_format), fmt(output_format)
     info = io.probe(input_path, key=key, fmt=in_fmt, topic=topic)
     camera = input_camera(input_path, info, intrinsics, fmt=in_fmt, topic=topic)
     if not recursive:  # (the recursive state takes any video length)
         cfg = _fit_window(cfg, info.n_frames, input_path, explicit=frames is not None)
     io.check_output_path([input_path], output, overwrite, fmt=out_fmt)
+    units.check_output_capacity(output, info.n_frames, fmt=out_fmt, depth_scale=s_out)
+    resolved_out = io._output_format(output, out_fmt)
+    color_dest = _check_color(color, input_path, output, info.n_frames, overwrite)
+    pre.check_run_resources(
+        info.shape,
+        cfg,
+        workers=pre.engine_workers(workers),
+        out_fmt=resolved_out,
+        output=output,
+        max_memory=mem,
+    )
     if frames is None and cfg.n_frames < DEFAULT_FRAMES and not recursive:
         typer.echo(
             f"upsr: note: the video has {info.n_frames} frame(s): N = {cfg.n_frames}", err=True
         )
-    source = io.iter_frames(input_path, key=key, depth_scale=depth_scale, fmt=in_fmt, topic=topic)
-    engine = UPSR(cfg.scale, cfg.n_frames, config=cfg, workers=workers)
-    start = time.perf_counter()
-    _write_video(
-        engine.process(source),
-        output,
-        n_frames=info.n_frames,
-        out_fmt=out_fmt,
-        depth_scale=depth_scale,
-        overwrite=overwrite,
-        quiet=quiet,
-    )
-    elapsed = time.perf_counter() - start
-    if camera is not None:
-        from upsr.geometry.intrinsics import write_intrinsics
+    from upsr.io import identity
 
-        write_intrinsics(
-            io.intrinsics_path(output), camera.scaled(cfg.scale), source=camera, scale=cfg.scale
+    names = identity.read_frame_names(input_path, fmt=in_fmt)
+    stamps = identity.read_timestamps(input_path, fmt=in_fmt, topic=topic, key=key)
+    source = io.iter_frames(input_path, key=key, depth_scale=s_in, fmt=in_fmt, topic=topic)
+    with contextlib.closing(source):
+        frame0 = next(source)
+        _check_first_frame(
+            input_path,
+            frame0,
+            output,
+            info.n_frames,
+            in_fmt=io._input_format(input_path, in_fmt),
+            out_fmt=resolved_out,
+            units_options=(sensor.value, strict_units),
+            scale_given=depth_scale is not None or input_depth_scale is not None,
+            scales=(s_in, s_out),
         )
+        engine = UPSR(cfg.scale, cfg.n_frames, config=cfg, workers=workers)
+        pre.kernel_note(quiet)
+        out_cam = None if camera is None else camera.scaled(cfg.scale)
+        sidecar = _sidecar(camera, cfg.scale, stamps, names)
+        start = time.perf_counter()
+        _write_video(
+            engine.process(itertools.chain([frame0], source)),
+            output,
+            n_frames=info.n_frames,
+            out_fmt=out_fmt,
+            depth_scale=s_out,
+            overwrite=overwrite,
+            quiet=quiet,
+            meta={
+                "frame_names": names if keep_names else None,
+                "timestamps_ns": stamps,
+                "camera": out_cam,
+            },
+            sidecar=sidecar,
+            color=None
+            if color_dest is None
+            else (color, color_dest, names if keep_names else None),
+        )
+    _summary(info.shape, cfg, time.perf_counter() - start, output)
 
+
+def _summary(shape: tuple[int, int, int], cfg: Any, elapsed: float, output: Path) -> None:
+    """The one summary line on stdout."""
     r = cfg.scale
-    t_n, h, w = info.shape
+    t_n, h, w = shape
     rate = t_n / elapsed if elapsed > 0 else float("inf")
-    mode = ", recursive" if recursive else ""
+    mode = ", recursive" if cfg.mode == "recursive" else ""
     typer.echo(
         f"upsr: {t_n} frames {w}x{h} -> {w * r}x{h * r} (r={r}, N={cfg.n_frames}{mode}) in "
         f"{elapsed:.1f} s ({rate:.1f} frames/s) -> {output}"
     )
+
+
+def _sidecar(camera: Any, scale: int, stamps: Any, names: list[str] | None) -> str | None:
+    """The text of ``OUTPUT.intrinsics.json`` (None without intrinsics)."""
+    if camera is None:
+        return None
+    from upsr.geometry.intrinsics import intrinsics_text
+
+    return intrinsics_text(
+        camera.scaled(scale), source=camera, scale=scale, timestamps_ns=stamps, frame_names=names
+    )
+
+
+def _check_first_frame(
+    input_path: Path,
+    frame0: Any,
+    output: Path,
+    n_frames: int,
+    *,
+    in_fmt: str,
+    out_fmt: str,
+    units_options: tuple[str, bool],
+    scale_given: bool,
+    scales: tuple[float, float],
+) -> None:
+    """Units of the first frame (``--sensor``, ``--strict-units``, TUM), and whether a PNG
+    output can hold its depth at the output scale: before any processing."""
+    from upsr.apps import _preflight as pre
+    from upsr.io import units
+
+    sensor, strict = units_options
+    pre.check_units(
+        input_path,
+        frame0,
+        in_fmt=in_fmt,
+        sensor=sensor,
+        strict=strict,
+        scale_given=scale_given,
+        depth_scale=scales[0],
+    )
+    if out_fmt == "png":
+        valid = frame0[frame0 > 0]
+        units.check_output_capacity(
+            output,
+            n_frames,
+            fmt=out_fmt,
+            max_depth_mm=float(valid.max()) if valid.size else None,
+            depth_scale=scales[1],
+        )
+
+
+def _check_color(
+    color: Path | None, input_path: Path, output: Path, n_frames: int, overwrite: bool
+) -> Path | None:
+    """Where ``--color`` goes (``OUTPUT.color``), checked before any processing; None: none."""
+    if color is None:
+        return None
+    from upsr.io import video as io
+    from upsr.io.color import color_files
+
+    files = color_files(color)
+    if color.is_dir() and len(files) != n_frames:
+        raise InputError(
+            f"--color {color}: {len(files)} colour image(s) for {n_frames} depth frame(s): "
+            f"give one image per frame (or one image file)"
+        )
+    dest = output.with_name(output.name.rstrip("/") + ".color")
+    io.check_output_path([input_path, color], dest, overwrite, fmt="png")
+    return dest
 
 
 def _fit_window(cfg: Any, n_total: int, path: Path, *, explicit: bool) -> Any:
@@ -229,33 +364,80 @@ def _write_video(
     depth_scale: float,
     overwrite: bool,
     quiet: bool,
+    meta: dict[str, Any] | None = None,
+    sidecar: str | None = None,
+    color: tuple[Path, Path, list[str] | None] | None = None,
 ) -> None:
-    """Write the high-res ``frames`` to ``output`` (atomically), with a progress bar."""
+    """Write the high-res ``frames`` to ``output`` (atomically), with a progress bar.
+
+    ``meta``: frame names, timestamps, camera (:class:`~upsr.io.VideoWriter`); ``sidecar``:
+    the text of ``OUTPUT.intrinsics.json``, published with the video; ``color``: (source,
+    destination, frame names) of ``--color``, written once every frame is, before the video is
+    published (and removed again if that fails).
+    """
     from tqdm import tqdm
 
     from upsr.io import video as io
 
-    with (
-        io.VideoWriter(
-            output,
-            n_frames=n_frames,
-            fmt=out_fmt,
-            depth_scale=depth_scale,
-            overwrite=overwrite,
-        ) as writer,
-        tqdm(
-            total=n_frames,
-            desc="upsr",
-            unit="frame",
-            file=sys.stderr,
-            disable=quiet,
-            leave=False,
-            dynamic_ncols=True,
-        ) as bar,
-    ):
-        for frame in frames:
-            writer.write(frame)
-            bar.update(1)
+    color_written: Path | None = None
+    try:
+        with (
+            io.VideoWriter(
+                output,
+                n_frames=n_frames,
+                fmt=out_fmt,
+                depth_scale=depth_scale,
+                overwrite=overwrite,
+                **(meta or {}),
+            ) as writer,
+            tqdm(
+                total=n_frames,
+                desc="upsr",
+                unit="frame",
+                file=sys.stderr,
+                disable=quiet,
+                leave=False,
+                dynamic_ncols=True,
+            ) as bar,
+        ):
+            if sidecar is not None:
+                writer.add_sidecar(io.intrinsics_path(output), sidecar)
+            shape = None
+            for frame in frames:
+                writer.write(frame)
+                shape = frame.shape
+                bar.update(1)
+            if color is not None and shape is not None:
+                color_written = _write_color(color, shape, n_frames, overwrite)
+    except BaseException:
+        if color_written is not None:
+            from upsr._atomic import remove
+
+            remove(color_written)
+        raise
+
+
+def _write_color(
+    color: tuple[Path, Path, list[str] | None],
+    shape: tuple[int, int],
+    n_frames: int,
+    overwrite: bool,
+) -> Path:
+    """``--color`` resampled to ``shape``, named like the depth frames (one image per frame)."""
+    from upsr.io.color import color_files, write_color
+
+    src, dest, names = color
+    per_frame = len(color_files(src)) == n_frames
+    if per_frame and names is None:
+        names = [f"{t:06d}" for t in range(n_frames)]
+    return write_color(
+        src,
+        dest,
+        shape,
+        n_frames=n_frames if src.is_dir() else None,
+        frame_names=names if per_frame else None,
+        overwrite=overwrite,
+    )
 
 
 def register(app: typer.Typer) -> None:

@@ -1,0 +1,136 @@
+"""The checks ``upsr run`` and ``upsr batch`` make before any processing.
+
+:func:`memory_limit`
+    ``--max-memory SIZE`` in bytes (None: what the machine has), and the per-frame read budget
+    of :mod:`upsr.io` set to a quarter of it.
+:func:`check_run_resources`
+    The peak memory and output size of a run (:func:`upsr.method.resources.check_resources`):
+    ``-r 150`` on 64×56 frames is refused with one line before anything big is allocated.
+:func:`check_units`
+    The first frame's depth against the sensor's plausible range, and TUM-scaled PNGs read as
+    mm (:mod:`upsr.io.units`).
+:func:`kernel_note`
+    One line on stderr while numba compiles the kernels on first use (a cold cache).
+"""
+
+from __future__ import annotations
+
+import os
+import sys
+from pathlib import Path
+from typing import Any
+
+from upsr.errors import InputError
+
+__all__ = [
+    "KERNEL_NOTE",
+    "check_run_resources",
+    "check_units",
+    "engine_workers",
+    "kernel_cache_warm",
+    "kernel_note",
+    "memory_limit",
+]
+
+KERNEL_NOTE = "upsr: compiling kernels on first use (once, ~1–2 min)…"
+_STATE = {"noted": False}
+
+
+def memory_limit(max_memory: str | None) -> int | None:
+    """``--max-memory`` in bytes (None: not given); sets the per-frame read budget to n // 4."""
+    from upsr.io._base import set_frame_budget
+    from upsr.method.resources import parse_bytes
+
+    if max_memory is None:
+        set_frame_budget(None)
+        return None
+    n = parse_bytes(max_memory)
+    set_frame_budget(max(1, n // 4))
+    return n
+
+
+def engine_workers(workers: int | None) -> int:
+    """The threads :class:`upsr.method.windowed.UPSR` uses for ``workers`` (None: its default)."""
+    if workers is None:
+        return 2 if (os.cpu_count() or 1) >= 2 else 0
+    return int(workers)
+
+
+def check_run_resources(
+    shape: tuple[int, int, int],
+    cfg: Any,
+    *,
+    workers: int,
+    out_fmt: str,
+    output: Path | None,
+    max_memory: int | None,
+) -> None:
+    """Refuse a run whose estimated memory (or output size) exceeds what is available."""
+    from upsr.method.resources import check_resources
+
+    check_resources(
+        shape,
+        cfg.scale,
+        cfg.n_frames,
+        workers=workers,
+        fmt=out_fmt,
+        output=output,
+        max_memory=max_memory,
+        flow_scale=cfg.flow_scale,
+    )
+
+
+def check_units(
+    path: Path,
+    frame0_mm: Any,
+    *,
+    in_fmt: str,
+    sensor: str,
+    strict: bool,
+    scale_given: bool,
+    depth_scale: float,
+) -> None:
+    """TUM PNGs read as mm (refused), then the plausible depth range (warned, or refused).
+
+    ``in_fmt``: the input's resolved format; ``scale_given``: an input depth scale was given
+    (then the TUM check is skipped: the user chose the unit).
+    """
+    from upsr.io import units
+
+    if in_fmt == "png" and not scale_given:
+        from upsr.io.identity import read_frame_names
+
+        names = read_frame_names(path, fmt=in_fmt) if path.is_dir() else [path.stem]
+        # at the default 1000 units per metre the raw PNG values are the mm values
+        message = units.detect_tum_scale(path, frame0_mm, frame_names=names)
+        if message is not None:
+            raise InputError(message)
+    units.check_depth_range(
+        frame0_mm,
+        sensor=sensor,
+        depth_scale=depth_scale,
+        name=str(path),
+        action="refuse" if strict else "warn",
+    )
+
+
+def kernel_cache_warm() -> bool:
+    """Whether numba's cache holds the method's kernels (``fusion`` is the one every run uses)."""
+    import importlib.util
+
+    spec = importlib.util.find_spec("upsr.method")
+    if spec is None or not spec.submodule_search_locations:  # pragma: no cover
+        return True
+    folder = Path(next(iter(spec.submodule_search_locations)))
+    if any((folder / "__pycache__").glob("fusion.*.nbi")):
+        return True
+    cache_dir = os.environ.get("NUMBA_CACHE_DIR")
+    return bool(cache_dir) and any(Path(cache_dir).rglob("fusion.*.nbi"))
+
+
+def kernel_note(quiet: bool = False) -> None:
+    """Print :data:`KERNEL_NOTE` on stderr (once per process) when the kernel cache is cold."""
+    if quiet or _STATE["noted"] or kernel_cache_warm():
+        return
+    _STATE["noted"] = True
+    print(KERNEL_NOTE, file=sys.stderr, flush=True)
