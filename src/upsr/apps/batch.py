@@ -21,7 +21,6 @@ that fails is reported, its partial chunks are removed, and the others go on.
 
 from __future__ import annotations
 
-import collections
 import contextlib
 import dataclasses
 import hashlib
@@ -32,13 +31,31 @@ import shutil
 import sys
 import time
 import traceback
-from collections.abc import Callable, Iterator, Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from upsr.apps._batch_state import (
+    WORK_DIR,
+    _batch_folder,
+    _check_out_vs_inputs,
+    _differences,
+    _options_record,
+    _read_record,
+    _write_record,
+)
+from upsr.apps._chunks import (
+    _OUT_SUFFIX,
+    _check_batch_options,
+    _chunk_engine,
+    _config_from_dict,
+    _part_ok,
+    chunk_plan,
+)
+from upsr.apps._executors import _DaskExecutor, _LocalExecutor, check_scheduler_address
 from upsr.errors import InputError
 from upsr.method.config import UPSRConfig
 
@@ -51,49 +68,10 @@ __all__ = [
     "run_chunk",
 ]
 
-WORK_DIR = ".upsr-batch"
-_OUT_SUFFIX = {"npy": ".npy", "npz": ".npz", "tiff": ".tif", "png": "", "exr": "", "rosbag": ""}
-
 
 # ---------------------------------------------------------------------------------------------
 # planning
 # ---------------------------------------------------------------------------------------------
-def chunk_plan(n_total: int, n_frames: int, chunk_frames: int) -> list[tuple[int, int, int, int]]:
-    """Split a video into chunks that give exactly the outputs of a single run.
-
-    Parameters
-    ----------
-    n_total : int
-        T, frames of the video.
-    n_frames : int
-        N, window length (1 ≤ N ≤ T).
-    chunk_frames : int
-        Output frames per chunk (≥ 1; the last chunk may be shorter).
-
-    Returns
-    -------
-    list of (out_start, out_stop, in_start, in_stop)
-        Chunk k produces the outputs [out_start, out_stop) from the input frames
-        [in_start, in_stop) = [s(out_start), s(out_stop − 1) + N), where s is the window start
-        of a single run; every window of the chunk then lies inside its input frames and is
-        placed where the single run places it.
-    """
-    if n_frames < 1 or n_total < n_frames:
-        raise InputError(f"N={n_frames} frames per window but the video has {n_total} frame(s)")
-    if chunk_frames < 1:
-        raise InputError(f"chunk_frames must be >= 1, got {chunk_frames}")
-    half = (n_frames - 1) // 2
-
-    def start(t: int) -> int:
-        return min(max(t - half, 0), n_total - n_frames)
-
-    plan = []
-    for a in range(0, n_total, chunk_frames):
-        b = min(a + chunk_frames, n_total)
-        plan.append((a, b, start(a), start(b - 1) + n_frames))
-    return plan
-
-
 # ---------------------------------------------------------------------------------------------
 # the task (runs in a worker process)
 # ---------------------------------------------------------------------------------------------
@@ -117,46 +95,6 @@ def run_chunk(spec: dict[str, Any]) -> dict[str, Any]:
     except Exception as e:
         detail = "".join(traceback.format_exception_only(type(e), e)).strip()
         return {"error": detail, "kind": "internal"}
-
-
-def _config_from_dict(d: dict[str, Any]) -> UPSRConfig:
-    from upsr.method.config import DeblurConfig
-
-    d = dict(d)
-    deblur = DeblurConfig(**d.pop("deblur"))
-    if d.get("depth_range_mm") is not None:
-        d["depth_range_mm"] = tuple(d["depth_range_mm"])
-    return UPSRConfig(deblur=deblur, **d)
-
-
-def _part_ok(part: Path, n: int, shape: tuple[int, int]) -> bool:
-    if not part.is_file():
-        return False
-    try:
-        arr = np.load(part, mmap_mode="r", allow_pickle=False)
-        return tuple(arr.shape) == (n, *shape) and arr.dtype == np.float32
-    except Exception:
-        return False
-
-
-def _chunk_engine(cfg: UPSRConfig, keep: range) -> Any:
-    """A one-thread UP-SR engine that finishes only the windows of the outputs in ``keep``.
-
-    Every frame is still ingested (prefilter, flows: later windows need them); the windows of
-    the other outputs (those before the chunk's first output and after its last, which only
-    exist because the chunk's input overlaps its neighbours') are not computed: their output
-    is None.
-    """
-    from upsr.method.windowed import UPSR
-
-    class ChunkEngine(UPSR):
-        def _finish(self, t: int, n_total: int) -> Any:
-            if t not in keep:
-                return None
-            return super()._finish(t, n_total)
-
-    # the cluster runs chunks side by side: one thread per chunk, no window threads
-    return ChunkEngine(config=cfg, workers=0)
 
 
 def _run_chunk(spec: dict[str, Any]) -> dict[str, Any]:
@@ -269,260 +207,6 @@ def _fingerprint(inp: Path, spec: dict[str, Any]) -> str:
         st.append((q.name, s.st_size, s.st_mtime_ns))
     blob = json.dumps([str(p.resolve()), st, spec], sort_keys=True, default=str)
     return hashlib.sha1(blob.encode()).hexdigest()[:12]
-
-
-# ---------------------------------------------------------------------------------------------
-# executors
-# ---------------------------------------------------------------------------------------------
-class _LocalExecutor:
-    """Chunks in this process (1 worker) or in a pool of spawned worker processes.
-
-    The pool is this module's own (not :class:`concurrent.futures.ProcessPoolExecutor`, which
-    breaks as a whole when one worker dies): the driver hands one chunk at a time to each
-    worker, so it knows which chunk a worker that dies (SIGKILL, segfault, ``os._exit``) was
-    computing; that chunk's recording is reported as failed, a new worker takes the worker's
-    place and the other recordings go on. Workers die with the driver (see
-    :func:`_die_with_parent`).
-    """
-
-    def __init__(self, workers: int) -> None:
-        import multiprocessing
-
-        self.workers = workers
-        self._pool = workers > 1
-        self._ctx = multiprocessing.get_context("spawn")
-        self._queue: collections.deque[tuple[Any, Any, dict[str, Any]]] = collections.deque()
-        self._idle: list[_Worker] = []
-        self._busy: dict[_Worker, tuple[Any, dict[str, Any]]] = {}
-
-    def submit(self, spec: dict[str, Any]) -> Any:
-        from concurrent.futures import Future
-
-        fut: Future[dict[str, Any]] = Future()
-        task = run_chunk  # looked up now: a test may replace it
-        if not self._pool:
-            fut.set_running_or_notify_cancel()
-            fut.set_result(task(spec))
-        else:
-            self._queue.append((fut, task, spec))
-        return fut
-
-    def as_completed(self, futures: Sequence[Any]) -> Iterator[Any]:
-        from multiprocessing.connection import wait
-
-        want = set(futures)
-        while want:
-            done = [f for f in want if f.done()]
-            want.difference_update(done)
-            yield from (f for f in done if not f.cancelled())
-            if not want:
-                return
-            self._dispatch()
-            if not self._busy:
-                if not any(not f.done() for f in want):
-                    continue
-                return  # nothing left to run (cancelled)
-            handles: list[Any] = []
-            for w in self._busy:
-                handles += [w.conn, w.proc.sentinel]
-            wait(handles)
-            for w in list(self._busy):
-                self._poll(w)
-
-    def _dispatch(self) -> None:
-        while self._queue and (self._idle or len(self._busy) < self.workers):
-            fut, task, spec = self._queue.popleft()
-            if not fut.set_running_or_notify_cancel():
-                continue  # cancelled: its recording failed already
-            for _attempt in range(2):  # an idle worker may have died meanwhile
-                w = self._idle.pop() if self._idle else _Worker(self._ctx)
-                try:
-                    w.conn.send((task, spec))
-                except (OSError, EOFError):
-                    w.stop(kill=True)
-                    continue
-                except Exception as e:  # the task cannot be pickled
-                    self._idle.append(w)
-                    fut.set_result({"error": f"{type(e).__name__}: {e}", "kind": "internal"})
-                    break
-                self._busy[w] = (fut, spec)
-                break
-            else:
-                fut.set_result({"error": "cannot start a worker process", "kind": "internal"})
-
-    def _poll(self, w: _Worker) -> None:
-        fut, spec = self._busy[w]
-        try:
-            has_result = w.conn.poll()
-            res = w.conn.recv() if has_result else None
-        except (OSError, EOFError):
-            res = None
-        if res is not None:
-            del self._busy[w]
-            self._idle.append(w)
-            fut.set_result(res)
-            return
-        if w.proc.is_alive():
-            return
-        del self._busy[w]
-        how = _exit_description(w.proc.exitcode)
-        w.stop(kill=True)
-        fut.set_result(
-            {
-                "error": f"its worker process died ({how}) while computing output frames "
-                f"{spec['out_start']}-{spec['out_stop'] - 1}",
-                "kind": "internal",
-            }
-        )
-
-    def shutdown(self) -> None:
-        for w in self._idle:
-            with contextlib.suppress(OSError, ValueError):
-                w.conn.send(None)
-        for w in self._idle:
-            w.stop(kill=False)
-        for w in self._busy:  # interrupted: nothing more is wanted from them
-            w.stop(kill=True)
-        self._idle.clear()
-        self._busy.clear()
-        self._queue.clear()
-
-
-def _exit_description(code: int | None) -> str:
-    import signal
-
-    if code is not None and code < 0:
-        try:
-            return f"killed by {signal.Signals(-code).name}"
-        except ValueError:
-            return f"killed by signal {-code}"
-    return f"exit status {code}"
-
-
-class _Worker:
-    """One spawned worker process and the pipe it gets its tasks through."""
-
-    def __init__(self, ctx: Any) -> None:
-        self.conn, child = ctx.Pipe(duplex=True)
-        self.proc = ctx.Process(
-            target=_worker_main, args=(child, os.getpid()), daemon=True, name="upsr-batch-worker"
-        )
-        self.proc.start()
-        child.close()
-
-    def stop(self, kill: bool) -> None:
-        if not kill:
-            self.proc.join(5)
-        if self.proc.is_alive():
-            self.proc.kill()
-        self.proc.join(5)
-        with contextlib.suppress(OSError):
-            self.conn.close()
-        with contextlib.suppress(ValueError):
-            self.proc.close()
-
-
-def _worker_main(conn: Any, parent_pid: int) -> None:
-    """A worker process: run the tasks received on ``conn`` one by one, until ``None``."""
-    import signal
-
-    _die_with_parent(parent_pid)
-    signal.signal(signal.SIGINT, signal.SIG_IGN)  # the driver decides (and kills us)
-    while True:
-        try:
-            job = conn.recv()
-        except (EOFError, OSError):
-            return
-        except Exception as e:  # the task could not be unpickled
-            conn.send({"error": f"{type(e).__name__}: {e}", "kind": "internal"})
-            continue
-        if job is None:
-            return
-        task, spec = job
-        try:
-            res = task(spec)
-        except BaseException as e:  # run_chunk never raises; a replaced task might
-            res = {"error": f"{type(e).__name__}: {e}", "kind": "internal"}
-        conn.send(res)
-
-
-def _die_with_parent(parent_pid: int) -> None:
-    """Make this worker process end when its parent (the driver) does, even on SIGKILL.
-
-    Linux: the parent-death signal (``prctl(PR_SET_PDEATHSIG, SIGKILL)``); everywhere: a
-    watchdog thread that exits once the parent PID changes (the worker was re-parented).
-    """
-    import signal
-    import threading
-
-    if sys.platform.startswith("linux"):
-        with contextlib.suppress(Exception):
-            import ctypes
-
-            libc = ctypes.CDLL(None, use_errno=True)
-            libc.prctl(1, int(signal.SIGKILL), 0, 0, 0)  # 1 = PR_SET_PDEATHSIG
-    if os.getppid() != parent_pid:  # the parent died before the signal was armed
-        os._exit(1)
-
-    def watchdog() -> None:
-        while True:
-            time.sleep(0.5)
-            if os.getppid() != parent_pid:
-                os._exit(1)
-
-    threading.Thread(target=watchdog, name="upsr-parent-watchdog", daemon=True).start()
-
-
-def check_scheduler_address(address: str) -> str:
-    """Refuse (:class:`InputError`) a ``--scheduler`` that is not ``tcp://HOST:PORT``."""
-    from urllib.parse import urlsplit
-
-    shown = address if len(address) <= 80 else address[:77] + "..."
-    try:
-        u = urlsplit(address)
-        ok = (
-            u.scheme in ("tcp", "tls")
-            and bool(u.hostname)
-            and u.port is not None
-            and u.path in ("", "/")
-            and not (u.query or u.fragment or u.username)
-        )
-    except ValueError:  # a port that is no number or out of range
-        ok = False
-    if not ok:
-        raise InputError(f"--scheduler {shown!r} is not a Dask scheduler address tcp://HOST:PORT")
-    return address
-
-
-class _DaskExecutor:
-    """Chunks as tasks on an existing Dask distributed scheduler."""
-
-    def __init__(self, address: str) -> None:
-        check_scheduler_address(address)
-        try:
-            from dask.distributed import Client
-        except ImportError:
-            raise InputError(
-                "--scheduler needs the optional package 'dask[distributed]': "
-                "pip install 'upsr[dask]'"
-            ) from None
-        try:
-            self.client = Client(address, timeout="10s")
-        except (OSError, TimeoutError, ValueError) as e:
-            raise InputError(f"cannot connect to the Dask scheduler {address}: {e}") from None
-        self.workers = max(1, len(self.client.scheduler_info().get("workers", {})))
-
-    def submit(self, spec: dict[str, Any]) -> Any:
-        return self.client.submit(run_chunk, spec, pure=False)
-
-    def as_completed(self, futures: Sequence[Any]) -> Iterator[Any]:
-        from dask.distributed import as_completed
-
-        return iter(as_completed(futures))
-
-    def shutdown(self) -> None:
-        with contextlib.suppress(Exception):
-            self.client.close()
 
 
 # ---------------------------------------------------------------------------------------------
@@ -825,192 +509,6 @@ def _run_locked(
     return BatchResult(recs)
 
 
-#: the lock file of an output folder (beside its work folder, never inside it)
-LOCK_FILE = ".upsr-batch.lock"
-
-
-@contextlib.contextmanager
-def _batch_folder(out: Path) -> Iterator[None]:
-    """Create the output folder if needed and hold its lock (``OUT/.upsr-batch.lock``).
-
-    The lock is an exclusive :func:`fcntl.flock` taken without waiting: a second batch on the
-    same folder (which would otherwise delete the first one's chunks as stale) is refused
-    with an :class:`InputError`. The lock file is removed (while still locked) at the end; a
-    process that opened it meanwhile sees that the file it locked is no longer the one at
-    the path and tries again. A folder this call created is removed again if it stays empty.
-    """
-    created = not os.path.lexists(out)
-    try:
-        out.mkdir(parents=True, exist_ok=True)
-    except OSError as e:
-        raise InputError(f"--out {out}: cannot create the folder ({e.strerror or e})") from None
-    try:
-        with _folder_lock(out):
-            yield
-    finally:
-        if created:
-            with contextlib.suppress(OSError):
-                out.rmdir()  # only if empty (everything failed)
-
-
-@contextlib.contextmanager
-def _folder_lock(out: Path) -> Iterator[None]:
-    try:
-        import fcntl
-    except ImportError:  # pragma: no cover - not POSIX: no lock
-        yield
-        return
-    path = out / LOCK_FILE
-    while True:
-        try:
-            fd = os.open(path, os.O_RDWR | os.O_CREAT | getattr(os, "O_CLOEXEC", 0), 0o644)
-        except OSError as e:
-            raise InputError(
-                f"--out {out}: cannot create {path.name} ({e.strerror or e})"
-            ) from None
-        try:
-            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        except OSError:
-            holder = ""
-            with contextlib.suppress(OSError, ValueError):
-                holder = f" (PID {int(os.pread(fd, 20, 0).decode().strip())})"
-            os.close(fd)
-            raise InputError(
-                f"--out {out} is in use by another upsr batch{holder}: wait for it to finish "
-                f"or choose another output folder"
-            ) from None
-        try:
-            st, now = os.fstat(fd), os.stat(path)
-            current = (st.st_dev, st.st_ino) == (now.st_dev, now.st_ino)
-        except OSError:
-            current = False
-        if current:
-            break
-        os.close(fd)  # its previous holder removed it after we opened it: again
-    try:
-        with contextlib.suppress(OSError):
-            os.ftruncate(fd, 0)
-            os.pwrite(fd, f"{os.getpid()}\n".encode(), 0)
-        yield
-    finally:
-        with contextlib.suppress(OSError):
-            os.unlink(path)
-        os.close(fd)
-
-
-def _resolved(p: Path) -> Path:
-    try:
-        return p.resolve()
-    except (OSError, RuntimeError):
-        raise InputError(f"{p}: cannot resolve the path (symbolic link loop?)") from None
-
-
-def _check_out_vs_inputs(out: Path, recs: list[Recording]) -> None:
-    """Refuse (before any work) an output folder inside an input folder, or an output that
-    is one of the inputs (any recording's, not only its own)."""
-    out_res = _resolved(out)
-    ins = [(r.input, _resolved(r.input)) for r in recs]
-    for inp, in_res in ins:
-        if (in_res == out_res or in_res in out_res.parents) and in_res.is_dir():
-            raise InputError(
-                f"--out {out} is inside the input folder {inp}: choose another output folder"
-            )
-    for rec in recs:
-        dest = _resolved(rec.output)
-        for inp, in_res in ins:
-            same = dest == in_res
-            if not same and os.path.exists(dest) and os.path.exists(in_res):
-                with contextlib.suppress(OSError):
-                    same = os.path.samefile(dest, in_res)
-            if same:
-                raise InputError(
-                    f"the output {rec.output} of {rec.input} is the input {inp}: "
-                    f"choose another output folder"
-                )
-
-
-def _options_record(
-    config: UPSRConfig,
-    read: dict[str, Any],
-    out_fmt: str,
-    intrinsics: str | None,
-    shrink_frames: bool,
-) -> dict[str, Any]:
-    """What an output of this batch depends on besides its input (compared on a rerun);
-    not the chunking, which does not change the output."""
-    rec = {
-        "config": dataclasses.asdict(config),
-        "read": read,
-        "format": out_fmt,
-        "intrinsics": intrinsics,
-        "shrink_frames": shrink_frames,
-    }
-    return dict(json.loads(json.dumps(rec, default=str)))
-
-
-def _record_path(rec: Recording) -> Path:
-    """Where the options an output was made with are recorded:
-    ``OUT/.upsr-batch/outputs/<output name>.json`` (no chunk folder is named without a dot
-    and a fingerprint)."""
-    return rec.output.parent / WORK_DIR / "outputs" / f"{rec.output.name}.json"
-
-
-def _read_record(rec: Recording) -> dict[str, Any] | None:
-    """The options record of an output (None: none, or unreadable)."""
-    try:
-        data = json.loads(_record_path(rec).read_text(encoding="utf-8"))
-    except (OSError, ValueError):
-        return None
-    return data if isinstance(data, dict) and "options" in data else None
-
-
-def _write_record(rec: Recording, options: dict[str, Any], state: str) -> None:
-    """Record (atomically) the options of ``rec``'s output: state "writing" before the
-    output is published, "done" once it and its sidecar are complete."""
-    from upsr._atomic import write_text_atomic
-
-    path = _record_path(rec)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    text = json.dumps({"state": state, "input": str(rec.input), "options": options})
-    write_text_atomic(path, text)
-
-
-def _drop_record(rec: Recording) -> None:
-    with contextlib.suppress(OSError):
-        _record_path(rec).unlink()
-
-
-def _differences(old: dict[str, Any], new: dict[str, Any], prefix: str = "") -> list[str]:
-    """``key: old -> new`` for the leaves of two option records that differ."""
-    out = []
-    for k in sorted(set(old) | set(new)):
-        a, b = old.get(k), new.get(k)
-        if isinstance(a, dict) and isinstance(b, dict):
-            out += _differences(a, b, f"{prefix}{k}.")
-        elif a != b:
-            out.append(f"{prefix}{k}: {a} -> {b}")
-    return out
-
-
-def _check_batch_options(
-    out: Path, output_format: str | None, workers: int | None, chunk_frames: int
-) -> str:
-    """Check the options of :func:`run_batch` (before any work); return the output format."""
-    most = max(64, 2 * (os.cpu_count() or 1))  # each a process with its own memory
-    if workers is not None and not 1 <= workers <= most:
-        raise InputError(f"--workers must be 1..{most}, got {workers}")
-    if chunk_frames < 0:
-        raise InputError(f"--chunk-frames must be >= 0, got {chunk_frames}")
-    if out.exists() and not out.is_dir():
-        raise InputError(f"--out {out} exists and is not a folder")
-    out_fmt = (output_format or "npy").lower()
-    if out_fmt not in _OUT_SUFFIX:
-        raise InputError(
-            f"cannot write {output_format!r} (output formats: {', '.join(_OUT_SUFFIX)})"
-        )
-    return out_fmt
-
-
 def _recordings(
     inputs: Sequence[str | os.PathLike[str]], out: Path, suffix: str
 ) -> list[Recording]:
@@ -1092,7 +590,7 @@ class _BatchRun:
                 self.tick(1)
                 continue
             for i, spec in enumerate(rec.chunks):
-                pending[executor.submit(spec)] = (rec, i)
+                pending[executor.submit(run_chunk, spec)] = (rec, i)
         return pending
 
     def _existing(self, rec: Recording, overwrite: bool) -> str:
@@ -1144,7 +642,7 @@ class _BatchRun:
                 res = self._result(fut, rec, i)
                 if res.get("kind") == "killed" and (id(rec), i) not in retried:
                     retried.add((id(rec), i))
-                    pending[executor.submit(rec.chunks[i])] = (rec, i)
+                    pending[executor.submit(run_chunk, rec.chunks[i])] = (rec, i)
                     resubmitted = True
                     break
                 self._chunk_done(rec, res, pending, out_fmt, depth_scale)

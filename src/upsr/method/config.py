@@ -352,7 +352,7 @@ class UPSRConfig:
         )
         _check(
             self.mode in ("windowed", "recursive"),
-            f"mode must be 'windowed' or 'recursive', not {self.mode!r}",
+            f"mode must be 'windowed' or 'recursive', not {_show(self.mode)}",
         )
         for name in ("remove_mixed", "radial_compensation", "fill_holes"):
             _check(isinstance(getattr(self, name), bool), f"{name} must be True or False")

@@ -19,7 +19,7 @@ from upsr.apps.cli.main import main
 README = Path(__file__).resolve().parents[3] / "README.md"
 #: lines that need data the repository does not ship, or are synopses / other tools
 _EXTERNAL = re.compile(r"\.\./shared|\$S|data/|recording\.bag|INPUT|LOWRES|tcp://|--out DIR")
-_SKIP_COMMANDS = {"demo", "analyze", "experiment", "batch"}  # long runs or external data
+_SKIP_COMMANDS = {"demo", "analyze", "experiment", "batch", "live"}  # long runs, cameras
 
 
 def _blocks(kind: str) -> list[str]:

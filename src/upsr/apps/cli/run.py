@@ -185,7 +185,7 @@ def run(
     cfg = method_config(locals())  # first: locals() are the options
     from upsr.apps import _preflight as pre
     from upsr.apps._camera import input_camera
-    from upsr.io import units
+    from upsr.io import identity, units
     from upsr.io import video as io
     from upsr.method.windowed import UPSR
 
@@ -203,20 +203,12 @@ def run(
     units.check_output_capacity(output, info.n_frames, fmt=out_fmt, depth_scale=s_out)
     resolved_out = io._output_format(output, out_fmt)
     color_dest = _check_color(color, input_path, output, info.n_frames, overwrite)
-    pre.check_run_resources(
-        info.shape,
-        cfg,
-        workers=pre.engine_workers(workers),
-        out_fmt=resolved_out,
-        output=output,
-        max_memory=mem,
-    )
+    workers_now = pre.engine_workers(workers)
+    pre.check_run_resources(info.shape, cfg, workers=workers_now, out_fmt=resolved_out,
+                            output=output, max_memory=mem)  # fmt: skip
     if frames is None and cfg.n_frames < DEFAULT_FRAMES and not recursive:
-        typer.echo(
-            f"upsr: note: the video has {info.n_frames} frame(s): N = {cfg.n_frames}", err=True
-        )
-    from upsr.io import identity
-
+        typer.echo(f"upsr: note: the video has {info.n_frames} frame(s): N = {cfg.n_frames}",
+                   err=True)  # fmt: skip
     names = identity.read_frame_names(input_path, fmt=in_fmt)
     stamps = identity.read_timestamps(input_path, fmt=in_fmt, topic=topic, key=key)
     source = io.iter_frames(input_path, key=key, depth_scale=s_in, fmt=in_fmt, topic=topic)
