@@ -261,3 +261,18 @@ def test_engine_keeps_a_thin_fast_bar():
     assert np.all(np.abs(wall - WALL) < 30)
     old = upsr.super_resolve(frames, R, 9, trust_k=None, **kw)[4]
     assert np.mean(np.abs(old[2 * R : -2 * R, 18 * R : 20 * R] - BAR) < 30) < 0.5
+
+
+def test_a_steep_slope_is_not_taken_for_mixed_pixels():
+    """A floor seen at a grazing angle steps by more than edge_mm from pixel to pixel, evenly
+    (or growing with depth): none of it is a mixed pixel; a pixel between two flat runs is."""
+    from upsr.method.trust import remove_mixed_pixels
+
+    rows = 1000.0 + 150.0 * np.arange(12, dtype=np.float32) ** 1.3  # steps 150..~500 mm
+    floor = np.repeat(rows[:, None], 10, axis=1)
+    np.testing.assert_array_equal(remove_mixed_pixels(floor, 100.0), floor)
+    edge = np.full((9, 9), 1000.0, np.float32)
+    edge[:, 5:] = 3000.0
+    edge[:, 4] = 2000.0  # the mixed column between the two flat surfaces
+    out = remove_mixed_pixels(edge, 100.0)
+    assert (out[:, 4] == 0).all() and (out[:, :4] == 1000).all() and (out[:, 5:] == 3000).all()

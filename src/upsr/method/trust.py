@@ -88,9 +88,47 @@ def _mixed_kernel(z, edge, out):  # pragma: no cover - numba
                         lo = min(lo, u)
                         hi = max(hi, u)
                         same += 1 if abs(u - v) <= edge else 0
-            # between two surfaces, and on none of its own (at most a line of such pixels)
-            if v - lo > edge and hi - v > edge and same <= 2:
+            # between two surfaces, and on none of its own (at most a line of such pixels),
+            # unless it continues a steep slope (a floor seen at a grazing angle)
+            if v - lo > edge and hi - v > edge and same <= 2 and not _on_slope(z, i, j):
                 out[i, j] = 0.0
+
+
+@nb.njit(cache=True, nogil=True, inline="always")
+def _steps_agree(s, t):  # pragma: no cover - numba
+    """Two consecutive depth steps of one slope: same sign, within a factor of 3."""
+    if s == 0.0 or t == 0.0 or (s > 0) != (t > 0):
+        return False
+    a, b = abs(s), abs(t)
+    return max(a, b) <= 3.0 * min(a, b)
+
+
+@nb.njit(cache=True, nogil=True)
+def _on_slope(z, i, j):  # pragma: no cover - numba
+    """True when, along a row, column or diagonal, the pixel (i, j) and its two neighbours on
+    each side step through depth evenly (a slanted surface, whose steps between neighbours can
+    exceed the edge threshold); a mixed pixel sits between two flat runs instead."""
+    h, w = z.shape
+    v = z[i, j]
+    for di, dj in ((0, 1), (1, 0), (1, 1), (1, -1)):
+        ia, ja, ib, jb = i - di, j - dj, i + di, j + dj
+        if min(ia, ib) < 0 or max(ia, ib) >= h or min(ja, jb) < 0 or max(ja, jb) >= w:
+            continue
+        a, b = z[ia, ja], z[ib, jb]
+        if not (a > 0 and b > 0) or not _steps_agree(v - a, b - v):
+            continue
+        outer = 0  # the steps beyond the two neighbours (those inside the frame) must agree
+        ok = True
+        ic, jc, ie, je = i - 2 * di, j - 2 * dj, i + 2 * di, j + 2 * dj
+        if 0 <= ic < h and 0 <= jc < w and z[ic, jc] > 0:
+            outer += 1
+            ok = ok and _steps_agree(a - z[ic, jc], v - a)
+        if 0 <= ie < h and 0 <= je < w and z[ie, je] > 0:
+            outer += 1
+            ok = ok and _steps_agree(b - v, z[ie, je] - b)
+        if outer > 0 and ok:
+            return True
+    return False
 
 
 def remove_mixed_pixels(frames: npt.ArrayLike, edge_mm: float) -> np.ndarray:
