@@ -8,46 +8,11 @@ from __future__ import annotations
 import sys
 import time
 from pathlib import Path
-from typing import Annotated
+from typing import Annotated, Any
 
 import typer
 
-from upsr.apps.cli.options import (
-    AlphaOpt,
-    BlurOpt,
-    BtvRadiusOpt,
-    DepthScaleAliasOpt,
-    FillHolesOpt,
-    FlowOpt,
-    FlowPresetOpt,
-    FlowScaleOpt,
-    FramesOpt,
-    FusionEstimatorOpt,
-    InFormatOpt,
-    InputDepthScaleOpt,
-    IterationsOpt,
-    KeepAllMotionOpt,
-    KeepNamesOpt,
-    KeyOpt,
-    LamOpt,
-    MaxMemoryOpt,
-    NoDeblurOpt,
-    NoMixedRemovalOpt,
-    NoRadialOpt,
-    NoRefineOpt,
-    NoTrustOpt,
-    OutFormat,
-    OutIntrinsicsOpt,
-    OutputDepthScaleOpt,
-    QuietOpt,
-    RefinePresetOpt,
-    ScaleOpt,
-    SpecklePxOpt,
-    TopicOpt,
-    TrustKOpt,
-    fmt,
-    method_config,
-)
+from upsr.apps.cli import options as opt
 from upsr.errors import one_line
 
 __all__ = ["batch", "register"]
@@ -60,6 +25,7 @@ Examples:
 """
 
 
+@opt.with_method_options
 def batch(
     inputs: Annotated[
         list[Path], typer.Argument(metavar="INPUTS...", help="Recordings (any input format).")
@@ -68,12 +34,12 @@ def batch(
         Path,
         typer.Option("--out", "-o", show_default=False, help="Output folder (one file each)."),
     ],
-    scale: ScaleOpt,
-    frames: FramesOpt = None,
+    scale: opt.ScaleOpt,
+    frames: opt.FramesOpt = None,
     output_format: Annotated[
-        OutFormat,
+        opt.OutFormat,
         typer.Option("--format", "-f", case_sensitive=False, help="Output format."),
-    ] = OutFormat.npy,
+    ] = opt.OutFormat.npy,
     scheduler: Annotated[
         str | None,
         typer.Option(
@@ -93,38 +59,20 @@ def batch(
             help="Output frames per chunk of a recording; 0: about T/workers (>= 4N).",
         ),
     ] = 0,
-    intrinsics: OutIntrinsicsOpt = None,
-    key: KeyOpt = None,
-    topic: TopicOpt = None,
-    input_format: InFormatOpt = None,
-    input_depth_scale: InputDepthScaleOpt = None,
-    depth_scale: DepthScaleAliasOpt = None,
-    output_depth_scale: OutputDepthScaleOpt = None,
-    no_deblur: NoDeblurOpt = False,
-    lam: LamOpt = None,
-    alpha: AlphaOpt = None,
-    btv_radius: BtvRadiusOpt = None,
-    iterations: IterationsOpt = None,
-    blur: BlurOpt = None,
-    flow: FlowOpt = None,
-    flow_preset: FlowPresetOpt = None,
-    flow_scale: FlowScaleOpt = None,
-    refine_preset: RefinePresetOpt = None,
-    speckle_px: SpecklePxOpt = None,
-    no_refine: NoRefineOpt = False,
-    keep_all_motion: KeepAllMotionOpt = False,
-    fill_holes: FillHolesOpt = False,
-    trust_k: TrustKOpt = None,
-    no_trust: NoTrustOpt = False,
-    fusion_estimator: FusionEstimatorOpt = None,
-    no_mixed_removal: NoMixedRemovalOpt = False,
-    no_radial: NoRadialOpt = False,
-    keep_names: KeepNamesOpt = True,
-    max_memory: MaxMemoryOpt = None,
+    intrinsics: opt.OutIntrinsicsOpt = None,
+    key: opt.KeyOpt = None,
+    topic: opt.TopicOpt = None,
+    input_format: opt.InFormatOpt = None,
+    input_depth_scale: opt.InputDepthScaleOpt = None,
+    depth_scale: opt.DepthScaleAliasOpt = None,
+    output_depth_scale: opt.OutputDepthScaleOpt = None,
+    keep_names: opt.KeepNamesOpt = True,
+    max_memory: opt.MaxMemoryOpt = None,
     overwrite: Annotated[
         bool, typer.Option("--overwrite", help="Recompute outputs that exist [default: skip].")
     ] = False,
-    quiet: QuietOpt = False,
+    quiet: opt.QuietOpt = False,
+    **method: Any,
 ) -> int:
     """Super-resolve many recordings (same options as 'upsr run'), resumably.
 
@@ -134,7 +82,7 @@ def batch(
     parallel with results identical to a single run. A failing recording is reported and the
     others go on; exit status 2 (bad input) or 1 (internal error) if any failed.
     """
-    cfg = method_config(locals())  # first: locals() are the options
+    cfg = opt.method_config(locals())  # first: locals() are the options
     from upsr.apps._preflight import memory_limit
     from upsr.apps.batch import run_batch
     from upsr.io.units import resolve_depth_scales
@@ -148,7 +96,7 @@ def batch(
         cfg,
         key=key,
         topic=topic,
-        input_format=fmt(input_format),
+        input_format=opt.fmt(input_format),
         depth_scale=s_in,
         output_depth_scale=s_out,
         max_memory=mem,

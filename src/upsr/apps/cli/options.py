@@ -503,9 +503,65 @@ def config_from_options(
 
 def method_config(values: dict[str, Any]) -> UPSRConfig:
     """:func:`config_from_options` of the method options among a command's parameters
-    (``values``: its ``locals()``, with ``scale`` and ``frames``)."""
+    (``values``: its ``locals()``, with ``scale`` and ``frames``; the options grafted by
+    :func:`with_method_options` arrive in its ``method`` dict)."""
     import inspect
 
+    values = {**values, **values.get("method", {})}
     names = set(inspect.signature(config_from_options).parameters) - {"scale", "frames"}
     options = {k: values[k] for k in names if k in values}
     return config_from_options(values["scale"], values["frames"], **options)
+
+
+#: The method options of ``upsr run`` and ``upsr batch`` (name, annotation, default), in the
+#: order of their --help; :func:`with_method_options` adds them to both commands.
+METHOD_OPTIONS: tuple[tuple[str, Any, Any], ...] = (
+    ("no_deblur", NoDeblurOpt, False),
+    ("lam", LamOpt, None),
+    ("alpha", AlphaOpt, None),
+    ("btv_radius", BtvRadiusOpt, None),
+    ("iterations", IterationsOpt, None),
+    ("blur", BlurOpt, None),
+    ("flow", FlowOpt, None),
+    ("flow_preset", FlowPresetOpt, None),
+    ("flow_scale", FlowScaleOpt, None),
+    ("refine_preset", RefinePresetOpt, None),
+    ("speckle_px", SpecklePxOpt, None),
+    ("no_refine", NoRefineOpt, False),
+    ("keep_all_motion", KeepAllMotionOpt, False),
+    ("fill_holes", FillHolesOpt, False),
+    ("trust_k", TrustKOpt, None),
+    ("no_trust", NoTrustOpt, False),
+    ("fusion_estimator", FusionEstimatorOpt, None),
+    ("no_mixed_removal", NoMixedRemovalOpt, False),
+    ("no_radial", NoRadialOpt, False),
+)
+
+
+def with_method_options(command: Any) -> Any:
+    """Give a command (declared with ``**method``) the :data:`METHOD_OPTIONS` as parameters.
+
+    typer reads the command's ``__signature__`` and annotations: the shared options are
+    written once, here, and reach the command in its ``method`` dict.
+    """
+    import inspect
+    import typing
+
+    sig = inspect.signature(command)
+    hints = typing.get_type_hints(command, include_extras=True)  # the Annotated objects
+    own = [
+        p.replace(annotation=hints.get(p.name, p.annotation))
+        for p in sig.parameters.values()
+        if p.kind is not p.VAR_KEYWORD
+    ]
+    added = [
+        inspect.Parameter(name, inspect.Parameter.KEYWORD_ONLY, default=default, annotation=ann)
+        for name, ann, default in METHOD_OPTIONS
+    ]
+    command.__signature__ = sig.replace(parameters=[*own, *added])
+    command.__annotations__ = {
+        **{p.name: p.annotation for p in own},
+        **{name: ann for name, ann, _ in METHOD_OPTIONS},
+        "return": hints.get("return", sig.return_annotation),
+    }
+    return command
