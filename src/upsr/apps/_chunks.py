@@ -3,7 +3,6 @@ worker): its config, its engine, its part; the check of the batch options."""
 
 from __future__ import annotations
 
-import os
 from pathlib import Path
 from typing import Any
 
@@ -96,7 +95,9 @@ def _check_batch_options(
     out: Path, output_format: str | None, workers: int | None, chunk_frames: int
 ) -> str:
     """Check the options of :func:`run_batch` (before any work); return the output format."""
-    most = max(64, 2 * (os.cpu_count() or 1))  # each a process with its own memory
+    from upsr.apps._preflight import max_workers
+
+    most = max_workers()
     if workers is not None and not 1 <= workers <= most:
         raise InputError(f"--workers must be 1..{most}, got {workers}")
     if chunk_frames < 0:

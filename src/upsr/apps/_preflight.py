@@ -49,6 +49,12 @@ def memory_limit(max_memory: str | None) -> int | None:
     return n
 
 
+def max_workers() -> int:
+    """The largest ``--workers`` of ``upsr run`` and ``upsr batch``: each worker holds frames
+    of its own, so many more than the cores only costs memory."""
+    return max(64, 2 * (os.cpu_count() or 1))
+
+
 def engine_workers(workers: int | None) -> int:
     """The threads :class:`upsr.method.windowed.UPSR` uses for ``workers`` (None: its default)."""
     if workers is None:

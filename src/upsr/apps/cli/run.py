@@ -5,7 +5,6 @@ from __future__ import annotations
 import contextlib
 import dataclasses
 import itertools
-import os
 import sys
 import time
 from collections.abc import Iterator
@@ -154,9 +153,8 @@ def run(
     from upsr.io import video as io
     from upsr.method.windowed import UPSR
 
-    most = max(64, 2 * (os.cpu_count() or 1))  # each holds 2 windows in flight
-    if workers is not None and workers > most:
-        raise InputError(f"--workers must be 0..{most}, got {workers}")
+    if workers is not None and workers > pre.max_workers():
+        raise InputError(f"--workers must be 0..{pre.max_workers()}, got {workers}")
     mem = pre.memory_limit(max_memory)
     s_in, s_out = units.resolve_depth_scales(depth_scale, input_depth_scale, output_depth_scale)
     in_fmt, out_fmt = fmt(input_format), fmt(output_format)
