@@ -134,7 +134,7 @@ def test_mixed_pixels_are_removed_and_never_reach_the_output():
     # edges, slopes and single outliers at one side are not mixed pixels
     np.testing.assert_array_equal(remove_mixed_pixels(frames, 100.0), frames)
     kw = dict(deblur=False, noise_mm=2.0, speckle_px=0)
-    out = upsr.super_resolve(mixed, 2, 5, **kw)
+    out = upsr.super_resolve(mixed, 2, 5, remove_mixed=True, **kw)
     valid = out[out > 0]
     near_surface = (np.abs(valid - 1000) <= 100) | (np.abs(valid - WALL) <= 100)
     assert near_surface.all()

@@ -231,11 +231,16 @@ class UPSRConfig:
         With fewer trusted samples than this the output is the anchor (the reference denoised
         on its surface): the window length becomes per pixel. ``None``:
         ``max(2, ceil(N/3))`` (at most N).
-    remove_mixed : bool
-        Set the mixed ("flying") input pixels of every frame (a depth more than the edge
+    remove_mixed : bool or "auto"
+        Drop the mixed ("flying") input pixels of every frame (a depth more than the edge
         threshold from both its nearest and its farthest 8-neighbour: a ToF footprint across
-        an edge) to 0 before the fusion, so the other frames fill them
-        (:func:`upsr.method.trust.remove_mixed_pixels`).
+        an edge) before the fusion, so that the other frames fill them; where none does, the
+        reference's mixed pixel is split between the surfaces around it
+        (:func:`upsr.method.trust.remove_mixed_pixels`,
+        :func:`~upsr.method.trust.split_mixed_pixels`). ``"auto"``: decided once per video
+        from its first frames, on when a third or more of its edges between flat surfaces
+        have a pixel between them (:func:`upsr.method.trust.footprint_share`; a
+        point-sampling sensor has none, and its steep slopes would be taken for mixed).
     radial_compensation : bool
         Subtract from each frame's samples its depth offset to the reference (motion along
         the viewing ray, a masked median over (2·radial_radius_px+1)² low-res px of one
@@ -243,6 +248,12 @@ class UPSRConfig:
         trust test and the fusion.
     radial_radius_px : int
         Half-size (low-res px) of the neighbourhood of the radial offsets.
+    check_registration : bool
+        Drop the samples of a frame around the pixels where it is misregistered: where, among
+        the reference's interior pixels of a 5×5 low-res neighbourhood, several see another
+        surface in that frame registered to the reference (a fast deforming part the flow did
+        not follow, an occlusion; :func:`upsr.method.consistency.misregistered`). They vote
+        neither on the depth nor on whether there is depth.
     fusion_estimator : {"auto", "median", "mean"}
         Estimate of the fused samples of a surface: the median (eq. 28, ML under Laplacian
         noise), the mean (ML under Gaussian noise; falls between quantisation steps), or
@@ -283,9 +294,10 @@ class UPSRConfig:
     trust_k: float | None = 3.0
     trust_noise_mm: float | None = None
     min_trusted: int | None = None
-    remove_mixed: bool = True
+    remove_mixed: bool | str = "auto"
     radial_compensation: bool = True
     radial_radius_px: int = 2
+    check_registration: bool = True
     fusion_estimator: str = "auto"
     fill_holes: bool = False
     mode: str = "windowed"
@@ -354,7 +366,12 @@ class UPSRConfig:
             self.mode in ("windowed", "recursive"),
             f"mode must be 'windowed' or 'recursive', not {_show(self.mode)}",
         )
-        for name in ("remove_mixed", "radial_compensation", "fill_holes"):
+        _check(
+            isinstance(self.remove_mixed, bool)
+            or (_is_str(self.remove_mixed) and self.remove_mixed == "auto"),
+            f"remove_mixed must be True, False or 'auto', not {_show(self.remove_mixed)}",
+        )
+        for name in ("radial_compensation", "check_registration", "fill_holes"):
             _check(isinstance(getattr(self, name), bool), f"{name} must be True or False")
         object.__setattr__(self, "scale", int(self.scale))
         object.__setattr__(self, "n_frames", int(self.n_frames))

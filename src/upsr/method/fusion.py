@@ -186,6 +186,7 @@ def _register_fuse_kernel(
     alt_tlo,
     alt_hi,
     alt_thi,
+    untrusted,
     min_trusted,
     use_mean,
     out,
@@ -200,9 +201,11 @@ def _register_fuse_kernel(
     big = max(hh, ww)
     low_of = np.empty(big, np.int64)
     centre_of = np.empty(big, np.float32)
+    side_of = np.empty(big, np.int64)  # 1 + the side (−1, 0, 1) of that centre
     for x in range(big):
         low_of[x] = x // scale
         centre_of[x] = (x // scale + 0.5) * scale - 0.5
+        side_of[x] = 1 + (1 if x > centre_of[x] else (-1 if x < centre_of[x] else 0))
     half = np.float32(0.5)
     inv_r = np.float32(1.0 / scale)
     w_low = lowres.shape[2]
@@ -232,7 +235,8 @@ def _register_fuse_kernel(
         on_anc = np.empty(m_on, np.float32)  # the reference's anchor (0: none, no trust test)
         on_tol = np.empty(m_on, np.float32)
         # at a depth edge: the nearest and the farthest other surface among the low-res
-        # neighbours (0: none), whose samples compete (trust.surface_alternatives)
+        # neighbours on the pixel's side of the centre (0: none), whose samples compete
+        # (trust.surface_alternatives)
         on_ax = np.empty(m_on, np.float32)
         on_tx = np.empty(m_on, np.float32)
         on_ay = np.empty(m_on, np.float32)
@@ -241,10 +245,7 @@ def _register_fuse_kernel(
         li = low_of[i]
         anc_row = anchor[li]
         tol_row = tol[li]
-        lo_row_a = alt_lo[li]
-        lo_row_t = alt_tlo[li]
-        hi_row_a = alt_hi[li]
-        hi_row_t = alt_thi[li]
+        sy = side_of[i]  # the side of its low-res pixel's centre the row lies on
         for q in range(m_on):
             j = on[q]
             on_jd[q] = np.float64(j)
@@ -255,10 +256,11 @@ def _register_fuse_kernel(
             on_low[q] = lj
             on_anc[q] = anc_row[lj]
             on_tol[q] = tol_row[lj]
-            on_ax[q] = lo_row_a[lj]
-            on_tx[q] = lo_row_t[lj]
-            on_ay[q] = hi_row_a[lj]
-            on_ty[q] = hi_row_t[lj]
+            sx = side_of[j]
+            on_ax[q] = alt_lo[sy, sx, li, lj]
+            on_tx[q] = alt_tlo[sy, sx, li, lj]
+            on_ay[q] = alt_hi[sy, sx, li, lj]
+            on_ty[q] = alt_thi[sy, sx, li, lj]
         # one output row at a time, every frame's sample of each of those pixels: loops
         # over the row (SIMD where they can)
         raw = np.empty((n, m_on), np.float32)  # the sample; NaN: outside its frame (abstains)
@@ -291,8 +293,9 @@ def _register_fuse_kernel(
                     own_k = (v > 0) & (a > 0) & (abs(vc - a) <= on_tol[q])
                     side = (abs(vc - on_ax[q]) <= on_tx[q]) | (abs(vc - on_ay[q]) <= on_ty[q])
                     ok = (v > 0) & ((a <= 0) | own_k | side)
-                    # an untrusted sample abstains entirely (neither depth nor "no depth")
-                    vote = (a <= 0) | ok
+                    # an untrusted sample abstains entirely (neither depth nor "no depth"),
+                    # and so does a removed mixed pixel (trust.ABSTAIN)
+                    vote = ((a <= 0) | ok) & (v >= 0)
                     n_own[q] += 1 if own_k else 0
                     raw_k[q] = (vc if v > 0 else v) if vote else nan
                     srt_k[q] = vc if ok else inf
@@ -308,6 +311,7 @@ def _register_fuse_kernel(
                 vyk[c] = ((1 - gy) * m0[c, 1] + gy * m1[c, 1]) * ratio
             lk = lowres[k].ravel()
             off_k = offsets[k, low_of[i]]
+            bad_k = untrusted[k, low_of[i]]
             rk = raw[k]
             sk = srt[k]
             pxk = px[k]
@@ -333,14 +337,16 @@ def _register_fuse_kernel(
             for q in range(m_on):
                 t = at[q]
                 v = lk[max(t, 0)]
-                inside = t >= 0
+                # outside, frame k misregistered around this pixel, or a removed mixed
+                # pixel (trust.ABSTAIN): abstains
+                inside = (t >= 0) & ~bad_k[on_low[q]] & (v >= 0)
                 a = on_anc[q]
                 vc = v - off_k[on_low[q]]  # radial motion compensated
                 own_k = inside & (v > 0) & (a > 0) & (abs(vc - a) <= on_tol[q])
                 side = (abs(vc - on_ax[q]) <= on_tx[q]) | (abs(vc - on_ay[q]) <= on_ty[q])
                 valid = inside & (v > 0) & ((a <= 0) | own_k | side)
                 n_own[q] += 1 if own_k else 0
-                # outside, or valid but not trusted by the reference's anchor: abstains
+                # not inside, or valid but not trusted by the reference's anchor: abstains
                 vote = inside & ((a <= 0) | valid)
                 rk[q] = (vc if v > 0 else v) if vote else nan
                 sk[q] = vc if valid else inf
@@ -512,14 +518,18 @@ def temporal_median(
     return out
 
 
-def _trust_inputs(anchor, tolerance, offsets, alternatives, lr, edge_mm):
+def _trust_inputs(anchor, tolerance, offsets, alternatives, untrusted, lr, edge_mm):
     """The trust arrays of :func:`register_and_fuse` as its kernel reads them."""
     n, h, w = lr.shape
     anc, tol, offs = trust_arrays(anchor, tolerance, offsets, (n, h, w))
     if alternatives is None:
         alternatives = surface_alternatives(anc, tol, edge_mm)
-    alts = [np.ascontiguousarray(a, np.float32).reshape(h, w) for a in alternatives]
-    return anc, tol, offs, alts
+    alts = [np.ascontiguousarray(a, np.float32).reshape(3, 3, h, w) for a in alternatives]
+    if untrusted is None:
+        bad = np.zeros((n, h, w), np.bool_)
+    else:
+        bad = np.ascontiguousarray(untrusted, np.bool_).reshape(n, h, w)
+    return anc, tol, offs, alts, bad
 
 
 def register_and_fuse(
@@ -541,6 +551,7 @@ def register_and_fuse(
     min_trusted: int = 1,
     estimator: str = "median",
     alternatives: tuple[npt.ArrayLike, ...] | None = None,
+    untrusted: npt.ArrayLike | None = None,
 ) -> np.ndarray:
     """Registration (eq. 20) and invalid-aware median fusion (eq. 28) in one compiled pass.
 
@@ -589,8 +600,12 @@ def register_and_fuse(
     estimator : {"median", "mean"}
         Estimate of the samples of the winning surface: their median (eq. 28, ML for Laplace
         noise) or their mean (ML for Gaussian noise; between quantisation steps).
-    alternatives : tuple of 4 array_like (h, w), optional
+    alternatives : tuple of 4 array_like (3, 3, h, w), optional
         :func:`upsr.method.trust.surface_alternatives` (default: from anchor and tolerance).
+    untrusted : array_like bool (N, h, w), optional
+        Frame k misregistered around reference pixel (i, j)
+        (:func:`upsr.method.consistency.misregistered`): its samples there abstain like
+        samples outside the frame. ``None``: none.
 
     Returns
     -------
@@ -603,40 +618,30 @@ def register_and_fuse(
     ref = (n - 1) // 2 if ref is None else int(ref)
     if not 0 <= ref < n:
         raise ValueError(f"ref must be in [0, {n}), got {ref}")
-    hh, ww = h * scale, w * scale
-    (cols, fx), (rows, fy), ratio = interpolation_tables((hh, ww), mp.shape[1:3])
-    table, step = weight_table(scale, weight_sigma_px)
-    gd = np.zeros((hh, ww), np.float32) if guide is None else np.asarray(guide, np.float32)
-    gd = np.ascontiguousarray(gd)
-    measured = (lr > 0).any(axis=0) if measured_only else np.ones((h, w), np.bool_)
     if estimator not in ("median", "mean"):
         raise ValueError(f"estimator must be 'median' or 'mean', not {estimator!r}")
-    anc, tol, offs, alts = _trust_inputs(anchor, tolerance, offsets, alternatives, lr, edge_mm)
+    hh, ww = h * scale, w * scale
+    (cols, fx), (rows, fy), ratio = interpolation_tables((hh, ww), mp.shape[1:3])
+    gd = np.zeros((hh, ww), np.float32) if guide is None else np.asarray(guide, np.float32)
+    measured = (lr > 0).any(axis=0) if measured_only else np.ones((h, w), np.bool_)
+    geometry = (lr, mp, int(scale), ratio, cols, fx, rows, fy)
+    votes = (*weight_table(scale, weight_sigma_px), float(weight_floor))
+    rules = (np.ascontiguousarray(gd), float(guide_bonus), ref, float(min_valid_fraction))
+    rules += (float(edge_mm), measured, _network(n))
+    still = ref if not mp[ref].any() else -1  # the reference's map is zero: a shortcut
+    trust = _trust_inputs(anchor, tolerance, offsets, alternatives, untrusted, lr, edge_mm)
+    anc, tol, offs, alts, bad = trust
     out = np.empty((hh, ww), np.float32)
     _register_fuse_kernel(
-        lr,
-        mp,
-        int(scale),
-        ratio,
-        cols,
-        fx,
-        rows,
-        fy,
-        table,
-        step,
-        float(weight_floor),
-        gd,
-        float(guide_bonus),
-        ref,
-        float(min_valid_fraction),
-        float(edge_mm),
-        measured,
-        _network(n),
-        ref if not mp[ref].any() else -1,  # the reference's map is zero: a shortcut
+        *geometry,
+        *votes,
+        *rules,
+        still,
         anc,
         tol,
         offs,
         *alts,
+        bad,
         max(int(min_trusted), 1),
         estimator == "mean",
         out,

@@ -82,9 +82,12 @@ from upsr.method.trust import (
     _offset_kernel,
     choose_estimator,
     fill_holes,
+    footprint_share,
+    has_mixed_pixels,
     noise_shape,
     reference_anchor,
     remove_mixed_pixels,
+    split_mixed_pixels,
     surface_support,
 )
 from upsr.method.validation import as_depth_frame, as_depth_video
@@ -436,6 +439,7 @@ class RecursiveUPSR:
         self._temporal_mm = 0.0
         est = cfg.fusion_estimator
         self._estimator = "median" if est == "auto" else est
+        self._remove_mixed = cfg.remove_mixed is True
 
     @property
     def frames_seen(self) -> int:
@@ -489,6 +493,8 @@ class RecursiveUPSR:
             # per-video statistics from the first frame (latency 0: nothing later is known)
             self._front.fix_statistics([f])
             self._first = f
+            if cfg.remove_mixed == "auto":
+                self._remove_mixed = has_mixed_pixels(footprint_share(f, self._front.edge_mm))
         elif f.shape != self._shape:
             raise InputError(
                 f"frame {t}: shape {f.shape} differs from the first frame's {self._shape}"
@@ -510,7 +516,7 @@ class RecursiveUPSR:
                 # one flow per frame: current -> previous (the backward lookup of the state)
                 flow = front.consecutive_flow(pre, self._prev_pre, guide, self._prev_guide)
         with self._timed("fusion"):
-            meas = remove_mixed_pixels(f, front.edge_mm) if cfg.remove_mixed else f
+            meas = remove_mixed_pixels(f, front.edge_mm) if self._remove_mixed else f
             noise = self._noise()
             k = cfg.trust_k
             anchor, tol = reference_anchor(meas, noise, k if k is not None else 1.0, front.edge_mm)
@@ -544,6 +550,10 @@ class RecursiveUPSR:
         self._prev_pre, self._prev_guide = pre, guide
         self._count = t + 1
         with self._timed("deblur"):
+            if self._remove_mixed:
+                # the mixed pixels the state did not fill: split between their neighbours
+                # (in the output only, the state holds measurements)
+                fused = split_mixed_pixels(fused, f, meas, anchor)
             out = finish_fused(fused, cfg)
             keep = surface_support(meas, front.edge_mm)
             lost = np.repeat(np.repeat(keep, r, axis=0), r, axis=1) & (out == 0) & (fused > 0)

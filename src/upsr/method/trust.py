@@ -29,14 +29,23 @@ import numba as nb
 import numpy as np
 import numpy.typing as npt
 
+from upsr.method.consistency import registered_samples
+
 __all__ = [
+    "ABSTAIN",
+    "MIXED_SHARE",
     "TOLERANCE_FLOOR_MM",
+    "alternatives_on_grid",
     "choose_estimator",
     "fill_holes",
+    "footprint_share",
+    "has_mixed_pixels",
     "noise_shape",
     "radial_offsets",
     "reference_anchor",
     "remove_mixed_pixels",
+    "side_of_centre",
+    "split_mixed_pixels",
     "surface_alternatives",
     "surface_support",
     "trust_arrays",
@@ -50,6 +59,14 @@ TOLERANCE_FLOOR_MM = 2.0
 #: median is kept (difference of two Laplace samples: 1.5; of two Gaussian ones: 0; of two
 #: quantisation errors: −0.6).
 KURTOSIS_MEDIAN = 0.75
+
+#: :func:`footprint_share` from which a video's sensor is taken to mix depths at edges (ToF)
+#: and its mixed pixels are removed (``remove_mixed="auto"``).
+MIXED_SHARE = 1.0 / 3.0
+
+#: A removed (mixed) input pixel that abstains in the fusion: it votes neither on the depth nor
+#: on whether there is depth (every kernel reads depth as ``> 0``).
+ABSTAIN = -1.0
 
 
 @nb.njit(cache=True, nogil=True, inline="always")
@@ -66,7 +83,7 @@ def _median_inplace(buf, m):  # pragma: no cover - numba
 
 
 @nb.njit(cache=True, nogil=True)
-def _mixed_kernel(z, edge, out):  # pragma: no cover - numba
+def _mixed_kernel(z, edge, marker, out):  # pragma: no cover - numba
     h, w = z.shape
     for i in range(h):
         for j in range(w):
@@ -90,8 +107,8 @@ def _mixed_kernel(z, edge, out):  # pragma: no cover - numba
                         same += 1 if abs(u - v) <= edge else 0
             # between two surfaces, and on none of its own (at most a line of such pixels),
             # unless it continues a steep slope (a floor seen at a grazing angle)
-            if v - lo > edge and hi - v > edge and same <= 2 and not _on_slope(z, i, j):
-                out[i, j] = 0.0
+            if v - lo > edge and hi - v > edge and same <= 2 and not _on_slope(z, i, j, edge):
+                out[i, j] = marker
 
 
 @nb.njit(cache=True, nogil=True, inline="always")
@@ -103,11 +120,33 @@ def _steps_agree(s, t):  # pragma: no cover - numba
     return max(a, b) <= 3.0 * min(a, b)
 
 
+@nb.njit(cache=True, nogil=True, inline="always")
+def _steep_run(z, i, j, di, dj, step, edge):  # pragma: no cover - numba
+    """The two steps beyond the neighbour (i + di, j + dj) continue ``step`` (its step from
+    (i, j)) in direction (di, dj), each beyond the edge threshold and agreeing with the last."""
+    h, w = z.shape
+    last = z[i + di, j + dj]
+    for s in (2, 3):
+        a = i + s * di
+        b = j + s * dj
+        if not (0 <= a < h and 0 <= b < w and z[a, b] > 0):
+            return False
+        t = z[a, b] - last
+        if abs(t) <= edge or not _steps_agree(step, t):
+            return False
+        step = t
+        last = z[a, b]
+    return True
+
+
 @nb.njit(cache=True, nogil=True)
-def _on_slope(z, i, j):  # pragma: no cover - numba
-    """True when, along a row, column or diagonal, the pixel (i, j) and its two neighbours on
-    each side step through depth evenly (a slanted surface, whose steps between neighbours can
-    exceed the edge threshold); a mixed pixel sits between two flat runs instead."""
+def _on_slope(z, i, j, edge):  # pragma: no cover - numba
+    """True when, along a row, column or diagonal, the pixel (i, j) continues a slanted surface
+    whose steps between neighbours can exceed the edge threshold (a floor seen at a grazing
+    angle): its two neighbours step through depth evenly with it, and so do the steps beyond
+    both of them, or, on one side, the next two steps, all beyond the edge threshold (a steep
+    slope that begins at another surface). A mixed pixel sits between two flat runs, or ends
+    a ramp of at most two mixed pixels across a ToF edge."""
     h, w = z.shape
     v = z[i, j]
     for di, dj in ((0, 1), (1, 0), (1, 1), (1, -1)):
@@ -117,6 +156,8 @@ def _on_slope(z, i, j):  # pragma: no cover - numba
         a, b = z[ia, ja], z[ib, jb]
         if not (a > 0 and b > 0) or not _steps_agree(v - a, b - v):
             continue
+        if _steep_run(z, i, j, di, dj, b - v, edge) or _steep_run(z, i, j, -di, -dj, a - v, edge):
+            return True
         outer = 0  # the steps beyond the two neighbours (those inside the frame) must agree
         ok = True
         ic, jc, ie, je = i - 2 * di, j - 2 * dj, i + 2 * di, j + 2 * dj
@@ -131,8 +172,8 @@ def _on_slope(z, i, j):  # pragma: no cover - numba
     return False
 
 
-def remove_mixed_pixels(frames: npt.ArrayLike, edge_mm: float) -> np.ndarray:
-    """Set the mixed ("flying") pixels of each frame to 0 = no measurement.
+def remove_mixed_pixels(frames: npt.ArrayLike, edge_mm: float, marker: float = 0.0) -> np.ndarray:
+    """Set the mixed ("flying") pixels of each frame to ``marker`` (0 = no measurement).
 
     A pixel is mixed when its depth lies more than ``edge_mm`` behind its nearest valid
     8-neighbour and more than ``edge_mm`` in front of its farthest one, and at most 2 of its
@@ -140,7 +181,7 @@ def remove_mixed_pixels(frames: npt.ArrayLike, edge_mm: float) -> np.ndarray:
     them along an edge still counts; a genuine surface between two others does not). A ToF
     pixel whose footprint straddles a depth edge returns a depth between the two surfaces,
     which belongs to neither. The other frames of the window fill it (their samples there are
-    not mixed).
+    not mixed), or :func:`split_mixed_pixels` splits it between the surfaces around it.
 
     Parameters
     ----------
@@ -148,18 +189,85 @@ def remove_mixed_pixels(frames: npt.ArrayLike, edge_mm: float) -> np.ndarray:
         Depth (mm), 0 or NaN = no measurement.
     edge_mm : float
         Depth step that separates two surfaces.
+    marker : float
+        What a mixed pixel becomes: 0 (no measurement: it votes "no depth") or
+        :data:`ABSTAIN` (the fusion ignores it, like a sample outside the frame).
 
     Returns
     -------
-    ndarray float32, same shape: the frames with mixed pixels set to 0 (NaN become 0).
+    ndarray float32, same shape: the frames with mixed pixels set to ``marker`` (NaN become 0).
     """
     z = np.asarray(frames, np.float32)
     z = np.where(np.isnan(z), np.float32(0.0), z)
     flat = z.reshape(-1, *z.shape[-2:])
     out = np.empty_like(flat)
     for k in range(flat.shape[0]):
-        _mixed_kernel(np.ascontiguousarray(flat[k]), float(edge_mm), out[k])
+        _mixed_kernel(np.ascontiguousarray(flat[k]), float(edge_mm), float(marker), out[k])
     return out.reshape(z.shape)
+
+
+@nb.njit(cache=True, nogil=True, parallel=True)
+def _split_kernel(fused, removed, measured, source, scale, out):  # pragma: no cover - numba
+    h, w = removed.shape
+    for i in nb.prange(h):
+        for j in range(w):
+            if not removed[i, j]:
+                continue
+            m = measured[i, j]
+            for y in range(i * scale, (i + 1) * scale):
+                for x in range(j * scale, (j + 1) * scale):
+                    if fused[y, x] > 0:
+                        continue
+                    best = np.inf
+                    pick = np.float32(0.0)
+                    for a in range(max(i - 1, 0), min(i + 2, h)):
+                        for b in range(max(j - 1, 0), min(j + 2, w)):
+                            u = source[a, b]
+                            if removed[a, b] or not u > 0:
+                                continue
+                            dy = y - ((a + 0.5) * scale - 0.5)
+                            dx = x - ((b + 0.5) * scale - 0.5)
+                            # nearest neighbour centre first; a tie: the depth nearest m
+                            d = (dy * dy + dx * dx) * 1e6 + min(abs(u - m), 1e6 - 1.0)
+                            if d < best:
+                                best = d
+                                pick = u
+                    out[y, x] = pick
+
+
+def split_mixed_pixels(
+    fused: npt.ArrayLike, measured: npt.ArrayLike, cleaned: npt.ArrayLike, source: npt.ArrayLike
+) -> np.ndarray:
+    """Give the reference's mixed pixels that no frame filled the depth of their neighbours.
+
+    A pixel that :func:`remove_mixed_pixels` dropped from the reference did measure something:
+    a mix of the surfaces its footprint straddles. Where the fusion left its block without
+    depth, each high-res pixel there takes the depth of the nearest (by block centre) kept
+    low-res 8-neighbour (a tie: the one nearest the measured mix): the block is split between
+    the surfaces around it, never given a depth between them, and never left a hole.
+
+    Parameters
+    ----------
+    fused : array_like (r·h, r·w)
+        Fused depth (mm, 0 = none).
+    measured, cleaned : array_like (h, w)
+        The reference frame as measured and after :func:`remove_mixed_pixels` (mm).
+    source : array_like (h, w)
+        The depth the neighbours give (mm, 0 = none): the reference's anchor.
+
+    Returns
+    -------
+    ndarray float32 (r·h, r·w): ``fused`` with those blocks filled.
+    """
+    z = np.nan_to_num(np.asarray(measured, np.float32), nan=0.0)
+    c = np.nan_to_num(np.asarray(cleaned, np.float32), nan=0.0)
+    removed = (z > 0) & ~(c > 0)
+    f = np.ascontiguousarray(fused, np.float32)
+    out = f.copy()
+    if removed.any():
+        src = np.ascontiguousarray(source, np.float32)
+        _split_kernel(f, removed, z, src, int(f.shape[0] // z.shape[0]), out)
+    return out
 
 
 @nb.njit(cache=True, nogil=True)
@@ -251,35 +359,44 @@ def _run(anchor, i, j, di, dj, a0, edge, reach):  # pragma: no cover - numba
 @nb.njit(cache=True, nogil=True)
 def _alternatives_kernel(anchor, tol, edge, lo, tlo, hi, thi):  # pragma: no cover - numba
     h, w = anchor.shape
+    lo[:] = 0.0
+    tlo[:] = 0.0
+    hi[:] = 0.0
+    thi[:] = 0.0
     for i in range(h):
         for j in range(w):
-            lo[i, j] = 0.0
-            tlo[i, j] = 0.0
-            hi[i, j] = 0.0
-            thi[i, j] = 0.0
             a0 = anchor[i, j]
             if not a0 > 0:
                 continue
-            # a thin part (its surface at most 2 px wide across x or y) keeps its own samples
-            wx = 1 + _run(anchor, i, j, 0, -1, a0, edge, 2) + _run(anchor, i, j, 0, 1, a0, edge, 2)
-            wy = 1 + _run(anchor, i, j, -1, 0, a0, edge, 2) + _run(anchor, i, j, 1, 0, a0, edge, 2)
-            if wx < 3 or wy < 3:
+            # a thin part (its surface at most 2 px wide across x, y or a diagonal: a neck
+            # seen at 45°) keeps its own samples
+            thin = False
+            for di, dj in ((0, 1), (1, 0), (1, 1), (1, -1)):
+                wd = _run(anchor, i, j, -di, -dj, a0, edge, 2)
+                wd += 1 + _run(anchor, i, j, di, dj, a0, edge, 2)
+                thin = thin or wd < 3
+            if thin:
                 continue
-            best_lo = np.inf
-            best_hi = -np.inf
-            for a in range(max(i - 1, 0), min(i + 2, h)):
-                for b in range(max(j - 1, 0), min(j + 2, w)):
-                    u = anchor[a, b]
-                    if not (u > 0 and abs(u - a0) > edge):
-                        continue
-                    if u < best_lo:
-                        best_lo = u
-                        lo[i, j] = u
-                        tlo[i, j] = tol[a, b]
-                    if u > best_hi:
-                        best_hi = u
-                        hi[i, j] = u
-                        thi[i, j] = tol[a, b]
+            # per side (sy, sx) of the pixel's centre: the neighbours on that side only
+            for qy in range(3):
+                for qx in range(3):
+                    best_lo = np.inf
+                    best_hi = -np.inf
+                    for a in (i, i + qy - 1):
+                        for b in (j, j + qx - 1):
+                            if (a == i and b == j) or not (0 <= a < h and 0 <= b < w):
+                                continue
+                            u = anchor[a, b]
+                            if not (u > 0 and abs(u - a0) > edge):
+                                continue
+                            if u < best_lo:
+                                best_lo = u
+                                lo[qy, qx, i, j] = u
+                                tlo[qy, qx, i, j] = tol[a, b]
+                            if u > best_hi:
+                                best_hi = u
+                                hi[qy, qx, i, j] = u
+                                thi[qy, qx, i, j] = tol[a, b]
 
 
 def surface_alternatives(
@@ -287,12 +404,15 @@ def surface_alternatives(
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """The other surfaces next to each reference pixel at a depth edge, whose samples compete.
 
-    At a depth edge of the reference the true edge lies somewhere inside the pixel's r×r
-    block: the samples of the neighbouring surface are trusted too (within its own tolerance)
-    and the surfaces compete in the fusion (vote weights, forward-splat guide), so the edge
-    lands at a sub-pixel position. Not for thin parts: a pixel whose surface is at most 2
-    low-res px wide across x or y keeps only its own samples (a thin fast leg the flow did
-    not follow is not voted away by the wall behind it).
+    At a depth edge of the reference the true edge lies somewhere between the pixel's centre
+    (where the reference measured its own surface) and the centre of a neighbour on the
+    other surface: for the high-res pixels on that neighbour's side of the centre, the
+    samples of the neighbour's surface are trusted too (within its own tolerance) and the
+    surfaces compete in the fusion (vote weights, forward-splat guide), so the edge lands at
+    a sub-pixel position. Never on the far side of the centre (a surface that only reaches
+    one side of the pixel cannot cover the other), and not for thin parts: a pixel whose
+    surface is at most 2 low-res px wide across x, y or a diagonal keeps only its own
+    samples (a thin fast leg the flow did not follow is not voted away by the wall behind it).
 
     Parameters
     ----------
@@ -303,43 +423,38 @@ def surface_alternatives(
 
     Returns
     -------
-    near, near_tol, far, far_tol : ndarray float32 (h, w)
-        The nearest and the farthest anchor among the 3×3 neighbours that lie more than
-        ``edge_mm`` from the pixel's own, and their tolerances; 0 where there is none (no
-        edge, a thin part, no depth in the reference).
+    near, near_tol, far, far_tol : ndarray float32 (3, 3, h, w)
+        Index ``[sy + 1, sx + 1, i, j]``, sy, sx ∈ {−1, 0, 1} the side of the pixel's centre
+        (the sign of a high-res pixel's offset from it, :func:`side_of_centre`): the nearest
+        and the farthest anchor that lies more than ``edge_mm`` from the pixel's own among the
+        neighbours (i + a, j + b), a ∈ {0, sy}, b ∈ {0, sx}, and their tolerances; 0 where
+        there is none (no edge on that side, a thin part, no depth in the reference; always
+        at the centre itself).
     """
     anc = np.ascontiguousarray(anchor, np.float32)
     tol = np.ascontiguousarray(tolerance, np.float32)
-    outs = [np.empty(anc.shape, np.float32) for _ in range(4)]
+    outs = [np.empty((3, 3, *anc.shape), np.float32) for _ in range(4)]
     _alternatives_kernel(anc, tol, float(edge_mm), *outs)
     return outs[0], outs[1], outs[2], outs[3]
 
 
-@nb.njit(cache=True, nogil=True)
-def _registered_kernel(lowres, maps, scale, ratio, out):  # pragma: no cover - numba
-    """out[k, i, j]: frame k's low-res sample at reference pixel (i, j)'s centre, moved by the
-    map (nearest flow-grid node); 0 outside or no depth."""
-    n, h, w = lowres.shape
-    gh = maps.shape[1]
-    gw = maps.shape[2]
-    s_y = gh / h
-    s_x = gw / w
-    hh = h * scale
-    ww = w * scale
-    for k in range(n):
-        for i in range(h):
-            yg = min(max(int((i + 0.5) * s_y), 0), gh - 1)
-            cy = (i + 0.5) * scale - 0.5
-            for j in range(w):
-                xg = min(max(int((j + 0.5) * s_x), 0), gw - 1)
-                cx = (j + 0.5) * scale - 0.5
-                qx = cx + maps[k, yg, xg, 0] * ratio
-                qy = cy + maps[k, yg, xg, 1] * ratio
-                out[k, i, j] = 0.0
-                if -0.5 <= qx < ww - 0.5 and -0.5 <= qy < hh - 0.5:
-                    xl = int((qx + 0.5) / scale)
-                    yl = int((qy + 0.5) / scale)
-                    out[k, i, j] = lowres[k, yl, xl]
+def side_of_centre(n_px: int, scale: int) -> np.ndarray:
+    """For each of ``n_px`` high-res indices along an axis, the side (−1, 0 or 1) of the
+    centre of its low-res pixel ((x // r + 0.5)·r − 0.5) it lies on: 0 only at the centre
+    itself (odd r). Index 1 + side into :func:`surface_alternatives`."""
+    x = np.arange(int(n_px))
+    return np.sign(x - ((x // scale + 0.5) * scale - 0.5)).astype(np.int64)
+
+
+def alternatives_on_grid(alternatives: tuple[np.ndarray, ...], scale: int) -> list[np.ndarray]:
+    """:func:`surface_alternatives` per high-res pixel: each (3, 3, h, w) array read at the
+    pixel's low-res pixel and side, as (r·h, r·w) arrays."""
+    _, _, h, w = alternatives[0].shape
+    sy = side_of_centre(h * scale, scale)[:, None] + 1
+    sx = side_of_centre(w * scale, scale)[None, :] + 1
+    iy = (np.arange(h * scale) // scale)[:, None]
+    ix = (np.arange(w * scale) // scale)[None, :]
+    return [a[sy, sx, iy, ix] for a in alternatives]
 
 
 @nb.njit(cache=True, nogil=True, inline="always")
@@ -405,6 +520,7 @@ def radial_offsets(
     sigma_mm: float,
     edge_mm: float,
     radius_px: int = 2,
+    registered: npt.ArrayLike | None = None,
 ) -> np.ndarray:
     """Depth offset of each frame registered to the reference (motion along the viewing ray).
 
@@ -430,6 +546,9 @@ def radial_offsets(
         Depth step that separates two surfaces.
     radius_px : int
         Half-size of the neighbourhood (low-res px).
+    registered : array_like (N, h, w), optional
+        :func:`upsr.method.consistency.registered_samples` of ``lowres`` and ``maps``, when
+        already computed.
 
     Returns
     -------
@@ -438,11 +557,10 @@ def radial_offsets(
     """
     lr = np.ascontiguousarray(lowres, np.float32)
     lr = np.where(np.isnan(lr), np.float32(0.0), lr)
-    mp = np.ascontiguousarray(maps, np.float32)
     n, h, w = lr.shape
-    ratio = scale * w / mp.shape[2]
-    reg = np.empty((n, h, w), np.float32)
-    _registered_kernel(lr, mp, int(scale), float(ratio), reg)
+    if registered is None:
+        registered = registered_samples(lr, maps, scale)
+    reg = np.ascontiguousarray(registered, np.float32)
     out = np.empty((n, h, w), np.float32)
     _offset_kernel(reg, lr[ref], int(ref), float(edge_mm), float(sigma_mm), int(radius_px), out)
     return out
@@ -478,6 +596,52 @@ def noise_shape(frames: npt.ArrayLike, edge_mm: float) -> tuple[float, float]:
         return math.nan, math.sqrt(max(var, 0.0) / 2.0)
     kurt = float(np.mean((d - d.mean()) ** 4) / var**2 - 3.0)
     return kurt, math.sqrt(var / 2.0)
+
+
+def footprint_share(frames: npt.ArrayLike, edge_mm: float) -> float:
+    """How often a depth edge between two flat surfaces has a pixel between them.
+
+    Over every run of five pixels along a row or column, c a v b e, whose ends are flat
+    (``|c − a|`` and ``|e − b|`` at most ``edge_mm``) across a large edge (``|b − a|`` more
+    than 3·``edge_mm``): the share of those whose middle v lies more than ``edge_mm`` from both
+    a and b. A sensor that integrates each pixel's footprint (ToF) gives such a mixed pixel at
+    a large share of its edges (0.37–0.82 on the realistic scenes of
+    :mod:`upsr.research.synth.realistic`), a point-sampling sensor (structured light, stereo,
+    renders) only on steep slopes (0–0.26).
+
+    Parameters
+    ----------
+    frames : array_like (..., h, w)
+        Depth (mm), 0 or NaN = no measurement.
+    edge_mm : float
+        Depth step that separates two surfaces.
+
+    Returns
+    -------
+    float: the share in [0, 1]; 0 without any such edge.
+    """
+    z = np.asarray(frames, np.float32)
+    z = np.where(np.isnan(z), np.float32(0.0), z).reshape(-1, *z.shape[-2:])
+    edge = float(edge_mm)
+    total = between = 0
+    for axis in (1, 2):
+        n = z.shape[axis]
+        if n < 5:
+            continue
+        c, a, v, b, e = (np.take(z, range(o, n - 4 + o), axis=axis) for o in range(5))
+        with np.errstate(invalid="ignore"):
+            ok = (c > 0) & (a > 0) & (v > 0) & (b > 0) & (e > 0)
+            ok &= (np.abs(b - a) > 3 * edge) & (np.abs(c - a) <= edge) & (np.abs(e - b) <= edge)
+            mid = ok & (v - np.minimum(a, b) > edge) & (np.maximum(a, b) - v > edge)
+        total += int(ok.sum())
+        between += int(mid.sum())
+    return between / total if total else 0.0
+
+
+def has_mixed_pixels(share: float) -> bool:
+    """Whether a video's :func:`footprint_share` says its sensor mixes depths at edges (ToF):
+    at least :data:`MIXED_SHARE`."""
+    return share >= MIXED_SHARE
 
 
 def choose_estimator(kurtosis: float) -> str:

@@ -34,7 +34,7 @@ import threading
 import time
 from collections.abc import Iterable, Iterator
 from concurrent.futures import Future, wait
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 import numpy.typing as npt
@@ -42,6 +42,7 @@ import numpy.typing as npt
 from upsr.errors import InputError
 from upsr.method._parallel import window_pool
 from upsr.method.config import UPSRConfig
+from upsr.method.consistency import misregistered, registered_samples
 from upsr.method.deblurring import deblur
 from upsr.method.frontend import MotionFrontEnd
 from upsr.method.fusion import register_and_fuse, splat_points
@@ -54,12 +55,16 @@ from upsr.method.registration import (
     to_output_grid,
 )
 from upsr.method.trust import (
+    ABSTAIN,
     choose_estimator,
     fill_holes,
+    footprint_share,
+    has_mixed_pixels,
     noise_shape,
     radial_offsets,
     reference_anchor,
     remove_mixed_pixels,
+    split_mixed_pixels,
     surface_support,
 )
 from upsr.method.validation import as_depth_frame, as_depth_video
@@ -85,20 +90,27 @@ def finish_fused(fused_mm: np.ndarray, cfg: UPSRConfig) -> np.ndarray:
     return remove_speckles(out, cfg.speckle_size_px, cfg.edge_mm)
 
 
+class VideoStatistics(NamedTuple):
+    """The choices UP-SR makes once per video (:func:`fix_video_statistics`)."""
+
+    #: Estimate of the fused samples of a surface: "median" or "mean".
+    estimator: str
+    #: σ (mm) of the trust tolerance.
+    trust_noise_mm: float
+    #: Whether the mixed input pixels are removed.
+    remove_mixed: bool
+
+
 def fix_video_statistics(
     front: MotionFrontEnd, first_frames: np.ndarray, cfg: UPSRConfig
-) -> tuple[str, float]:
+) -> VideoStatistics:
     """Fix every choice UP-SR makes once per video from its first N low-res frames (T, h, w).
 
     The front-end's depth range and noise estimate (:meth:`MotionFrontEnd.fix_statistics`),
-    and the fusion's estimator and trust noise from the shape of the temporal noise
+    the fusion's estimator and trust noise from the shape of the temporal noise
     (:func:`upsr.method.trust.noise_shape`): the median for Laplacian noise, the mean of the
-    trusted samples for Gaussian or quantised noise.
-
-    Returns
-    -------
-    (str, float)
-        The estimator ("median" or "mean") and the σ (mm) of the trust tolerance.
+    trusted samples for Gaussian or quantised noise; and whether the sensor mixes depths at
+    edges (:func:`upsr.method.trust.footprint_share`) for ``remove_mixed="auto"``.
     """
     front.fix_statistics(first_frames)
     kurtosis, temporal_mm = noise_shape(first_frames, front.edge_mm)
@@ -110,7 +122,10 @@ def fix_video_statistics(
         trust_mm = cfg.noise_mm
     else:
         trust_mm = max(front.noise_mm or 0.0, temporal_mm)
-    return estimator, trust_mm
+    mixed = cfg.remove_mixed
+    if mixed == "auto":
+        mixed = has_mixed_pixels(footprint_share(first_frames, front.edge_mm))
+    return VideoStatistics(estimator, trust_mm, bool(mixed))
 
 
 def pinned_config(first_frames: np.ndarray, cfg: UPSRConfig) -> UPSRConfig:
@@ -120,13 +135,14 @@ def pinned_config(first_frames: np.ndarray, cfg: UPSRConfig) -> UPSRConfig:
     frames (``upsr batch`` splits long recordings so).
     """
     front = MotionFrontEnd(cfg, first_frames.shape[-1])
-    estimator, trust_mm = fix_video_statistics(front, first_frames, cfg)
+    stats = fix_video_statistics(front, first_frames, cfg)
     return dataclasses.replace(
         cfg,
         depth_range_mm=front.depth_range_mm,
         noise_mm=front.noise_mm,
-        fusion_estimator=estimator,
-        trust_noise_mm=trust_mm,
+        fusion_estimator=stats.estimator,
+        trust_noise_mm=stats.trust_noise_mm,
+        remove_mixed=stats.remove_mixed,
     )
 
 
@@ -242,10 +258,8 @@ class UPSR:
         self._next_out = 0
         self._next_submit = 0
         self._any_valid = False
-        # temporal noise of static pixels (std, estimator), fixed from the first window
-        self._trust_noise_mm = 0.0
-        est = self.config.fusion_estimator
-        self._estimator = "median" if est == "auto" else est
+        # the per-video choices, fixed from the first window (fix_video_statistics)
+        self._stats: VideoStatistics | None = None
         self._lowres: dict[int, np.ndarray] = {}
         self._pre: dict[int, np.ndarray] = {}
         self._guide: dict[int, np.ndarray] = {}
@@ -301,7 +315,7 @@ class UPSR:
         if self._count == cfg.n_frames:
             # per-video statistics, fixed once from the first window (never per frame)
             first = np.stack([self._lowres[k] for k in sorted(self._lowres)])
-            self._estimator, self._trust_noise_mm = fix_video_statistics(front, first, cfg)
+            self._stats = fix_video_statistics(front, first, cfg)
         if front.ready:
             for k in sorted(self._pre):
                 if k not in self._guide:
@@ -339,24 +353,34 @@ class UPSR:
                 out=maps,
             )
         with self._timed("fusion"):
-            lowres = np.stack([self._lowres[k] for k in idx])
-            if cfg.remove_mixed:
-                # mixed (flying) input pixels: no measurement, the other frames fill them
-                lowres = remove_mixed_pixels(lowres, self._front.edge_mm)
+            measured = np.stack([self._lowres[k] for k in idx])
+            lowres = measured
+            stats = self._stats
+            assert stats is not None  # fixed with the N-th frame, before any window
+            if stats.remove_mixed:
+                # mixed (flying) input pixels abstain: the other frames fill them
+                lowres = remove_mixed_pixels(measured, self._front.edge_mm, marker=ABSTAIN)
             noise = cfg.trust_noise_mm
             if noise is None:
-                noise = self._trust_noise_mm
-            offsets = None
-            if cfg.radial_compensation and cfg.n_frames > 1:
-                offsets = radial_offsets(
-                    lowres,
-                    maps,
-                    r,
-                    ref,
-                    sigma_mm=noise,
-                    edge_mm=self._front.edge_mm,
-                    radius_px=cfg.radial_radius_px,
-                )
+                noise = stats.trust_noise_mm
+            offsets = untrusted = None
+            if cfg.n_frames > 1 and (cfg.radial_compensation or cfg.check_registration):
+                registered = registered_samples(lowres, maps, r)
+                if cfg.radial_compensation:
+                    offsets = radial_offsets(
+                        lowres,
+                        maps,
+                        r,
+                        ref,
+                        sigma_mm=noise,
+                        edge_mm=self._front.edge_mm,
+                        radius_px=cfg.radial_radius_px,
+                        registered=registered,
+                    )
+                if cfg.check_registration:
+                    untrusted = misregistered(
+                        registered, lowres[ref], ref, edge_mm=self._front.edge_mm, offsets=offsets
+                    )
             anchor = tolerance = None
             if cfg.trust_k is not None:
                 anchor, tolerance = reference_anchor(
@@ -385,9 +409,14 @@ class UPSR:
                 anchor=anchor,
                 tolerance=tolerance,
                 offsets=offsets,
+                untrusted=untrusted,
                 min_trusted=cfg.min_trusted_samples,
-                estimator=self._estimator,
+                estimator=stats.estimator,
             )
+            if stats.remove_mixed:
+                # the reference's mixed pixels no frame filled: split between their neighbours
+                source = lowres[ref] if anchor is None else anchor
+                fused = split_mixed_pixels(fused, measured[ref], lowres[ref], source)
         with self._timed("deblur"):
             out = finish_fused(fused, cfg)
             if anchor is not None:

@@ -251,29 +251,69 @@ def _mean_of_range(vals: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarr
         return (total / np.maximum(hi - lo, 1)).astype(np.float32)
 
 
+def _checked_stack(
+    stack: np.ndarray,
+    lowres: np.ndarray,
+    maps: np.ndarray,
+    ref: int,
+    cfg,
+    edge_mm: float,
+    noise_mm: float,
+) -> tuple[np.ndarray, np.ndarray | None]:
+    """The radial offsets of the window (or None) and the registered stack with the samples of
+    frames misregistered around a pixel abstaining there (NaN, like samples outside)."""
+    from upsr.method.trust import radial_offsets
+    from upsr.method.upsampling import upsample_nearest
+
+    n, r = lowres.shape[0], cfg.scale
+    offsets = None
+    if cfg.radial_compensation and n > 1:
+        offsets = radial_offsets(
+            lowres, maps, r, ref, sigma_mm=noise_mm, edge_mm=edge_mm,
+            radius_px=cfg.radial_radius_px,
+        )  # fmt: skip
+    if cfg.check_registration and n > 1:
+        reg = registered_samples_numpy(lowres, maps, r)
+        bad = misregistered_numpy(reg, lowres[ref], ref, edge_mm=edge_mm, offsets=offsets)
+        stack = np.where(np.stack([upsample_nearest(b, r) for b in bad]), np.nan, stack)
+    return stack.astype(np.float32), offsets
+
+
+def _split_reference(
+    fused: np.ndarray, measured: np.ndarray, cleaned: np.ndarray, cfg, edge_mm: float, noise_mm
+) -> np.ndarray:
+    """:func:`upsr.method.trust.split_mixed_pixels` of the reference, from its anchor (or
+    itself without the trust test)."""
+    from upsr.method.trust import reference_anchor, split_mixed_pixels
+
+    source = cleaned
+    if cfg.trust_k is not None:
+        source = reference_anchor(cleaned, noise_mm, cfg.trust_k, edge_mm)[0]
+    return split_mixed_pixels(fused, measured, cleaned, source)
+
+
 def _trusted_stack(
-    stack: np.ndarray, lowres: np.ndarray, maps: np.ndarray, ref: int, cfg, edge_mm: float, noise
+    stack: np.ndarray,
+    lowres: np.ndarray,
+    offsets: np.ndarray | None,
+    ref: int,
+    cfg,
+    edge_mm: float,
+    noise,
 ):
     """The trust rules of the fusion (:mod:`upsr.method.trust`), on the registered high-res
     stack: radial offsets subtracted, untrusted samples abstaining (NaN). Returns the stack,
     the anchor (high-res, 0: none), and the pixels where the output is the anchor."""
-    from upsr.method.trust import (
-        radial_offsets,
-        reference_anchor,
-        surface_alternatives,
-    )
+    from upsr.method.trust import alternatives_on_grid, reference_anchor, surface_alternatives
     from upsr.method.upsampling import upsample_nearest
 
-    n = stack.shape[0]
     r = cfg.scale
     up = lambda a: upsample_nearest(a, r)  # noqa: E731
-    offsets = np.zeros(lowres.shape, np.float32)
-    if cfg.radial_compensation and n > 1:
-        offsets = radial_offsets(
-            lowres, maps, r, ref, sigma_mm=noise, edge_mm=edge_mm, radius_px=cfg.radial_radius_px
-        )
+    if offsets is None:
+        offsets = np.zeros(lowres.shape, np.float32)
     anchor, tol = reference_anchor(lowres[ref], noise, cfg.trust_k, edge_mm)
-    near, near_tol, far, far_tol = (up(a) for a in surface_alternatives(anchor, tol, edge_mm))
+    alternatives = surface_alternatives(anchor, tol, edge_mm)
+    near, near_tol, far, far_tol = alternatives_on_grid(alternatives, r)
     a_hr, t_hr = up(anchor), up(tol)
     v = stack
     inside = ~np.isnan(v)
@@ -291,6 +331,67 @@ def _trusted_stack(
     # only the own surface trusted: its samples alone (no competition with other surfaces)
     only_own = (a_hr > 0) & (m == n_own)
     return out, a_hr, fallback, only_own
+
+
+def registered_samples_numpy(lowres: np.ndarray, maps: np.ndarray, scale: int) -> np.ndarray:
+    """:func:`upsr.method.consistency.registered_samples` with NumPy: each frame's low-res
+    sample at every reference pixel centre moved by the map at its nearest flow-grid node."""
+    lr = np.nan_to_num(np.asarray(lowres, np.float32), nan=0.0)
+    n, h, w = lr.shape
+    maps = np.asarray(maps)
+    gh, gw = maps.shape[1:3]
+    r = int(scale)
+    yg = np.clip(((np.arange(h) + 0.5) * (gh / h)).astype(np.int64), 0, gh - 1)
+    xg = np.clip(((np.arange(w) + 0.5) * (gw / w)).astype(np.int64), 0, gw - 1)
+    m = np.asarray(maps, np.float64)[:, yg][:, :, xg]
+    ratio = r * w / gw
+    qx = ((np.arange(w) + 0.5) * r - 0.5)[None, None, :] + m[..., 0] * ratio
+    qy = ((np.arange(h) + 0.5) * r - 0.5)[None, :, None] + m[..., 1] * ratio
+    inside = (qx >= -0.5) & (qx < w * r - 0.5) & (qy >= -0.5) & (qy < h * r - 0.5)
+    xl = np.clip(((qx + 0.5) / r).astype(np.int64), 0, w - 1)
+    yl = np.clip(((qy + 0.5) / r).astype(np.int64), 0, h - 1)
+    k = np.arange(n)[:, None, None]
+    return np.where(inside, lr[k, yl, xl], np.float32(np.nan)).astype(np.float32)
+
+
+def misregistered_numpy(
+    registered: np.ndarray,
+    reference: np.ndarray,
+    ref: int,
+    *,
+    edge_mm: float,
+    offsets: np.ndarray | None = None,
+    radius_px: int = 2,
+    min_count: int = 2,
+    fraction: float = 0.2,
+) -> np.ndarray:
+    """:func:`upsr.method.consistency.misregistered` with NumPy (shifted copies and box sums
+    instead of loops)."""
+    reg = np.asarray(registered, np.float32)
+    z = np.nan_to_num(np.asarray(reference, np.float32), nan=0.0)
+    h, w = reg.shape[1:]
+    pad = np.pad(z, 1, constant_values=np.nan)
+    interior = z > 0
+    with np.errstate(invalid="ignore"):
+        for di in (-1, 0, 1):
+            for dj in (-1, 0, 1):
+                u = pad[1 + di : 1 + di + h, 1 + dj : 1 + dj + w]
+                # NaN: beyond the border, which does not count
+                interior &= np.isnan(u) | ((u > 0) & (np.abs(u - z) <= edge_mm))
+        offs = np.zeros(reg.shape, np.float32) if offsets is None else np.asarray(offsets)
+        checked = interior & (reg > 0)
+        bad = checked & ~(np.abs(reg - offs - z) <= edge_mm)
+    rad = int(radius_px)
+
+    def box(a: np.ndarray) -> np.ndarray:
+        p = np.pad(a.astype(np.int64), ((0, 0), (rad, rad), (rad, rad)))
+        win = np.lib.stride_tricks.sliding_window_view(p, (2 * rad + 1, 2 * rad + 1), (1, 2))
+        return win.sum(axis=(-1, -2))
+
+    nb_bad, nb_chk = box(bad), box(checked)
+    out = (nb_bad >= min_count) & (nb_bad >= fraction * nb_chk)
+    out[ref] = False
+    return out
 
 
 def estimate_noise_mm_numpy(z: npt.ArrayLike, lag_px: int = 1) -> float:
@@ -459,7 +560,7 @@ def super_resolve_straightforward(frames: npt.ArrayLike, config: UPSRConfig) -> 
         sample_offsets,
         warp_nearest,
     )
-    from upsr.method.trust import fill_holes, remove_mixed_pixels, surface_support
+    from upsr.method.trust import ABSTAIN, fill_holes, remove_mixed_pixels, surface_support
     from upsr.method.upsampling import upsample_nearest
     from upsr.method.validation import as_depth_video
     from upsr.method.windowed import fix_video_statistics, window_start
@@ -476,15 +577,17 @@ def super_resolve_straightforward(frames: npt.ArrayLike, config: UPSRConfig) -> 
     )
     front.fix_statistics(video[:n], estimate_noise=estimate_noise_mm_numpy)
     edge_mm = front.edge_mm
-    estimator, trust_mm = fix_video_statistics(front, video[:n], cfg)
-    use_mean = estimator == "mean"
+    stats = fix_video_statistics(front, video[:n], cfg)
+    trust_mm = stats.trust_noise_mm
+    use_mean = stats.estimator == "mean"
     out = np.empty((t_total, h * r, w * r), np.float32)
     for t in range(t_total):
         s = window_start(t, t_total, cfg)
         ref = t - s
-        lowres = video[s : s + n]
-        if cfg.remove_mixed:
-            lowres = remove_mixed_pixels(lowres, edge_mm)  # before anything is fused
+        measured = video[s : s + n]
+        lowres = measured
+        if stats.remove_mixed:  # before anything is fused: mixed pixels abstain
+            lowres = remove_mixed_pixels(measured, edge_mm, marker=ABSTAIN)
         up = [upsample_nearest(f, r) for f in lowres]
         pre = [front.prefilter(video[k]) for k in range(s, s + n)]
         guides = [front.guide(p) for p in pre]
@@ -495,6 +598,7 @@ def super_resolve_straightforward(frames: npt.ArrayLike, config: UPSRConfig) -> 
         refine = front.residual_flow if cfg.refine else None
         maps = cumulative_flows(ref, bwd, fwd, (h * r, w * r), refine=refine, guides=guides)
         stack = np.stack([warp_nearest(u, m) for u, m in zip(up, maps, strict=True)])
+        stack[stack < 0] = np.nan  # removed mixed pixels abstain like samples outside
         weights = None
         if cfg.edge_weight_px:
             d = np.stack([sample_offsets(m, r) for m in maps])
@@ -504,10 +608,11 @@ def super_resolve_straightforward(frames: npt.ArrayLike, config: UPSRConfig) -> 
         if cfg.splat_radius_px and n > 1:
             back = flows_to_reference(ref, bwd, fwd, (h * r, w * r))
             guide = splat_nearest(lowres, np.stack(back), r, cfg.splat_radius_px)
+        stack, offsets = _checked_stack(stack, lowres, maps, ref, cfg, edge_mm, trust_mm)
         fallback = only_own = None
         if cfg.trust_k is not None:
             stack, anchor, fallback, only_own = _trusted_stack(
-                stack, lowres, maps, ref, cfg, edge_mm, trust_mm
+                stack, lowres, offsets, ref, cfg, edge_mm, trust_mm
             )
         fuse = functools.partial(
             temporal_median_numpy,
@@ -524,6 +629,8 @@ def super_resolve_straightforward(frames: npt.ArrayLike, config: UPSRConfig) -> 
             fused = np.where(only_own, fuse(edge_mm=np.inf), fused)
             fused = np.where(fallback, anchor, fused)
         fused[~upsample_nearest((lowres > 0).any(axis=0), r)] = 0.0
+        if stats.remove_mixed:
+            fused = _split_reference(fused, measured[ref], lowres[ref], cfg, edge_mm, trust_mm)
         res = remove_speckles(
             deblur_numpy(fused, cfg.deblur, scale=r), cfg.speckle_size_px, cfg.edge_mm
         )

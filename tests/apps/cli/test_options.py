@@ -39,7 +39,8 @@ METHOD_OPTIONS = {
     "--trust-k",
     "--no-trust",
     "--fusion-estimator",
-    "--no-mixed-removal",
+    "--mixed-removal",
+    "--no-registration-check",
     "--no-radial",
 }
 READ_OPTIONS = {

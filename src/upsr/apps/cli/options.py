@@ -408,11 +408,22 @@ FusionEstimatorOpt = Annotated[
         f"heavy-tailed noise, else mean) [default: {_D['fusion_estimator']}].",
     ),
 ]
-NoMixedRemovalOpt = Annotated[
+MixedRemovalOpt = Annotated[
+    bool | None,
+    typer.Option(
+        "--mixed-removal/--no-mixed-removal",
+        help="Drop mixed (flying) input pixels of ToF sensors before the fusion (split between "
+        "their neighbours where no frame fills them), or keep them [default: decided from "
+        "the video: on when a third of its edges have a pixel between the two surfaces].",
+        show_default=False,
+    ),
+]
+NoRegistrationCheckOpt = Annotated[
     bool,
     typer.Option(
-        "--no-mixed-removal",
-        help="Keep mixed (flying) ToF input pixels instead of treating them as no measurement.",
+        "--no-registration-check",
+        help="Let the samples of frames the motion did not follow vote too (no check of each "
+        "registered frame against the reference).",
     ),
 ]
 NoRadialOpt = Annotated[
@@ -446,7 +457,8 @@ def config_from_options(
     trust_k: float | None = None,
     no_trust: bool = False,
     fusion_estimator: Enum | None = None,
-    no_mixed_removal: bool = False,
+    mixed_removal: bool | None = None,
+    no_registration_check: bool = False,
     no_radial: bool = False,
 ) -> UPSRConfig:
     """The :class:`UPSRConfig` of the method options shared by ``upsr run`` and ``upsr batch``
@@ -494,8 +506,10 @@ def config_from_options(
         options["trust_k"] = None
     if fill_holes:
         options["fill_holes"] = True
-    if no_mixed_removal:
-        options["remove_mixed"] = False
+    if mixed_removal is not None:
+        options["remove_mixed"] = mixed_removal
+    if no_registration_check:
+        options["check_registration"] = False
     if no_radial:
         options["radial_compensation"] = False
     return UPSRConfig.from_options(scale, DEFAULT_FRAMES if frames is None else frames, **options)
@@ -533,7 +547,8 @@ METHOD_OPTIONS: tuple[tuple[str, Any, Any], ...] = (
     ("trust_k", TrustKOpt, None),
     ("no_trust", NoTrustOpt, False),
     ("fusion_estimator", FusionEstimatorOpt, None),
-    ("no_mixed_removal", NoMixedRemovalOpt, False),
+    ("mixed_removal", MixedRemovalOpt, None),
+    ("no_registration_check", NoRegistrationCheckOpt, False),
     ("no_radial", NoRadialOpt, False),
 )
 

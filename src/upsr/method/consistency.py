@@ -1,0 +1,200 @@
+"""Whether the motion carried each frame of a window along: the local registration residual.
+
+Beyond the paper. The registration of eq. 18–21 chains dense flows; where the flow did not
+follow the scene (a head moving 25 px per frame, an occlusion seen by a moving camera) the
+frame's samples land on the wrong surface and, voting in the fusion, blur or erase what the
+reference measured. A frame registered to the reference is checked against the reference
+itself, on the low-res grid: frame k's sample at each reference pixel centre (moved by its
+map) should lie on the same surface as the reference there. Disagreement at a single pixel
+proves nothing (noise, a dropout, a sub-pixel shift across an edge), but disagreement at
+several *interior* pixels of the reference (pixels whose 8 neighbours all lie on their surface,
+where a sub-pixel shift cannot reach another surface) around a pixel, each seeing a depth of
+another surface in frame k, does: frame k is
+misregistered there and none of its samples near that pixel is trusted
+(:func:`misregistered`, read by :func:`upsr.method.fusion.register_and_fuse`).
+"""
+
+from __future__ import annotations
+
+import numba as nb
+import numpy as np
+import numpy.typing as npt
+
+__all__ = ["MISMATCH_FRACTION", "MISMATCH_MIN_COUNT", "misregistered", "registered_samples"]
+
+#: Fewest mismatching interior pixels in a neighbourhood that make a frame untrusted there.
+MISMATCH_MIN_COUNT = 2
+#: ... and the least share of the neighbourhood's checked interior pixels they must be.
+MISMATCH_FRACTION = 0.2
+
+
+@nb.njit(cache=True, nogil=True)
+def _registered_kernel(lowres, maps, scale, ratio, out):  # pragma: no cover - numba
+    n, h, w = lowres.shape
+    gh = maps.shape[1]
+    gw = maps.shape[2]
+    s_y = gh / h
+    s_x = gw / w
+    hh = h * scale
+    ww = w * scale
+    nan = np.float32(np.nan)
+    for k in range(n):
+        for i in range(h):
+            yg = min(max(int((i + 0.5) * s_y), 0), gh - 1)
+            cy = (i + 0.5) * scale - 0.5
+            for j in range(w):
+                xg = min(max(int((j + 0.5) * s_x), 0), gw - 1)
+                cx = (j + 0.5) * scale - 0.5
+                qx = cx + maps[k, yg, xg, 0] * ratio
+                qy = cy + maps[k, yg, xg, 1] * ratio
+                out[k, i, j] = nan
+                if -0.5 <= qx < ww - 0.5 and -0.5 <= qy < hh - 0.5:
+                    xl = int((qx + 0.5) / scale)
+                    yl = int((qy + 0.5) / scale)
+                    out[k, i, j] = lowres[k, yl, xl]
+
+
+def registered_samples(lowres: npt.ArrayLike, maps: npt.ArrayLike, scale: int) -> np.ndarray:
+    """Each frame's low-res sample at every reference pixel's centre, moved by its map.
+
+    Parameters
+    ----------
+    lowres : array_like (N, h, w)
+        Low-res frames of the window (mm, 0 = no depth; NaN is read as 0).
+    maps : array_like (N, s·h, s·w, 2)
+        Motion from the reference to each frame on the flow grid (flow px), eq. 21.
+    scale : int
+        SR factor r (the maps are read at the flow-grid node nearest to each centre and
+        scaled to output px by r·w / (s·w), as in the fusion).
+
+    Returns
+    -------
+    ndarray float32 (N, h, w): frame k's sample (mm; 0: no depth) at reference pixel (i, j);
+    NaN where the motion leaves frame k.
+    """
+    lr = np.ascontiguousarray(lowres, np.float32)
+    lr = np.where(np.isnan(lr), np.float32(0.0), lr)
+    mp = np.ascontiguousarray(maps, np.float32)
+    n, h, w = lr.shape
+    if mp.ndim != 4 or mp.shape[0] != n or mp.shape[3] != 2:
+        raise ValueError(f"maps must be (N={n}, H, W, 2), got {mp.shape}")
+    out = np.empty((n, h, w), np.float32)
+    _registered_kernel(lr, mp, int(scale), float(scale * w / mp.shape[2]), out)
+    return out
+
+
+@nb.njit(cache=True, nogil=True)
+def _mismatch_kernel(reg, ref, offsets, ref_index, edge, radius, min_count, fraction, out):
+    # pragma: no cover - numba
+    n, h, w = reg.shape
+    interior = np.zeros((h, w), np.bool_)
+    for i in range(h):
+        for j in range(w):
+            c = ref[i, j]
+            ok = c > 0
+            for a in range(max(i - 1, 0), min(i + 2, h)):
+                for b in range(max(j - 1, 0), min(j + 2, w)):
+                    u = ref[a, b]
+                    if not (u > 0 and abs(u - c) <= edge):
+                        ok = False
+            interior[i, j] = ok
+    bad = np.zeros((h, w), np.int32)
+    checked = np.zeros((h, w), np.int32)
+    for k in range(n):
+        out[k] = False
+        if k == ref_index:
+            continue
+        # per interior pixel: 1 where frame k's registered sample is on another surface
+        for i in range(h):
+            for j in range(w):
+                v = reg[k, i, j]
+                bad[i, j] = 0
+                checked[i, j] = 0
+                if not (interior[i, j] and ref[i, j] > 0 and v > 0):
+                    # at an edge, outside frame k, without depth in either (a dropout of
+                    # the reference or of frame k, or a part moved off the background):
+                    # no evidence either way
+                    continue
+                checked[i, j] = 1
+                bad[i, j] = 0 if abs(v - offsets[k, i, j] - ref[i, j]) <= edge else 1
+        # a box count of both over the (2R+1)² neighbourhood of each pixel
+        for i in range(h):
+            for j in range(w):
+                nb_bad = 0
+                nb_chk = 0
+                for a in range(max(i - radius, 0), min(i + radius + 1, h)):
+                    for b in range(max(j - radius, 0), min(j + radius + 1, w)):
+                        nb_bad += bad[a, b]
+                        nb_chk += checked[a, b]
+                out[k, i, j] = nb_bad >= min_count and nb_bad >= fraction * nb_chk
+
+
+def misregistered(
+    registered: npt.ArrayLike,
+    reference: npt.ArrayLike,
+    ref: int,
+    *,
+    edge_mm: float,
+    offsets: npt.ArrayLike | None = None,
+    radius_px: int = 2,
+    min_count: int = MISMATCH_MIN_COUNT,
+    fraction: float = MISMATCH_FRACTION,
+) -> np.ndarray:
+    """Where each frame of a window is misregistered: its samples there are not trusted.
+
+    Frame k is misregistered at reference pixel (i, j) when, among the interior pixels of
+    the reference (with depth, and all 8 neighbours with depth within ``edge_mm`` of it) in
+    the (2R+1)² neighbourhood of (i, j) where frame k's registered sample has depth
+    (:func:`registered_samples`, minus the radial offset), at least ``min_count``, and at
+    least ``fraction`` of them, see another surface: a depth more than ``edge_mm`` away.
+    A missing depth on either side is no evidence (a dropout, a whole frame without depth,
+    a part that moved off an empty background: the fusion's vote on "is there depth"
+    decides those).
+
+    Parameters
+    ----------
+    registered : array_like (N, h, w)
+        :func:`registered_samples` of the window.
+    reference : array_like (h, w)
+        The reference low-res frame (mm, 0 = no depth), after mixed-pixel removal.
+    ref : int
+        Index of the reference frame (never misregistered).
+    edge_mm : float
+        Depth step that separates two surfaces.
+    offsets : array_like (N, h, w), optional
+        Radial offsets (mm, :func:`upsr.method.trust.radial_offsets`) subtracted first.
+    radius_px : int
+        R (low-res px).
+    min_count : int
+        Fewest mismatching interior pixels.
+    fraction : float
+        Least share of the checked interior pixels that mismatch.
+
+    Returns
+    -------
+    ndarray bool (N, h, w): True where frame k's samples do not vote (neither on depth nor on
+    whether there is depth); all False for ``ref``.
+    """
+    reg = np.ascontiguousarray(registered, np.float32)
+    n, h, w = reg.shape
+    z = np.ascontiguousarray(reference, np.float32).reshape(h, w)
+    z = np.where(np.isnan(z), np.float32(0.0), z)
+    if offsets is None:
+        offs = np.zeros((n, h, w), np.float32)
+    else:
+        offs = np.ascontiguousarray(offsets, np.float32).reshape(n, h, w)
+    if not 0 <= ref < n:
+        raise ValueError(f"ref must be in [0, {n}), got {ref}")
+    out = np.empty((n, h, w), np.bool_)
+    _mismatch_kernel(
+        reg,
+        z,
+        offs,
+        int(ref),
+        float(edge_mm),
+        int(radius_px),
+        int(min_count),
+        float(fraction),
+        out,
+    )
+    return out
