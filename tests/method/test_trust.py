@@ -14,7 +14,6 @@ from upsr.method.trust import (
     noise_shape,
     radial_offsets,
     reference_anchor,
-    remove_mixed_pixels,
 )
 from upsr.method.upsampling import upsample_nearest
 
@@ -121,25 +120,6 @@ def test_anchor_follows_its_surface_and_tolerance_its_relief():
     z[1, 1] = 0.0
     anchor, tol = reference_anchor(z, 2.0, 3.0, 100.0)
     assert anchor[1, 1] == 0.0 and tol[1, 1] == 0.0
-
-
-def test_mixed_pixels_are_removed_and_never_reach_the_output():
-    frames = np.full((5, 8, 10), WALL, np.float32)
-    frames[:, :, :5] = 1000.0
-    mixed = frames.copy()
-    for k in range(5):
-        mixed[k, 2 + k % 3, 5] = 2000.0  # ToF footprint across the edge, in every frame
-    clean = remove_mixed_pixels(mixed, 100.0)
-    np.testing.assert_array_equal(clean, np.where(mixed != frames, 0.0, frames))
-    # edges, slopes and single outliers at one side are not mixed pixels
-    np.testing.assert_array_equal(remove_mixed_pixels(frames, 100.0), frames)
-    kw = dict(deblur=False, noise_mm=2.0, speckle_px=0)
-    out = upsr.super_resolve(mixed, 2, 5, remove_mixed=True, **kw)
-    valid = out[out > 0]
-    near_surface = (np.abs(valid - 1000) <= 100) | (np.abs(valid - WALL) <= 100)
-    assert near_surface.all()
-    off = upsr.super_resolve(mixed, 2, 5, remove_mixed=False, **kw)
-    assert np.any(np.abs(off - 2000) < 100)  # without it the mixed pixel survives
 
 
 def _approach_video(t=12, h=16, w=20, speed=25.0, noise=3.0, seed=3):
@@ -263,16 +243,24 @@ def test_engine_keeps_a_thin_fast_bar():
     assert np.mean(np.abs(old[2 * R : -2 * R, 18 * R : 20 * R] - BAR) < 30) < 0.5
 
 
-def test_a_steep_slope_is_not_taken_for_mixed_pixels():
-    """A floor seen at a grazing angle steps by more than edge_mm from pixel to pixel, evenly
-    (or growing with depth): none of it is a mixed pixel; a pixel between two flat runs is."""
-    from upsr.method.trust import remove_mixed_pixels
+def test_alternatives_are_on_the_side_of_their_neighbour_only():
+    from upsr.method.trust import alternatives_on_grid, side_of_centre, surface_alternatives
 
-    rows = 1000.0 + 150.0 * np.arange(12, dtype=np.float32) ** 1.3  # steps 150..~500 mm
-    floor = np.repeat(rows[:, None], 10, axis=1)
-    np.testing.assert_array_equal(remove_mixed_pixels(floor, 100.0), floor)
-    edge = np.full((9, 9), 1000.0, np.float32)
-    edge[:, 5:] = 3000.0
-    edge[:, 4] = 2000.0  # the mixed column between the two flat surfaces
-    out = remove_mixed_pixels(edge, 100.0)
-    assert (out[:, 4] == 0).all() and (out[:, :4] == 1000).all() and (out[:, 5:] == 3000).all()
+    np.testing.assert_array_equal(side_of_centre(8, 4), [-1, -1, 1, 1, -1, -1, 1, 1])
+    np.testing.assert_array_equal(side_of_centre(6, 3), [-1, 0, 1, -1, 0, 1])
+    anchor = np.full((7, 9), WALL, np.float32)
+    anchor[:, :4] = 1000.0  # a wide foreground: columns 0..3
+    tol = np.full_like(anchor, 10.0)
+    near, near_tol, far, far_tol = surface_alternatives(anchor, tol, 100.0)
+    assert near.shape == (3, 3, 7, 9)
+    # the foreground's edge column 3: the wall competes only on its right side (sx = +1)
+    assert (far[:, 2, :, 3] == WALL).all() and (far[:, :2, :, 3] == 0).all()
+    assert (far_tol[:, 2, :, 3] == 10.0).all()
+    assert (near[:, 0, :, 4] == 1000.0).all() and (near[:, 1:, :, 4] == 0).all()
+    assert (near[1, 1] == 0).all() and (far[1, 1] == 0).all()  # never at the centre
+    grid_near, _, grid_far, _ = alternatives_on_grid((near, near_tol, far, far_tol), 4)
+    assert grid_far.shape == (28, 36)
+    np.testing.assert_array_equal(grid_far[:, 12:16] == WALL, np.tile([0, 0, 1, 1], (28, 1)) == 1)
+    np.testing.assert_array_equal(
+        grid_near[:, 16:20] == 1000.0, np.tile([1, 1, 0, 0], (28, 1)) == 1
+    )

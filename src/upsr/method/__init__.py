@@ -7,12 +7,16 @@ dense upsampling U        eq. 13–15              :mod:`upsr.method.upsampling`
 prefilter, flow           §4, §5.2, eq. 16–17    :mod:`upsr.method.motion`
 motion front-end          §4, §5.2, eq. 16–19    :mod:`upsr.method.frontend`
 cumulative registration   eq. 18–21              :mod:`upsr.method.registration`
+registration check        —                      :mod:`upsr.method.consistency`
+mixed (flying) pixels     —                      :mod:`upsr.method.mixed`
+sample trust              —                      :mod:`upsr.method.trust`
 temporal median           eq. 26–28              :mod:`upsr.method.fusion`
 L1 + BTV deblurring       eq. 29–30              :mod:`upsr.method.deblurring`
 noise estimate            —                      :mod:`upsr.method.noise`
 surface smoothing         —                      :mod:`upsr.method.smoothing`
 speckle removal           —                      :mod:`upsr.method.outliers`
 sliding-window engine     Table 1                :mod:`upsr.method.windowed`
+recursive (causal) engine —                      :mod:`upsr.method.recursive`
 ========================  =====================  ==========================================
 
 The method imports nothing from the layers above it (I/O, pictures, research, apps).
@@ -24,14 +28,19 @@ __getattr__, __dir__, __all__ = attach(
     __name__,
     submodules=[
         "config",
+        "consistency",
         "deblurring",
         "frontend",
         "fusion",
+        "mixed",
         "motion",
         "noise",
         "outliers",
+        "recursive",
         "registration",
+        "resources",
         "smoothing",
+        "trust",
         "upsampling",
         "validation",
         "windowed",

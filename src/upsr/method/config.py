@@ -236,10 +236,10 @@ class UPSRConfig:
         threshold from both its nearest and its farthest 8-neighbour: a ToF footprint across
         an edge) before the fusion, so that the other frames fill them; where none does, the
         reference's mixed pixel is split between the surfaces around it
-        (:func:`upsr.method.trust.remove_mixed_pixels`,
-        :func:`~upsr.method.trust.split_mixed_pixels`). ``"auto"``: decided once per video
+        (:func:`upsr.method.mixed.remove_mixed_pixels`,
+        :func:`~upsr.method.mixed.split_mixed_pixels`). ``"auto"``: decided once per video
         from its first frames, on when a third or more of its edges between flat surfaces
-        have a pixel between them (:func:`upsr.method.trust.footprint_share`; a
+        have a pixel between them (:func:`upsr.method.mixed.footprint_share`; a
         point-sampling sensor has none, and its steep slopes would be taken for mixed).
     radial_compensation : bool
         Subtract from each frame's samples its depth offset to the reference (motion along

@@ -294,7 +294,7 @@ def _register_fuse_kernel(
                     side = (abs(vc - on_ax[q]) <= on_tx[q]) | (abs(vc - on_ay[q]) <= on_ty[q])
                     ok = (v > 0) & ((a <= 0) | own_k | side)
                     # an untrusted sample abstains entirely (neither depth nor "no depth"),
-                    # and so does a removed mixed pixel (trust.ABSTAIN)
+                    # and so does a removed mixed pixel (mixed.ABSTAIN)
                     vote = ((a <= 0) | ok) & (v >= 0)
                     n_own[q] += 1 if own_k else 0
                     raw_k[q] = (vc if v > 0 else v) if vote else nan
@@ -338,7 +338,7 @@ def _register_fuse_kernel(
                 t = at[q]
                 v = lk[max(t, 0)]
                 # outside, frame k misregistered around this pixel, or a removed mixed
-                # pixel (trust.ABSTAIN): abstains
+                # pixel (mixed.ABSTAIN): abstains
                 inside = (t >= 0) & ~bad_k[on_low[q]] & (v >= 0)
                 a = on_anc[q]
                 vc = v - off_k[on_low[q]]  # radial motion compensated

@@ -15,7 +15,7 @@ Per frame t (only frame t and the state of t − 1 are read):
    computes ONE flow on the flow grid, from frame t to frame t − 1 (the backward lookup of the
    current grid into the previous one), with its spurious motion suppressed;
 2. the new measurement is y_t↑ = U y_t after mixed-pixel removal
-   (:func:`~upsr.method.trust.remove_mixed_pixels`), and its anchor and tolerance τ = k·σ +
+   (:func:`~upsr.method.mixed.remove_mixed_pixels`), and its anchor and tolerance τ = k·σ +
    relief are those of :func:`~upsr.method.trust.reference_anchor` (frame t is the reference);
 3. registration: each output pixel p looks the state up at q = p + flow(q) (the flow read
    bilinearly on the flow grid, as the windowed fusion reads it); the state is never
@@ -76,18 +76,20 @@ import numpy.typing as npt
 from upsr.errors import InputError
 from upsr.method.config import UPSRConfig
 from upsr.method.frontend import MotionFrontEnd
+from upsr.method.mixed import (
+    footprint_share,
+    has_mixed_pixels,
+    remove_mixed_pixels,
+    split_mixed_pixels,
+)
 from upsr.method.motion import FlowBackend, make_flow_backend
 from upsr.method.registration import _bilinear
 from upsr.method.trust import (
     _offset_kernel,
     choose_estimator,
     fill_holes,
-    footprint_share,
-    has_mixed_pixels,
     noise_shape,
     reference_anchor,
-    remove_mixed_pixels,
-    split_mixed_pixels,
     surface_support,
 )
 from upsr.method.validation import as_depth_frame, as_depth_video

@@ -3,12 +3,9 @@
 Beyond the paper. The temporal median of eq. 28 lets every registered sample vote, also the
 ones the motion did not carry along (a thin fast leg: the other frames' samples there show the
 wall behind it and vote it away), the ones that see another depth because the surface moved
-along the viewing ray, and the mixed ("flying") pixels of ToF sensors. This module computes,
-on the low-res grid:
+along the viewing ray, and the mixed ("flying") pixels of ToF sensors
+(:mod:`upsr.method.mixed`). This module computes, on the low-res grid:
 
-* :func:`remove_mixed_pixels`: input pixels whose depth lies between two surfaces around them
-  (more than the edge threshold from both their nearest and their farthest neighbour) are set
-  to 0 = no measurement in every frame, before anything is fused;
 * :func:`reference_anchor`: per reference pixel, an edge-aware robust estimate of its own depth
   (the median of its 3×3 neighbours on its surface) and the tolerance τ = k·σ + the local
   relief of that surface, against which each registered sample is trusted or not;
@@ -32,20 +29,14 @@ import numpy.typing as npt
 from upsr.method.consistency import registered_samples
 
 __all__ = [
-    "ABSTAIN",
-    "MIXED_SHARE",
     "TOLERANCE_FLOOR_MM",
     "alternatives_on_grid",
     "choose_estimator",
     "fill_holes",
-    "footprint_share",
-    "has_mixed_pixels",
     "noise_shape",
     "radial_offsets",
     "reference_anchor",
-    "remove_mixed_pixels",
     "side_of_centre",
-    "split_mixed_pixels",
     "surface_alternatives",
     "surface_support",
     "trust_arrays",
@@ -60,14 +51,6 @@ TOLERANCE_FLOOR_MM = 2.0
 #: quantisation errors: −0.6).
 KURTOSIS_MEDIAN = 0.75
 
-#: :func:`footprint_share` from which a video's sensor is taken to mix depths at edges (ToF)
-#: and its mixed pixels are removed (``remove_mixed="auto"``).
-MIXED_SHARE = 1.0 / 3.0
-
-#: A removed (mixed) input pixel that abstains in the fusion: it votes neither on the depth nor
-#: on whether there is depth (every kernel reads depth as ``> 0``).
-ABSTAIN = -1.0
-
 
 @nb.njit(cache=True, nogil=True, inline="always")
 def _median_inplace(buf, m):  # pragma: no cover - numba
@@ -80,194 +63,6 @@ def _median_inplace(buf, m):  # pragma: no cover - numba
             q -= 1
         buf[q + 1] = x
     return buf[m // 2] if m % 2 == 1 else 0.5 * (buf[m // 2 - 1] + buf[m // 2])
-
-
-@nb.njit(cache=True, nogil=True)
-def _mixed_kernel(z, edge, marker, out):  # pragma: no cover - numba
-    h, w = z.shape
-    for i in range(h):
-        for j in range(w):
-            v = z[i, j]
-            out[i, j] = v
-            if not v > 0:
-                continue
-            lo = np.inf
-            hi = -np.inf
-            same = 0
-            for di in range(-1, 2):
-                for dj in range(-1, 2):
-                    a = i + di
-                    b = j + dj
-                    if (di == 0 and dj == 0) or a < 0 or a >= h or b < 0 or b >= w:
-                        continue
-                    u = z[a, b]
-                    if u > 0:
-                        lo = min(lo, u)
-                        hi = max(hi, u)
-                        same += 1 if abs(u - v) <= edge else 0
-            # between two surfaces, and on none of its own (at most a line of such pixels),
-            # unless it continues a steep slope (a floor seen at a grazing angle)
-            if v - lo > edge and hi - v > edge and same <= 2 and not _on_slope(z, i, j, edge):
-                out[i, j] = marker
-
-
-@nb.njit(cache=True, nogil=True, inline="always")
-def _steps_agree(s, t):  # pragma: no cover - numba
-    """Two consecutive depth steps of one slope: same sign, within a factor of 3."""
-    if s == 0.0 or t == 0.0 or (s > 0) != (t > 0):
-        return False
-    a, b = abs(s), abs(t)
-    return max(a, b) <= 3.0 * min(a, b)
-
-
-@nb.njit(cache=True, nogil=True, inline="always")
-def _steep_run(z, i, j, di, dj, step, edge):  # pragma: no cover - numba
-    """The two steps beyond the neighbour (i + di, j + dj) continue ``step`` (its step from
-    (i, j)) in direction (di, dj), each beyond the edge threshold and agreeing with the last."""
-    h, w = z.shape
-    last = z[i + di, j + dj]
-    for s in (2, 3):
-        a = i + s * di
-        b = j + s * dj
-        if not (0 <= a < h and 0 <= b < w and z[a, b] > 0):
-            return False
-        t = z[a, b] - last
-        if abs(t) <= edge or not _steps_agree(step, t):
-            return False
-        step = t
-        last = z[a, b]
-    return True
-
-
-@nb.njit(cache=True, nogil=True)
-def _on_slope(z, i, j, edge):  # pragma: no cover - numba
-    """True when, along a row, column or diagonal, the pixel (i, j) continues a slanted surface
-    whose steps between neighbours can exceed the edge threshold (a floor seen at a grazing
-    angle): its two neighbours step through depth evenly with it, and so do the steps beyond
-    both of them, or, on one side, the next two steps, all beyond the edge threshold (a steep
-    slope that begins at another surface). A mixed pixel sits between two flat runs, or ends
-    a ramp of at most two mixed pixels across a ToF edge."""
-    h, w = z.shape
-    v = z[i, j]
-    for di, dj in ((0, 1), (1, 0), (1, 1), (1, -1)):
-        ia, ja, ib, jb = i - di, j - dj, i + di, j + dj
-        if min(ia, ib) < 0 or max(ia, ib) >= h or min(ja, jb) < 0 or max(ja, jb) >= w:
-            continue
-        a, b = z[ia, ja], z[ib, jb]
-        if not (a > 0 and b > 0) or not _steps_agree(v - a, b - v):
-            continue
-        if _steep_run(z, i, j, di, dj, b - v, edge) or _steep_run(z, i, j, -di, -dj, a - v, edge):
-            return True
-        outer = 0  # the steps beyond the two neighbours (those inside the frame) must agree
-        ok = True
-        ic, jc, ie, je = i - 2 * di, j - 2 * dj, i + 2 * di, j + 2 * dj
-        if 0 <= ic < h and 0 <= jc < w and z[ic, jc] > 0:
-            outer += 1
-            ok = ok and _steps_agree(a - z[ic, jc], v - a)
-        if 0 <= ie < h and 0 <= je < w and z[ie, je] > 0:
-            outer += 1
-            ok = ok and _steps_agree(b - v, z[ie, je] - b)
-        if outer > 0 and ok:
-            return True
-    return False
-
-
-def remove_mixed_pixels(frames: npt.ArrayLike, edge_mm: float, marker: float = 0.0) -> np.ndarray:
-    """Set the mixed ("flying") pixels of each frame to ``marker`` (0 = no measurement).
-
-    A pixel is mixed when its depth lies more than ``edge_mm`` behind its nearest valid
-    8-neighbour and more than ``edge_mm`` in front of its farthest one, and at most 2 of its
-    8-neighbours lie within ``edge_mm`` of it (a mixed pixel belongs to no surface; a line of
-    them along an edge still counts; a genuine surface between two others does not). A ToF
-    pixel whose footprint straddles a depth edge returns a depth between the two surfaces,
-    which belongs to neither. The other frames of the window fill it (their samples there are
-    not mixed), or :func:`split_mixed_pixels` splits it between the surfaces around it.
-
-    Parameters
-    ----------
-    frames : array_like (..., h, w)
-        Depth (mm), 0 or NaN = no measurement.
-    edge_mm : float
-        Depth step that separates two surfaces.
-    marker : float
-        What a mixed pixel becomes: 0 (no measurement: it votes "no depth") or
-        :data:`ABSTAIN` (the fusion ignores it, like a sample outside the frame).
-
-    Returns
-    -------
-    ndarray float32, same shape: the frames with mixed pixels set to ``marker`` (NaN become 0).
-    """
-    z = np.asarray(frames, np.float32)
-    z = np.where(np.isnan(z), np.float32(0.0), z)
-    flat = z.reshape(-1, *z.shape[-2:])
-    out = np.empty_like(flat)
-    for k in range(flat.shape[0]):
-        _mixed_kernel(np.ascontiguousarray(flat[k]), float(edge_mm), float(marker), out[k])
-    return out.reshape(z.shape)
-
-
-@nb.njit(cache=True, nogil=True, parallel=True)
-def _split_kernel(fused, removed, measured, source, scale, out):  # pragma: no cover - numba
-    h, w = removed.shape
-    for i in nb.prange(h):
-        for j in range(w):
-            if not removed[i, j]:
-                continue
-            m = measured[i, j]
-            for y in range(i * scale, (i + 1) * scale):
-                for x in range(j * scale, (j + 1) * scale):
-                    if fused[y, x] > 0:
-                        continue
-                    best = np.inf
-                    pick = np.float32(0.0)
-                    for a in range(max(i - 1, 0), min(i + 2, h)):
-                        for b in range(max(j - 1, 0), min(j + 2, w)):
-                            u = source[a, b]
-                            if removed[a, b] or not u > 0:
-                                continue
-                            dy = y - ((a + 0.5) * scale - 0.5)
-                            dx = x - ((b + 0.5) * scale - 0.5)
-                            # nearest neighbour centre first; a tie: the depth nearest m
-                            d = (dy * dy + dx * dx) * 1e6 + min(abs(u - m), 1e6 - 1.0)
-                            if d < best:
-                                best = d
-                                pick = u
-                    out[y, x] = pick
-
-
-def split_mixed_pixels(
-    fused: npt.ArrayLike, measured: npt.ArrayLike, cleaned: npt.ArrayLike, source: npt.ArrayLike
-) -> np.ndarray:
-    """Give the reference's mixed pixels that no frame filled the depth of their neighbours.
-
-    A pixel that :func:`remove_mixed_pixels` dropped from the reference did measure something:
-    a mix of the surfaces its footprint straddles. Where the fusion left its block without
-    depth, each high-res pixel there takes the depth of the nearest (by block centre) kept
-    low-res 8-neighbour (a tie: the one nearest the measured mix): the block is split between
-    the surfaces around it, never given a depth between them, and never left a hole.
-
-    Parameters
-    ----------
-    fused : array_like (r·h, r·w)
-        Fused depth (mm, 0 = none).
-    measured, cleaned : array_like (h, w)
-        The reference frame as measured and after :func:`remove_mixed_pixels` (mm).
-    source : array_like (h, w)
-        The depth the neighbours give (mm, 0 = none): the reference's anchor.
-
-    Returns
-    -------
-    ndarray float32 (r·h, r·w): ``fused`` with those blocks filled.
-    """
-    z = np.nan_to_num(np.asarray(measured, np.float32), nan=0.0)
-    c = np.nan_to_num(np.asarray(cleaned, np.float32), nan=0.0)
-    removed = (z > 0) & ~(c > 0)
-    f = np.ascontiguousarray(fused, np.float32)
-    out = f.copy()
-    if removed.any():
-        src = np.ascontiguousarray(source, np.float32)
-        _split_kernel(f, removed, z, src, int(f.shape[0] // z.shape[0]), out)
-    return out
 
 
 @nb.njit(cache=True, nogil=True)
@@ -570,8 +365,9 @@ def noise_shape(frames: npt.ArrayLike, edge_mm: float) -> tuple[float, float]:
     """Excess kurtosis and std (mm, per sample) of the temporal noise of static pixels.
 
     From the differences of consecutive frames where both have depth and the difference is
-    within 8 robust stds (static pixels; moving edges left out). Std per sample = std of the
-    differences / √2.
+    within 4·``edge_mm`` (depth edges that moved left out) and then within 8 robust stds
+    (1.4826·MAD: static pixels; the tails of the noise itself kept, or a heavy-tailed noise
+    would look Gaussian). Std per sample = std of the differences / √2.
 
     Returns
     -------
@@ -583,7 +379,7 @@ def noise_shape(frames: npt.ArrayLike, edge_mm: float) -> tuple[float, float]:
         return math.nan, 0.0
     a, b = z[1:], z[:-1]
     d = (a - b)[(a > 0) & (b > 0)].astype(np.float64)
-    d = d[np.abs(d) <= edge_mm]
+    d = d[np.abs(d) <= 4.0 * edge_mm]
     if d.size < 50:
         return math.nan, 0.0
     d = d - np.median(d)
@@ -596,52 +392,6 @@ def noise_shape(frames: npt.ArrayLike, edge_mm: float) -> tuple[float, float]:
         return math.nan, math.sqrt(max(var, 0.0) / 2.0)
     kurt = float(np.mean((d - d.mean()) ** 4) / var**2 - 3.0)
     return kurt, math.sqrt(var / 2.0)
-
-
-def footprint_share(frames: npt.ArrayLike, edge_mm: float) -> float:
-    """How often a depth edge between two flat surfaces has a pixel between them.
-
-    Over every run of five pixels along a row or column, c a v b e, whose ends are flat
-    (``|c − a|`` and ``|e − b|`` at most ``edge_mm``) across a large edge (``|b − a|`` more
-    than 3·``edge_mm``): the share of those whose middle v lies more than ``edge_mm`` from both
-    a and b. A sensor that integrates each pixel's footprint (ToF) gives such a mixed pixel at
-    a large share of its edges (0.37–0.82 on the realistic scenes of
-    :mod:`upsr.research.synth.realistic`), a point-sampling sensor (structured light, stereo,
-    renders) only on steep slopes (0–0.26).
-
-    Parameters
-    ----------
-    frames : array_like (..., h, w)
-        Depth (mm), 0 or NaN = no measurement.
-    edge_mm : float
-        Depth step that separates two surfaces.
-
-    Returns
-    -------
-    float: the share in [0, 1]; 0 without any such edge.
-    """
-    z = np.asarray(frames, np.float32)
-    z = np.where(np.isnan(z), np.float32(0.0), z).reshape(-1, *z.shape[-2:])
-    edge = float(edge_mm)
-    total = between = 0
-    for axis in (1, 2):
-        n = z.shape[axis]
-        if n < 5:
-            continue
-        c, a, v, b, e = (np.take(z, range(o, n - 4 + o), axis=axis) for o in range(5))
-        with np.errstate(invalid="ignore"):
-            ok = (c > 0) & (a > 0) & (v > 0) & (b > 0) & (e > 0)
-            ok &= (np.abs(b - a) > 3 * edge) & (np.abs(c - a) <= edge) & (np.abs(e - b) <= edge)
-            mid = ok & (v - np.minimum(a, b) > edge) & (np.maximum(a, b) - v > edge)
-        total += int(ok.sum())
-        between += int(mid.sum())
-    return between / total if total else 0.0
-
-
-def has_mixed_pixels(share: float) -> bool:
-    """Whether a video's :func:`footprint_share` says its sensor mixes depths at edges (ToF):
-    at least :data:`MIXED_SHARE`."""
-    return share >= MIXED_SHARE
 
 
 def choose_estimator(kurtosis: float) -> str:

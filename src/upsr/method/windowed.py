@@ -46,6 +46,13 @@ from upsr.method.consistency import misregistered, registered_samples
 from upsr.method.deblurring import deblur
 from upsr.method.frontend import MotionFrontEnd
 from upsr.method.fusion import register_and_fuse, splat_points
+from upsr.method.mixed import (
+    ABSTAIN,
+    footprint_share,
+    has_mixed_pixels,
+    remove_mixed_pixels,
+    split_mixed_pixels,
+)
 from upsr.method.motion import FlowBackend, flow_backend_is_thread_safe, make_flow_backend
 from upsr.method.outliers import remove_speckles
 from upsr.method.registration import (
@@ -55,16 +62,11 @@ from upsr.method.registration import (
     to_output_grid,
 )
 from upsr.method.trust import (
-    ABSTAIN,
     choose_estimator,
     fill_holes,
-    footprint_share,
-    has_mixed_pixels,
     noise_shape,
     radial_offsets,
     reference_anchor,
-    remove_mixed_pixels,
-    split_mixed_pixels,
     surface_support,
 )
 from upsr.method.validation import as_depth_frame, as_depth_video
@@ -110,7 +112,7 @@ def fix_video_statistics(
     the fusion's estimator and trust noise from the shape of the temporal noise
     (:func:`upsr.method.trust.noise_shape`): the median for Laplacian noise, the mean of the
     trusted samples for Gaussian or quantised noise; and whether the sensor mixes depths at
-    edges (:func:`upsr.method.trust.footprint_share`) for ``remove_mixed="auto"``.
+    edges (:func:`upsr.method.mixed.footprint_share`) for ``remove_mixed="auto"``.
     """
     front.fix_statistics(first_frames)
     kurtosis, temporal_mm = noise_shape(first_frames, front.edge_mm)

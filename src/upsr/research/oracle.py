@@ -282,9 +282,10 @@ def _checked_stack(
 def _split_reference(
     fused: np.ndarray, measured: np.ndarray, cleaned: np.ndarray, cfg, edge_mm: float, noise_mm
 ) -> np.ndarray:
-    """:func:`upsr.method.trust.split_mixed_pixels` of the reference, from its anchor (or
+    """:func:`upsr.method.mixed.split_mixed_pixels` of the reference, from its anchor (or
     itself without the trust test)."""
-    from upsr.method.trust import reference_anchor, split_mixed_pixels
+    from upsr.method.mixed import split_mixed_pixels
+    from upsr.method.trust import reference_anchor
 
     source = cleaned
     if cfg.trust_k is not None:
@@ -553,6 +554,7 @@ def super_resolve_straightforward(frames: npt.ArrayLike, config: UPSRConfig) -> 
     """
     from upsr.method.frontend import MotionFrontEnd
     from upsr.method.fusion import splat_nearest
+    from upsr.method.mixed import ABSTAIN, remove_mixed_pixels
     from upsr.method.motion import make_flow_backend
     from upsr.method.registration import (
         cumulative_flows,
@@ -560,7 +562,7 @@ def super_resolve_straightforward(frames: npt.ArrayLike, config: UPSRConfig) -> 
         sample_offsets,
         warp_nearest,
     )
-    from upsr.method.trust import ABSTAIN, fill_holes, remove_mixed_pixels, surface_support
+    from upsr.method.trust import fill_holes, surface_support
     from upsr.method.upsampling import upsample_nearest
     from upsr.method.validation import as_depth_video
     from upsr.method.windowed import fix_video_statistics, window_start

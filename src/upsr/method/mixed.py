@@ -1,0 +1,291 @@
+"""Mixed ("flying") input pixels: a depth between two surfaces that belongs to neither.
+
+Beyond the paper. A time-of-flight pixel integrates its footprint: where the footprint
+straddles a depth edge it returns a mix of the two depths, which nearest or bicubic
+upsampling spread over the pixel's whole high-res block (18–28 % flying pixels on the
+realistic ToF scenes of :mod:`upsr.research.synth.realistic`). This module
+
+* decides once per video whether the sensor mixes at all (:func:`footprint_share`: how often
+  an edge between two flat surfaces has a pixel between them; point-sampling sensors only on
+  steep slopes, which the mixed-pixel test would take for mixed);
+* finds the mixed pixels of each frame (:func:`remove_mixed_pixels`: between its nearest and
+  farthest neighbour, on no surface of its own, and not on a slope), which then abstain in
+  the fusion so that the other frames fill them;
+* splits those of the reference that no frame filled between the surfaces around them
+  (:func:`split_mixed_pixels`): never a depth between two surfaces, never a hole where the
+  camera measured something.
+"""
+
+from __future__ import annotations
+
+import numba as nb
+import numpy as np
+import numpy.typing as npt
+
+__all__ = [
+    "ABSTAIN",
+    "MIXED_SHARE",
+    "footprint_share",
+    "has_mixed_pixels",
+    "remove_mixed_pixels",
+    "split_mixed_pixels",
+]
+
+#: :func:`footprint_share` from which a video's sensor is taken to mix depths at edges (ToF)
+#: and its mixed pixels are removed (``remove_mixed="auto"``).
+MIXED_SHARE = 1.0 / 3.0
+
+#: A removed (mixed) input pixel that abstains in the fusion: it votes neither on the depth nor
+#: on whether there is depth (every kernel reads depth as ``> 0``).
+ABSTAIN = -1.0
+
+
+@nb.njit(cache=True, nogil=True)
+def _mixed_kernel(z, edge, marker, out):  # pragma: no cover - numba
+    h, w = z.shape
+    for i in range(h):
+        for j in range(w):
+            v = z[i, j]
+            out[i, j] = v
+            if not v > 0:
+                continue
+            lo = np.inf
+            hi = -np.inf
+            same = 0
+            for di in range(-1, 2):
+                for dj in range(-1, 2):
+                    a = i + di
+                    b = j + dj
+                    if (di == 0 and dj == 0) or a < 0 or a >= h or b < 0 or b >= w:
+                        continue
+                    u = z[a, b]
+                    if u > 0:
+                        lo = min(lo, u)
+                        hi = max(hi, u)
+                        same += 1 if abs(u - v) <= edge else 0
+            # between two surfaces, and on none of its own (at most a line of such pixels),
+            # unless it continues a steep slope (a floor seen at a grazing angle)
+            if v - lo > edge and hi - v > edge and same <= 2 and not _on_slope(z, i, j, edge):
+                out[i, j] = marker
+
+
+@nb.njit(cache=True, nogil=True, inline="always")
+def _steps_agree(s, t):  # pragma: no cover - numba
+    """Two consecutive depth steps of one slope: same sign, within a factor of 3."""
+    if s == 0.0 or t == 0.0 or (s > 0) != (t > 0):
+        return False
+    a, b = abs(s), abs(t)
+    return max(a, b) <= 3.0 * min(a, b)
+
+
+@nb.njit(cache=True, nogil=True, inline="always")
+def _steep_run(z, i, j, di, dj, step, edge):  # pragma: no cover - numba
+    """The two steps beyond the neighbour (i + di, j + dj) continue ``step`` (its step from
+    (i, j)) in direction (di, dj), each beyond the edge threshold and agreeing with the last."""
+    h, w = z.shape
+    last = z[i + di, j + dj]
+    for s in (2, 3):
+        a = i + s * di
+        b = j + s * dj
+        if not (0 <= a < h and 0 <= b < w and z[a, b] > 0):
+            return False
+        t = z[a, b] - last
+        if abs(t) <= edge or not _steps_agree(step, t):
+            return False
+        step = t
+        last = z[a, b]
+    return True
+
+
+@nb.njit(cache=True, nogil=True, inline="always")
+def _across_on_surface(z, i, j, pi, pj, edge):  # pragma: no cover - numba
+    """Some neighbour of (i, j) across the direction (its two neighbours at ±(pi, pj)) lies
+    within ``edge`` of it, or neither has depth: a slope's rows run on across it."""
+    h, w = z.shape
+    v = z[i, j]
+    seen = False
+    for s in (-1, 1):
+        a = i + s * pi
+        b = j + s * pj
+        if 0 <= a < h and 0 <= b < w and z[a, b] > 0:
+            seen = True
+            if abs(z[a, b] - v) <= edge:
+                return True
+    return not seen
+
+
+@nb.njit(cache=True, nogil=True)
+def _on_slope(z, i, j, edge):  # pragma: no cover - numba
+    """True when, along a row, column or diagonal, the pixel (i, j) continues a slanted surface
+    whose steps between neighbours can exceed the edge threshold (a floor seen at a grazing
+    angle): its two neighbours step through depth evenly with it, and so do the steps beyond
+    both of them, or, on one side, the next two steps, all beyond the edge threshold (a steep
+    slope that begins at another surface); and across that direction the pixel has a
+    neighbour on its own surface (the slope's row). A mixed pixel sits between two flat
+    runs, ends a ramp of at most two mixed pixels across a ToF edge, or belongs to a line of
+    them along the edge (even along the line, between two surfaces across it)."""
+    h, w = z.shape
+    v = z[i, j]
+    for di, dj in ((0, 1), (1, 0), (1, 1), (1, -1)):
+        ia, ja, ib, jb = i - di, j - dj, i + di, j + dj
+        if min(ia, ib) < 0 or max(ia, ib) >= h or min(ja, jb) < 0 or max(ja, jb) >= w:
+            continue
+        a, b = z[ia, ja], z[ib, jb]
+        if not (a > 0 and b > 0) or not _steps_agree(v - a, b - v):
+            continue
+        if not _across_on_surface(z, i, j, dj, -di, edge):
+            continue  # a line of mixed pixels along an edge: even along it, torn across it
+        if _steep_run(z, i, j, di, dj, b - v, edge) or _steep_run(z, i, j, -di, -dj, a - v, edge):
+            return True
+        # or the steps beyond both neighbours agree (a slope of five pixels or more)
+        ic, jc, ie, je = i - 2 * di, j - 2 * dj, i + 2 * di, j + 2 * dj
+        if not (0 <= ic < h and 0 <= jc < w and 0 <= ie < h and 0 <= je < w):
+            continue
+        c, e = z[ic, jc], z[ie, je]
+        if c > 0 and e > 0 and _steps_agree(a - c, v - a) and _steps_agree(b - v, e - b):
+            return True
+    return False
+
+
+def remove_mixed_pixels(frames: npt.ArrayLike, edge_mm: float, marker: float = 0.0) -> np.ndarray:
+    """Set the mixed ("flying") pixels of each frame to ``marker`` (0 = no measurement).
+
+    A pixel is mixed when its depth lies more than ``edge_mm`` behind its nearest valid
+    8-neighbour and more than ``edge_mm`` in front of its farthest one, and at most 2 of its
+    8-neighbours lie within ``edge_mm`` of it (a mixed pixel belongs to no surface; a line of
+    them along an edge still counts; a genuine surface between two others does not). A ToF
+    pixel whose footprint straddles a depth edge returns a depth between the two surfaces,
+    which belongs to neither. The other frames of the window fill it (their samples there are
+    not mixed), or :func:`split_mixed_pixels` splits it between the surfaces around it.
+
+    Parameters
+    ----------
+    frames : array_like (..., h, w)
+        Depth (mm), 0 or NaN = no measurement.
+    edge_mm : float
+        Depth step that separates two surfaces.
+    marker : float
+        What a mixed pixel becomes: 0 (no measurement: it votes "no depth") or
+        :data:`ABSTAIN` (the fusion ignores it, like a sample outside the frame).
+
+    Returns
+    -------
+    ndarray float32, same shape: the frames with mixed pixels set to ``marker`` (NaN become 0).
+    """
+    z = np.asarray(frames, np.float32)
+    z = np.where(np.isnan(z), np.float32(0.0), z)
+    flat = z.reshape(-1, *z.shape[-2:])
+    out = np.empty_like(flat)
+    for k in range(flat.shape[0]):
+        _mixed_kernel(np.ascontiguousarray(flat[k]), float(edge_mm), float(marker), out[k])
+    return out.reshape(z.shape)
+
+
+@nb.njit(cache=True, nogil=True, parallel=True)
+def _split_kernel(fused, removed, measured, source, scale, out):  # pragma: no cover - numba
+    h, w = removed.shape
+    for i in nb.prange(h):
+        for j in range(w):
+            if not removed[i, j]:
+                continue
+            m = measured[i, j]
+            for y in range(i * scale, (i + 1) * scale):
+                for x in range(j * scale, (j + 1) * scale):
+                    if fused[y, x] > 0:
+                        continue
+                    best = np.inf
+                    pick = np.float32(0.0)
+                    for a in range(max(i - 1, 0), min(i + 2, h)):
+                        for b in range(max(j - 1, 0), min(j + 2, w)):
+                            u = source[a, b]
+                            if removed[a, b] or not u > 0:
+                                continue
+                            dy = y - ((a + 0.5) * scale - 0.5)
+                            dx = x - ((b + 0.5) * scale - 0.5)
+                            # nearest neighbour centre first; a tie: the depth nearest m
+                            d = (dy * dy + dx * dx) * 1e6 + min(abs(u - m), 1e6 - 1.0)
+                            if d < best:
+                                best = d
+                                pick = u
+                    out[y, x] = pick
+
+
+def split_mixed_pixels(
+    fused: npt.ArrayLike, measured: npt.ArrayLike, cleaned: npt.ArrayLike, source: npt.ArrayLike
+) -> np.ndarray:
+    """Give the reference's mixed pixels that no frame filled the depth of their neighbours.
+
+    A pixel that :func:`remove_mixed_pixels` dropped from the reference did measure something:
+    a mix of the surfaces its footprint straddles. Where the fusion left its block without
+    depth, each high-res pixel there takes the depth of the nearest (by block centre) kept
+    low-res 8-neighbour (a tie: the one nearest the measured mix): the block is split between
+    the surfaces around it, never given a depth between them, and never left a hole.
+
+    Parameters
+    ----------
+    fused : array_like (r·h, r·w)
+        Fused depth (mm, 0 = none).
+    measured, cleaned : array_like (h, w)
+        The reference frame as measured and after :func:`remove_mixed_pixels` (mm).
+    source : array_like (h, w)
+        The depth the neighbours give (mm, 0 = none): the reference's anchor.
+
+    Returns
+    -------
+    ndarray float32 (r·h, r·w): ``fused`` with those blocks filled.
+    """
+    z = np.nan_to_num(np.asarray(measured, np.float32), nan=0.0)
+    c = np.nan_to_num(np.asarray(cleaned, np.float32), nan=0.0)
+    removed = (z > 0) & ~(c > 0)
+    f = np.ascontiguousarray(fused, np.float32)
+    out = f.copy()
+    if removed.any():
+        src = np.ascontiguousarray(source, np.float32)
+        _split_kernel(f, removed, z, src, int(f.shape[0] // z.shape[0]), out)
+    return out
+
+
+def footprint_share(frames: npt.ArrayLike, edge_mm: float) -> float:
+    """How often a depth edge between two flat surfaces has a pixel between them.
+
+    Over every run of five pixels along a row or column, c a v b e, whose ends are flat
+    (``|c − a|`` and ``|e − b|`` at most ``edge_mm``) across a large edge (``|b − a|`` more
+    than 3·``edge_mm``): the share of those whose middle v lies more than ``edge_mm`` from both
+    a and b. A sensor that integrates each pixel's footprint (ToF) gives such a mixed pixel at
+    a large share of its edges (0.37–0.82 on the realistic scenes of
+    :mod:`upsr.research.synth.realistic`), a point-sampling sensor (structured light, stereo,
+    renders) only on steep slopes (0–0.26).
+
+    Parameters
+    ----------
+    frames : array_like (..., h, w)
+        Depth (mm), 0 or NaN = no measurement.
+    edge_mm : float
+        Depth step that separates two surfaces.
+
+    Returns
+    -------
+    float: the share in [0, 1]; 0 without any such edge.
+    """
+    z = np.asarray(frames, np.float32)
+    z = np.where(np.isnan(z), np.float32(0.0), z).reshape(-1, *z.shape[-2:])
+    edge = float(edge_mm)
+    total = between = 0
+    for axis in (1, 2):
+        n = z.shape[axis]
+        if n < 5:
+            continue
+        c, a, v, b, e = (np.take(z, range(o, n - 4 + o), axis=axis) for o in range(5))
+        with np.errstate(invalid="ignore"):
+            ok = (c > 0) & (a > 0) & (v > 0) & (b > 0) & (e > 0)
+            ok &= (np.abs(b - a) > 3 * edge) & (np.abs(c - a) <= edge) & (np.abs(e - b) <= edge)
+            mid = ok & (v - np.minimum(a, b) > edge) & (np.maximum(a, b) - v > edge)
+        total += int(ok.sum())
+        between += int(mid.sum())
+    return between / total if total else 0.0
+
+
+def has_mixed_pixels(share: float) -> bool:
+    """Whether a video's :func:`footprint_share` says its sensor mixes depths at edges (ToF):
+    at least :data:`MIXED_SHARE`."""
+    return share >= MIXED_SHARE

@@ -1,0 +1,127 @@
+"""Mixed (flying) input pixels: detection, the per-video decision, abstention and the split of
+the reference's (upsr.method.mixed)."""
+
+import numpy as np
+
+import upsr
+from upsr.method.config import UPSRConfig
+from upsr.method.mixed import remove_mixed_pixels
+
+WALL = 3000.0
+
+
+def test_mixed_pixels_are_removed_and_never_reach_the_output():
+    frames = np.full((5, 8, 10), WALL, np.float32)
+    frames[:, :, :5] = 1000.0
+    mixed = frames.copy()
+    for k in range(5):
+        mixed[k, 2 + k % 3, 5] = 2000.0  # ToF footprint across the edge, in every frame
+    clean = remove_mixed_pixels(mixed, 100.0)
+    np.testing.assert_array_equal(clean, np.where(mixed != frames, 0.0, frames))
+    # edges, slopes and single outliers at one side are not mixed pixels
+    np.testing.assert_array_equal(remove_mixed_pixels(frames, 100.0), frames)
+    kw = dict(deblur=False, noise_mm=2.0, speckle_px=0)
+    out = upsr.super_resolve(mixed, 2, 5, remove_mixed=True, **kw)
+    valid = out[out > 0]
+    near_surface = (np.abs(valid - 1000) <= 100) | (np.abs(valid - WALL) <= 100)
+    assert near_surface.all()
+    off = upsr.super_resolve(mixed, 2, 5, remove_mixed=False, **kw)
+    assert np.any(np.abs(off - 2000) < 100)  # without it the mixed pixel survives
+
+
+def test_a_steep_slope_is_not_taken_for_mixed_pixels():
+    """A floor seen at a grazing angle steps by more than edge_mm from pixel to pixel, evenly
+    (or growing with depth): none of it is a mixed pixel; a pixel between two flat runs is."""
+    from upsr.method.mixed import remove_mixed_pixels
+
+    rows = 1000.0 + 150.0 * np.arange(12, dtype=np.float32) ** 1.3  # steps 150..~500 mm
+    floor = np.repeat(rows[:, None], 10, axis=1)
+    np.testing.assert_array_equal(remove_mixed_pixels(floor, 100.0), floor)
+    edge = np.full((9, 9), 1000.0, np.float32)
+    edge[:, 5:] = 3000.0
+    edge[:, 4] = 2000.0  # the mixed column between the two flat surfaces
+    out = remove_mixed_pixels(edge, 100.0)
+    assert (out[:, 4] == 0).all() and (out[:, :4] == 1000).all() and (out[:, 5:] == 3000).all()
+
+
+def _tof_edge_frames(n=3, h=12, w=16, r=4):
+    """ToF footprints (block means of a high-res step edge at a sub-pixel position)."""
+    from upsr.research.synth.degradation import tof_footprint
+
+    hr = np.full((n, h * r, w * r), WALL, np.float32)
+    for k in range(n):
+        hr[k, :, : 7 * r + 1 + k] = 1000.0  # the edge inside the 8th low-res column
+    return tof_footprint(hr, r)
+
+
+def test_footprint_share_tells_a_tof_sensor_from_a_point_sampling_one():
+    from upsr.method.mixed import MIXED_SHARE, footprint_share, has_mixed_pixels
+
+    tof = _tof_edge_frames()
+    point = np.full_like(tof, WALL)
+    point[:, :, :8] = 1000.0
+    assert footprint_share(tof, 100.0) == 1.0 and has_mixed_pixels(footprint_share(tof, 100.0))
+    assert footprint_share(point, 100.0) == 0.0 and not has_mixed_pixels(0.0)
+    assert footprint_share(np.full((2, 8, 8), WALL, np.float32), 100.0) == 0.0  # no edge
+    assert 0 < MIXED_SHARE < 1
+
+
+def test_remove_mixed_auto_follows_the_sensor():
+    from upsr.method.frontend import MotionFrontEnd
+    from upsr.method.windowed import fix_video_statistics
+
+    tof = np.repeat(_tof_edge_frames(), 3, axis=0)
+    point = np.where(tof > 2000, WALL, 1000.0).astype(np.float32)
+    for frames, expected in ((tof, True), (point, False)):
+        cfg = UPSRConfig(scale=2, n_frames=9)
+        stats = fix_video_statistics(MotionFrontEnd(cfg, frames.shape[-1]), frames, cfg)
+        assert stats.remove_mixed is expected
+    cfg = UPSRConfig(scale=2, n_frames=9, remove_mixed=False)
+    assert not fix_video_statistics(MotionFrontEnd(cfg, 16), tof, cfg).remove_mixed
+
+
+def test_a_mixed_reference_pixel_no_frame_fills_is_split_between_its_neighbours():
+    from upsr.method.mixed import split_mixed_pixels
+
+    measured = np.full((6, 7), WALL, np.float32)
+    measured[:, :3] = 1000.0
+    measured[:, 3] = 2200.0  # mixed in every row
+    cleaned = remove_mixed_pixels(measured, 100.0)
+    assert (cleaned[:, 3] == 0).all()
+    fused = np.repeat(np.repeat(cleaned, 4, 0), 4, 1)
+    fused[0, 13] = 1500.0  # a value some frame gave: kept
+    out = split_mixed_pixels(fused, measured, cleaned, cleaned)
+    block = out[4:20, 12:16]
+    # the half facing the foreground takes it, the other half the wall: never 0, never 2200
+    np.testing.assert_array_equal(block[:, :2], 1000.0)
+    np.testing.assert_array_equal(block[:, 2:], WALL)
+    assert out[0, 13] == 1500.0
+    np.testing.assert_array_equal(
+        np.delete(out, range(12, 16), axis=1), np.delete(fused, range(12, 16), axis=1)
+    )
+    # nothing removed: unchanged
+    np.testing.assert_array_equal(split_mixed_pixels(fused, cleaned, cleaned, cleaned), fused)
+
+
+def test_remove_mixed_can_mark_pixels_to_abstain():
+    from upsr.method.mixed import ABSTAIN
+
+    frames = np.full((2, 5, 7), WALL, np.float32)
+    frames[:, :, :3] = 1000.0
+    frames[:, :, 3] = 2200.0
+    out = remove_mixed_pixels(frames, 100.0, marker=ABSTAIN)
+    assert (out[:, :, 3] == ABSTAIN).all() and ABSTAIN < 0
+
+
+def test_a_steep_slope_from_another_surface_is_kept_a_short_ramp_is_not():
+    from upsr.method.mixed import remove_mixed_pixels
+
+    # a floor (steps of 300 mm) that begins below a flat back wall: four steep steps
+    col = np.array([4500, 4500, 4500, 4000, 3700, 3400, 3100, 2800], np.float32)
+    floor = np.repeat(col[:, None], 6, axis=1)
+    np.testing.assert_array_equal(remove_mixed_pixels(floor, 100.0), floor)
+    # a ToF ramp of two mixed pixels between two flat surfaces
+    col = np.array([4500, 4500, 4500, 3800, 2700, 1500, 1500, 1500], np.float32)
+    ramp = np.repeat(col[:, None], 6, axis=1)
+    out = remove_mixed_pixels(ramp, 100.0)
+    assert (out[3:5] == 0).all() and (out[:3] == 4500).all() and (out[5:] == 1500).all()
