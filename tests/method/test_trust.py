@@ -159,6 +159,43 @@ def test_a_static_scene_gets_no_radial_offset():
     assert not off[4].any()
 
 
+def test_a_slow_radial_motion_under_strong_noise_is_found_on_a_wider_neighbourhood():
+    rng = np.random.default_rng(5)
+    frames = (2000.0 + rng.laplace(0, 30 / np.sqrt(2), (9, 40, 48))).astype(np.float32)
+    frames -= 10.0 * (np.arange(9) - 4)[:, None, None]  # a camera 10 mm/frame closer
+    maps = np.zeros((9, 40, 48, 2), np.float32)
+    off = radial_offsets(frames, maps, 1, 4, sigma_mm=30.0, edge_mm=120.0)
+    # 5×5 px: 4 standard errors ≈ 42 mm, frames ±1..±3 invisible; 17×17 px: ≈ 12 mm
+    for k, expected in ((0, 40.0), (2, 20.0), (6, -20.0)):
+        assert np.median(off[k]) == pytest.approx(expected, abs=5.0)
+    assert not off[4].any()
+    frames = (2000.0 + rng.laplace(0, 30 / np.sqrt(2), (9, 40, 48))).astype(np.float32)
+    assert not radial_offsets(frames, maps, 1, 4, sigma_mm=30.0, edge_mm=120.0).any()
+
+
+def test_the_anchor_ignores_a_lone_outlier_and_keeps_a_thin_line():
+    rng = np.random.default_rng(6)
+    plane = (2000.0 + rng.laplace(0, 10 / np.sqrt(2), (9, 9))).astype(np.float32)
+    plane[4, 4] = 2300.0  # a lone noise outlier (> edge from all its neighbours)
+    anchor, tol = reference_anchor(plane, 10.0, 3.0, 100.0)
+    assert anchor[4, 4] == 0.0 and tol[4, 4] == 0.0  # no anchor: the other frames decide
+    assert (np.abs(anchor[3:6, 3:6][anchor[3:6, 3:6] > 0] - 2000) < 30).all()
+    plane[4, 4] = 2090.0  # an outlier within the edge threshold of a few neighbours only
+    anchor, _ = reference_anchor(plane, 10.0, 3.0, 100.0)
+    assert abs(anchor[4, 4] - 2000.0) < 30.0
+    line = np.full((9, 9), 3000.0, np.float32)
+    line[:, 4] = 1500.0  # a thin part one pixel wide
+    anchor, _ = reference_anchor(line, 10.0, 3.0, 100.0)
+    np.testing.assert_array_equal(anchor[:, 4], 1500.0)
+
+
+def test_the_noise_shape_keeps_the_tails_of_strong_laplacian_noise():
+    rng = np.random.default_rng(7)
+    frames = (2000.0 + rng.laplace(0, 50 / np.sqrt(2), (9, 60, 80))).astype(np.float32)
+    kurtosis, std = noise_shape(frames, 141.0)  # the edge threshold at 50 mm of noise
+    assert choose_estimator(kurtosis) == "median" and std == pytest.approx(50.0, rel=0.05)
+
+
 def _kinect(z, rng, f=580.0, b=75.0, sigma_px=0.07):
     """Kinect-like structured light: disparity with noise, quantised to 1/8 px."""
     disparity = f * b / z + rng.normal(0, sigma_px, z.shape)

@@ -75,14 +75,22 @@ def _anchor_kernel(z, edge, sigma, k, floor, anchor, tol):  # pragma: no cover -
             anchor[i, j] = 0.0
             if not v > 0:
                 continue
-            m = 0
-            for a in range(max(i - 1, 0), min(i + 2, h)):
-                for b in range(max(j - 1, 0), min(j + 2, w)):
-                    u = z[a, b]
-                    if u > 0 and abs(u - v) <= edge:
-                        buf[m] = u
-                        m += 1
-            anchor[i, j] = _median_inplace(buf, m)
+            # the median of the neighbours on the pixel's surface, then of those on the
+            # surface of that median: a noise outlier at the pixel itself (its neighbours
+            # within the edge threshold of it all on one side) does not pull the anchor along
+            c = v
+            for step in range(2):
+                m = 0
+                for a in range(max(i - 1, 0), min(i + 2, h)):
+                    for b in range(max(j - 1, 0), min(j + 2, w)):
+                        u = z[a, b]
+                        if u > 0 and abs(u - c) <= edge:
+                            buf[m] = u
+                            m += 1
+                if step == 0 and m == 1:
+                    break  # no neighbour on its surface: a noise outlier, no anchor
+                c = _median_inplace(buf, m)
+            anchor[i, j] = c if m > 1 else 0.0
     for i in range(h):
         for j in range(w):
             a0 = anchor[i, j]
@@ -120,8 +128,11 @@ def reference_anchor(
     Returns
     -------
     anchor : ndarray float32 (h, w)
-        Median of the pixel's 3×3 neighbours (itself included) within ``edge_mm`` of it; 0
-        where the reference has no depth.
+        Median of the pixel's 3×3 neighbours (itself included) within ``edge_mm`` of the
+        median of those within ``edge_mm`` of it (two steps: an outlier at the pixel does not
+        choose its neighbours); 0 where the reference has no depth, and where no 8-neighbour
+        lies on its surface (a lone outlier, which the other frames then outvote; a thin
+        part one pixel wide still has neighbours along it).
     tolerance : ndarray float32 (h, w)
         τ = k·σ + the largest difference to the anchor of a 4-neighbour on the same surface
         (the relief of a slanted surface over one low-res pixel), at least
@@ -272,7 +283,7 @@ def _offset_at(reg, ref, k, i, j, edge, sigma, radius, buf):  # pragma: no cover
                 m += 1
     if m < 5:
         return 0.0
-    med = _median_inplace(buf, m)
+    med = np.median(buf[:m])
     # significant only: beyond 4 standard errors of the median of m differences of two
     # noisy samples (a static scene stays unchanged)
     se = 1.2533 * math.sqrt(2.0) * sigma / math.sqrt(m)
@@ -280,22 +291,23 @@ def _offset_at(reg, ref, k, i, j, edge, sigma, radius, buf):  # pragma: no cover
 
 
 @nb.njit(cache=True, nogil=True)
-def _offset_kernel(reg, ref, ref_index, edge, sigma, radius, out):  # pragma: no cover - numba
+def _offset_kernel(reg, ref, ref_index, edge, sigma, radius, out, step=2):
+    # pragma: no cover - numba
     n, h, w = reg.shape
     buf = np.empty((2 * radius + 1) ** 2, np.float32)
     for k in range(n):
         if k == ref_index:
             out[k] = 0.0
             continue
-        # on every second pixel of each axis (the offsets are smooth); a pixel takes the
+        # on every step-th pixel of each axis (the offsets are smooth); a pixel takes the
         # value of its grid pixel when that one lies on its surface, else its own
-        for i in range(0, h, 2):
-            for j in range(0, w, 2):
+        for i in range(0, h, step):
+            for j in range(0, w, step):
                 out[k, i, j] = _offset_at(reg, ref, k, i, j, edge, sigma, radius, buf)
         for i in range(h):
             for j in range(w):
-                gi = i - i % 2
-                gj = j - j % 2
+                gi = i - i % step
+                gj = j - j % step
                 if gi == i and gj == j:
                     continue
                 c = ref[i, j]
@@ -304,6 +316,11 @@ def _offset_kernel(reg, ref, ref_index, edge, sigma, radius, out):  # pragma: no
                     out[k, i, j] = out[k, gi, gj]
                 else:
                     out[k, i, j] = _offset_at(reg, ref, k, i, j, edge, sigma, radius, buf)
+
+
+#: The wider neighbourhood of :func:`radial_offsets` where the first is not significant
+#: (radius × this factor).
+COARSE_RADIUS_FACTOR = 4
 
 
 def radial_offsets(
@@ -323,7 +340,9 @@ def radial_offsets(
     there, where both have depth and differ by at most ``edge_mm``; the median of those
     differences over the (2·radius+1)² low-res neighbours on the pixel's surface. Kept only
     where it exceeds 4 standard errors of that median, from at least 5 differences (noise
-    alone never shifts a frame).
+    alone never shifts a frame); elsewhere the same over a neighbourhood
+    :data:`COARSE_RADIUS_FACTOR` times as wide (its standard error that many times smaller:
+    a slow radial motion under strong noise), where significant.
 
     Parameters
     ----------
@@ -356,9 +375,14 @@ def radial_offsets(
     if registered is None:
         registered = registered_samples(lr, maps, scale)
     reg = np.ascontiguousarray(registered, np.float32)
+    args = (reg, lr[ref], int(ref), float(edge_mm), float(sigma_mm))
     out = np.empty((n, h, w), np.float32)
-    _offset_kernel(reg, lr[ref], int(ref), float(edge_mm), float(sigma_mm), int(radius_px), out)
-    return out
+    _offset_kernel(*args, int(radius_px), out)
+    # where the neighbourhood is too small for the offset to be significant (a camera moving
+    # 10 mm per frame under 30 mm of noise), the same on a neighbourhood 4× as wide
+    wide = np.empty_like(out)
+    _offset_kernel(*args, COARSE_RADIUS_FACTOR * int(radius_px), wide, 2 * COARSE_RADIUS_FACTOR)
+    return np.where(out != 0, out, wide)
 
 
 def noise_shape(frames: npt.ArrayLike, edge_mm: float) -> tuple[float, float]:
