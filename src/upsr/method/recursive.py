@@ -365,6 +365,7 @@ def recursive_update(
         _offset_kernel(
             reg,
             meas,
+            anchor,
             -1,  # (no frame of reg is the reference)
             float(edge_mm),
             STATE_NOISE_FACTOR * float(sigma_mm),

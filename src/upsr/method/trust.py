@@ -264,10 +264,11 @@ def alternatives_on_grid(alternatives: tuple[np.ndarray, ...], scale: int) -> li
 
 
 @nb.njit(cache=True, nogil=True, inline="always")
-def _offset_at(reg, ref, k, i, j, edge, sigma, radius, buf):  # pragma: no cover - numba
-    """The significant median of frame k's registered differences around (i, j), or 0."""
+def _offset_at(reg, ref, anc, k, i, j, edge, sigma, radius, buf):  # pragma: no cover - numba
+    """The significant median of frame k's registered differences around (i, j), or 0 (the
+    pixel's surface: the reference's within ``edge`` of its anchor ``anc``)."""
     h, w = ref.shape
-    c = ref[i, j]
+    c = anc[i, j]
     m = 0
     for a in range(max(i - radius, 0), min(i + radius + 1, h)):
         for b in range(max(j - radius, 0), min(j + radius + 1, w)):
@@ -291,7 +292,7 @@ def _offset_at(reg, ref, k, i, j, edge, sigma, radius, buf):  # pragma: no cover
 
 
 @nb.njit(cache=True, nogil=True)
-def _offset_kernel(reg, ref, ref_index, edge, sigma, radius, out, step=2):
+def _offset_kernel(reg, ref, anc, ref_index, edge, sigma, radius, out, step=2):
     # pragma: no cover - numba
     n, h, w = reg.shape
     buf = np.empty((2 * radius + 1) ** 2, np.float32)
@@ -303,19 +304,19 @@ def _offset_kernel(reg, ref, ref_index, edge, sigma, radius, out, step=2):
         # value of its grid pixel when that one lies on its surface, else its own
         for i in range(0, h, step):
             for j in range(0, w, step):
-                out[k, i, j] = _offset_at(reg, ref, k, i, j, edge, sigma, radius, buf)
+                out[k, i, j] = _offset_at(reg, ref, anc, k, i, j, edge, sigma, radius, buf)
         for i in range(h):
             for j in range(w):
                 gi = i - i % step
                 gj = j - j % step
                 if gi == i and gj == j:
                     continue
-                c = ref[i, j]
-                g = ref[gi, gj]
+                c = anc[i, j]
+                g = anc[gi, gj]
                 if c > 0 and g > 0 and abs(c - g) <= edge:
                     out[k, i, j] = out[k, gi, gj]
                 else:
-                    out[k, i, j] = _offset_at(reg, ref, k, i, j, edge, sigma, radius, buf)
+                    out[k, i, j] = _offset_at(reg, ref, anc, k, i, j, edge, sigma, radius, buf)
 
 
 #: The wider neighbourhood of :func:`radial_offsets` where the first is not significant
@@ -375,7 +376,8 @@ def radial_offsets(
     if registered is None:
         registered = registered_samples(lr, maps, scale)
     reg = np.ascontiguousarray(registered, np.float32)
-    args = (reg, lr[ref], int(ref), float(edge_mm), float(sigma_mm))
+    anc = reference_anchor(lr[ref], sigma_mm, 1.0, edge_mm)[0]
+    args = (reg, lr[ref], anc, int(ref), float(edge_mm), float(sigma_mm))
     out = np.empty((n, h, w), np.float32)
     _offset_kernel(*args, int(radius_px), out)
     # where the neighbourhood is too small for the offset to be significant (a camera moving
