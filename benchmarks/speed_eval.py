@@ -17,6 +17,11 @@ Four measurements, one table each, all written to ``--out/results.json``:
   :func:`upsr.research.oracle.super_resolve_straightforward` (every window recomputes its upsampled
   frames, prefilter and flows at the full r; NumPy median and NumPy BTV), measured in the same
   run; speed-up, and SPEC §6 accuracy of both against the rendered truth.
+* **Dense scenes** (issue #14): a room seen by a moving camera (every pixel measured) at ToF
+  64×56 (r = 4), 320×240 and 640×480 (r = 2), and an animal in front of a wall at 256×148
+  (r = 4), σ = 10 mm (:mod:`upsr.research.synth.realistic`); seconds per output frame of the
+  windowed and the recursive mode after warm-up, beside the straightforward path on the first
+  N frames, with the accuracy of each.
 * **Memory**: ``upsr run`` on a 1000-frame 256×147 PNG folder (the Samba renders played back
   and forth) in a child process; its peak resident memory (``wait4`` rusage).
 
@@ -222,6 +227,89 @@ def straightforward_benchmark(truth: np.ndarray, lowres: np.ndarray) -> dict[str
 
 
 # --------------------------------------------------------------------------------------------
+# Dense scenes: every pixel measured, both modes, beside the straightforward path
+# --------------------------------------------------------------------------------------------
+#: (label, scene, low-res (h, w), r, sensor, frames timed after warm-up)
+DENSE_CASES = (
+    ("ToF 64×56 → 256×224, room", "room", (56, 64), 4, "tof", 30),
+    ("320×240 → 640×480, room", "room", (240, 320), 2, "laplace", 12),
+    ("640×480 → 1280×960, room", "room", (480, 640), 2, "laplace", 6),
+    ("256×148 → 1024×592, animal + wall", "gallop", (148, 256), 4, "laplace", 8),
+)
+
+
+def _stream(frames: np.ndarray, r: int, n: int, mode: str, warm: int) -> tuple[float, np.ndarray]:
+    """Seconds per output frame of the streaming engine after ``warm`` frames, and the output."""
+    engine = upsr.UPSR(r, n, mode=mode)
+    outs: list[np.ndarray] = []
+    start = 0.0
+    for k, frame in enumerate(frames):
+        if k == warm:
+            start, done = time.perf_counter(), len(outs)
+        out = engine.push(frame)
+        if out is not None:
+            outs.append(out)
+    elapsed = time.perf_counter() - start
+    timed = len(outs) - done
+    outs.extend(engine.flush())
+    return elapsed / max(timed, 1), np.stack(outs)
+
+
+def dense_benchmark(quick: bool, straightforward: bool) -> list[dict[str, Any]]:
+    """Every :data:`DENSE_CASES` scene (σ = 10 mm) through both modes, after a warm-up run
+    on the same shape (kernels compiled), with accuracy against the truth; the straightforward
+    path on the first N frames beside them (not for 640×480 in ``--quick``)."""
+    from upsr.research.oracle import super_resolve_straightforward
+    from upsr.research.synth.realistic import degrade, make_realistic
+
+    n = 9
+    rows = []
+    for label, name, shape, r, sensor, timed in DENSE_CASES:
+        if quick:
+            timed = max(3, timed // 3)
+        total = n + timed
+        video = make_realistic(name, shape, scale=r, n_frames=total)
+        low = degrade(video, sensor, np.random.default_rng(0), sigma_mm=10.0)
+        row: dict[str, Any] = {"case": label, "scene": name, "scale": r, "frames": total}
+        row["measured_pct"] = 100.0 * float((low > 0).mean())
+        for mode in ("windowed", "recursive"):
+            _stream(low[: n + 1], r, n, mode, n)  # compile for this shape
+            spf, out = _stream(low, r, n, mode, n)
+            row[mode] = {"s_per_frame": spf, "fps": 1.0 / spf}
+            row[mode]["accuracy"] = _accuracy(out, video.truth, r)
+        if straightforward and not (quick and shape[0] >= 480):
+            start = time.perf_counter()
+            slow = super_resolve_straightforward(low[:n], UPSRConfig(scale=r, n_frames=n))
+            spf = (time.perf_counter() - start) / n
+            row["straightforward"] = {"s_per_frame": spf, "fps": 1.0 / spf}
+            row["straightforward"]["accuracy"] = _accuracy(slow, video.truth[:n], r)
+            for mode in ("windowed", "recursive"):
+                row[mode]["speedup"] = spf / row[mode]["s_per_frame"]
+        rows.append(row)
+        print(f"  {label}: done", flush=True)
+    return rows
+
+
+def _print_dense(rows: list[dict[str, Any]]) -> None:
+    print("\ndense scenes (every pixel measured), σ = 10 mm, N = 9, after warm-up")
+    print(
+        f"{'case':<36} {'path':<16} {'fps':>7} {'s/frame':>8} {'×straight':>9} {'surface':>8} "
+        f"{'edge %':>7} {'flying':>7}"
+    )
+    for row in rows:
+        for path in ("windowed", "recursive", "straightforward"):
+            if path not in row:
+                continue
+            m, acc = row[path], row[path]["accuracy"]
+            speedup = f"{m['speedup']:9.1f}" if "speedup" in m else f"{'':>9}"
+            print(
+                f"{row['case']:<36} {path:<16} {m['fps']:7.2f} {m['s_per_frame']:8.3f} "
+                f"{speedup} {acc['surface_rmse']:8.2f} {100 * acc['edge_accuracy']:7.2f} "
+                f"{acc['flying_pixels']:7.4f}"
+            )
+
+
+# --------------------------------------------------------------------------------------------
 # Memory: a 1000-frame PNG folder through the command line
 # --------------------------------------------------------------------------------------------
 _LAUNCHER = """
@@ -317,6 +405,8 @@ def _print_results(res: dict[str, Any]) -> None:
             f"speed-up ×{c['speedup']:.1f}; surface RMSE {c['surface_rmse_change_pct']:+.1f} %, "
             f"edge accuracy {c['edge_accuracy_change_pct']:+.2f} % (relative)"
         )
+    if "dense" in res:
+        _print_dense(res["dense"])
     if "memory" in res:
         m = res["memory"]
         print(
@@ -335,6 +425,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     p.add_argument("--memory-frames", type=int, default=1000, help="frames of the memory run")
     p.add_argument("--skip-memory", action="store_true")
     p.add_argument("--skip-straightforward", action="store_true")
+    p.add_argument("--skip-dense", action="store_true", help="no dense-scene rows")
     args = p.parse_args(argv)
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
@@ -342,6 +433,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     res: dict[str, Any] = {"machine": machine(), "command": " ".join(sys.argv)}
     print("ToF benchmark ...", flush=True)
     res["tof"] = [tof_benchmark(tof_frames, options) for options in TOF_OPTIONS]
+    if not args.skip_dense:
+        print("dense scenes ...", flush=True)
+        res["dense"] = dense_benchmark(args.quick, not args.skip_straightforward)
     samba_ok = (Path(args.data) / "samba" / "mesh_0000.obj").is_file()
     if not samba_ok:
         print(f"Samba meshes not found under {args.data}: Samba, speed-up and memory skipped")

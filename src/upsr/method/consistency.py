@@ -83,7 +83,7 @@ def registered_samples(lowres: npt.ArrayLike, maps: npt.ArrayLike, scale: int) -
     return out
 
 
-@nb.njit(cache=True, nogil=True)
+@nb.njit(cache=True, nogil=True, parallel=True)
 def _mismatch_kernel(reg, ref, offsets, ref_index, edge, radius, min_count, fraction, out):
     # pragma: no cover - numba
     n, h, w = reg.shape
@@ -98,34 +98,35 @@ def _mismatch_kernel(reg, ref, offsets, ref_index, edge, radius, min_count, frac
                     if not (u > 0 and abs(u - c) <= edge):
                         ok = False
             interior[i, j] = ok
-    bad = np.zeros((h, w), np.int32)
-    checked = np.zeros((h, w), np.int32)
-    for k in range(n):
+    for k in nb.prange(n):
         out[k] = False
         if k == ref_index:
             continue
-        # per interior pixel: 1 where frame k's registered sample is on another surface
+        # summed-area tables of: the interior pixels where frame k's registered sample has
+        # depth (checked), and those of them where it lies on another surface (bad)
+        bad = np.zeros((h + 1, w + 1), np.int32)
+        checked = np.zeros((h + 1, w + 1), np.int32)
         for i in range(h):
             for j in range(w):
                 v = reg[k, i, j]
-                bad[i, j] = 0
-                checked[i, j] = 0
-                if not (interior[i, j] and ref[i, j] > 0 and v > 0):
-                    # at an edge, outside frame k, without depth in either (a dropout of
-                    # the reference or of frame k, or a part moved off the background):
-                    # no evidence either way
-                    continue
-                checked[i, j] = 1
-                bad[i, j] = 0 if abs(v - offsets[k, i, j] - ref[i, j]) <= edge else 1
-        # a box count of both over the (2R+1)² neighbourhood of each pixel
+                c = 0
+                e = 0
+                # at an edge, outside frame k, without depth in either (a dropout of the
+                # reference or of frame k, or a part moved off the background): no evidence
+                if interior[i, j] and ref[i, j] > 0 and v > 0:
+                    c = 1
+                    e = 0 if abs(v - offsets[k, i, j] - ref[i, j]) <= edge else 1
+                checked[i + 1, j + 1] = c + checked[i, j + 1] + checked[i + 1, j] - checked[i, j]
+                bad[i + 1, j + 1] = e + bad[i, j + 1] + bad[i + 1, j] - bad[i, j]
+        # both counted over the (2R+1)² neighbourhood of each pixel
         for i in range(h):
+            i0 = max(i - radius, 0)
+            i1 = min(i + radius + 1, h)
             for j in range(w):
-                nb_bad = 0
-                nb_chk = 0
-                for a in range(max(i - radius, 0), min(i + radius + 1, h)):
-                    for b in range(max(j - radius, 0), min(j + radius + 1, w)):
-                        nb_bad += bad[a, b]
-                        nb_chk += checked[a, b]
+                j0 = max(j - radius, 0)
+                j1 = min(j + radius + 1, w)
+                nb_bad = bad[i1, j1] - bad[i0, j1] - bad[i1, j0] + bad[i0, j0]
+                nb_chk = checked[i1, j1] - checked[i0, j1] - checked[i1, j0] + checked[i0, j0]
                 out[k, i, j] = nb_bad >= min_count and nb_bad >= fraction * nb_chk
 
 

@@ -65,11 +65,11 @@ def _median_inplace(buf, m):  # pragma: no cover - numba
     return buf[m // 2] if m % 2 == 1 else 0.5 * (buf[m // 2 - 1] + buf[m // 2])
 
 
-@nb.njit(cache=True, nogil=True)
+@nb.njit(cache=True, nogil=True, parallel=True)
 def _anchor_kernel(z, edge, sigma, k, floor, anchor, tol):  # pragma: no cover - numba
     h, w = z.shape
-    buf = np.empty(9, np.float32)
-    for i in range(h):
+    for i in nb.prange(h):
+        buf = np.empty(9, np.float32)
         for j in range(w):
             v = z[i, j]
             anchor[i, j] = 0.0
@@ -91,7 +91,7 @@ def _anchor_kernel(z, edge, sigma, k, floor, anchor, tol):  # pragma: no cover -
                     break  # no neighbour on its surface: a noise outlier, no anchor
                 c = _median_inplace(buf, m)
             anchor[i, j] = c if m > 1 else 0.0
-    for i in range(h):
+    for i in nb.prange(h):
         for j in range(w):
             a0 = anchor[i, j]
             tol[i, j] = 0.0
@@ -263,15 +263,52 @@ def alternatives_on_grid(alternatives: tuple[np.ndarray, ...], scale: int) -> li
     return [a[sy, sx, iy, ix] for a in alternatives]
 
 
+@nb.njit(cache=True, nogil=True)
+def _select_median(buf, m):  # pragma: no cover - numba
+    """Median of buf[:m] by quickselect (in place, O(m)); the mean of the two middle values
+    for an even m."""
+    if m <= 25:
+        return _median_inplace(buf, m)
+    hi_k = m // 2
+    lo, hi = 0, m - 1
+    while lo < hi:  # Hoare partition around the middle element until buf[hi_k] is in place
+        pivot = buf[(lo + hi) // 2]
+        a, b = lo, hi
+        while a <= b:
+            while buf[a] < pivot:
+                a += 1
+            while buf[b] > pivot:
+                b -= 1
+            if a <= b:
+                buf[a], buf[b] = buf[b], buf[a]
+                a += 1
+                b -= 1
+        if hi_k <= b:
+            hi = b
+        elif hi_k >= a:
+            lo = a
+        else:
+            break
+    upper = buf[hi_k]
+    if m % 2 == 1:
+        return upper
+    lower = buf[0]
+    for q in range(1, hi_k):  # the largest of the lower half
+        lower = max(lower, buf[q])
+    return 0.5 * (lower + upper)
+
+
 @nb.njit(cache=True, nogil=True, inline="always")
-def _offset_at(reg, ref, anc, k, i, j, edge, sigma, radius, buf):  # pragma: no cover - numba
-    """The significant median of frame k's registered differences around (i, j), or 0 (the
-    pixel's surface: the reference's within ``edge`` of its anchor ``anc``)."""
+def _offset_at(reg, ref, anc, k, i, j, edge, sigma, radius, stride, buf):
+    # pragma: no cover - numba
+    """The significant median of frame k's registered differences around (i, j) (every
+    ``stride``-th pixel of the window), or 0 (the pixel's surface: the reference's within
+    ``edge`` of its anchor ``anc``)."""
     h, w = ref.shape
     c = anc[i, j]
     m = 0
-    for a in range(max(i - radius, 0), min(i + radius + 1, h)):
-        for b in range(max(j - radius, 0), min(j + radius + 1, w)):
+    for a in range(max(i - radius, i % stride), min(i + radius + 1, h), stride):
+        for b in range(max(j - radius, j % stride), min(j + radius + 1, w), stride):
             u = ref[a, b]
             v = reg[k, a, b]
             if not (u > 0 and v > 0):
@@ -284,19 +321,20 @@ def _offset_at(reg, ref, anc, k, i, j, edge, sigma, radius, buf):  # pragma: no 
                 m += 1
     if m < 5:
         return 0.0
-    med = np.median(buf[:m])
+    med = _select_median(buf, m)
     # significant only: beyond 4 standard errors of the median of m differences of two
     # noisy samples (a static scene stays unchanged)
     se = 1.2533 * math.sqrt(2.0) * sigma / math.sqrt(m)
     return med if abs(med) > 4.0 * se else 0.0
 
 
-@nb.njit(cache=True, nogil=True)
-def _offset_kernel(reg, ref, anc, ref_index, edge, sigma, radius, out, step=2):
+@nb.njit(cache=True, nogil=True, parallel=True)
+def _offset_kernel(reg, ref, anc, ref_index, edge, sigma, radius, out, step=2, stride=1):
     # pragma: no cover - numba
     n, h, w = reg.shape
-    buf = np.empty((2 * radius + 1) ** 2, np.float32)
-    for k in range(n):
+    own = stride == 1  # off the grid's surface: its own offset (else none)
+    for k in nb.prange(n):
+        buf = np.empty((2 * radius + 1) ** 2, np.float32)
         if k == ref_index:
             out[k] = 0.0
             continue
@@ -304,7 +342,7 @@ def _offset_kernel(reg, ref, anc, ref_index, edge, sigma, radius, out, step=2):
         # value of its grid pixel when that one lies on its surface, else its own
         for i in range(0, h, step):
             for j in range(0, w, step):
-                out[k, i, j] = _offset_at(reg, ref, anc, k, i, j, edge, sigma, radius, buf)
+                out[k, i, j] = _offset_at(reg, ref, anc, k, i, j, edge, sigma, radius, stride, buf)
         for i in range(h):
             for j in range(w):
                 gi = i - i % step
@@ -315,13 +353,17 @@ def _offset_kernel(reg, ref, anc, ref_index, edge, sigma, radius, out, step=2):
                 g = anc[gi, gj]
                 if c > 0 and g > 0 and abs(c - g) <= edge:
                     out[k, i, j] = out[k, gi, gj]
+                elif own:
+                    out[k, i, j] = _offset_at(
+                        reg, ref, anc, k, i, j, edge, sigma, radius, stride, buf
+                    )
                 else:
-                    out[k, i, j] = _offset_at(reg, ref, anc, k, i, j, edge, sigma, radius, buf)
+                    out[k, i, j] = 0.0
 
 
 #: The wider neighbourhood of :func:`radial_offsets` where the first is not significant
-#: (radius × this factor).
-COARSE_RADIUS_FACTOR = 4
+#: (radius × this factor, every second pixel of it: (f·R + 1)² differences).
+COARSE_RADIUS_FACTOR = 8
 
 
 def radial_offsets(
@@ -334,6 +376,7 @@ def radial_offsets(
     edge_mm: float,
     radius_px: int = 2,
     registered: npt.ArrayLike | None = None,
+    anchor: npt.ArrayLike | None = None,
 ) -> np.ndarray:
     """Depth offset of each frame registered to the reference (motion along the viewing ray).
 
@@ -342,8 +385,8 @@ def radial_offsets(
     differences over the (2·radius+1)² low-res neighbours on the pixel's surface. Kept only
     where it exceeds 4 standard errors of that median, from at least 5 differences (noise
     alone never shifts a frame); elsewhere the same over a neighbourhood
-    :data:`COARSE_RADIUS_FACTOR` times as wide (its standard error that many times smaller:
-    a slow radial motion under strong noise), where significant.
+    :data:`COARSE_RADIUS_FACTOR` times as wide, every second pixel of it (its standard error
+    ≈ 3.4 times smaller at R = 2: a slow radial motion under strong noise), where significant.
 
     Parameters
     ----------
@@ -364,6 +407,8 @@ def radial_offsets(
     registered : array_like (N, h, w), optional
         :func:`upsr.method.consistency.registered_samples` of ``lowres`` and ``maps``, when
         already computed.
+    anchor : array_like (h, w), optional
+        :func:`reference_anchor` of the reference (any k), when already computed.
 
     Returns
     -------
@@ -376,14 +421,18 @@ def radial_offsets(
     if registered is None:
         registered = registered_samples(lr, maps, scale)
     reg = np.ascontiguousarray(registered, np.float32)
-    anc = reference_anchor(lr[ref], sigma_mm, 1.0, edge_mm)[0]
+    if anchor is None:
+        anchor = reference_anchor(lr[ref], sigma_mm, 1.0, edge_mm)[0]
+    anc = np.ascontiguousarray(anchor, np.float32)
     args = (reg, lr[ref], anc, int(ref), float(edge_mm), float(sigma_mm))
     out = np.empty((n, h, w), np.float32)
     _offset_kernel(*args, int(radius_px), out)
     # where the neighbourhood is too small for the offset to be significant (a camera moving
-    # 10 mm per frame under 30 mm of noise), the same on a neighbourhood 4× as wide
+    # 10 mm per frame under 30 mm of noise), the same on a neighbourhood f× as wide
     wide = np.empty_like(out)
-    _offset_kernel(*args, COARSE_RADIUS_FACTOR * int(radius_px), wide, 2 * COARSE_RADIUS_FACTOR)
+    f = COARSE_RADIUS_FACTOR
+    # (on every 2nd pixel of that neighbourhood, on a grid of 2f px: the cost of the first)
+    _offset_kernel(*args, f * int(radius_px), wide, 2 * f, 2)
     return np.where(out != 0, out, wide)
 
 

@@ -365,6 +365,11 @@ class UPSR:
             noise = cfg.trust_noise_mm
             if noise is None:
                 noise = stats.trust_noise_mm
+            anchor = tolerance = None
+            if cfg.trust_k is not None:
+                anchor, tolerance = reference_anchor(
+                    lowres[ref], noise, cfg.trust_k, self._front.edge_mm
+                )
             offsets = untrusted = None
             if cfg.n_frames > 1 and (cfg.radial_compensation or cfg.check_registration):
                 registered = registered_samples(lowres, maps, r)
@@ -378,16 +383,12 @@ class UPSR:
                         edge_mm=self._front.edge_mm,
                         radius_px=cfg.radial_radius_px,
                         registered=registered,
+                        anchor=anchor,
                     )
                 if cfg.check_registration:
                     untrusted = misregistered(
                         registered, lowres[ref], ref, edge_mm=self._front.edge_mm, offsets=offsets
                     )
-            anchor = tolerance = None
-            if cfg.trust_k is not None:
-                anchor, tolerance = reference_anchor(
-                    lowres[ref], noise, cfg.trust_k, self._front.edge_mm
-                )
             guide = None
             if cfg.splat_radius_px and cfg.n_frames > 1:
                 # where each sample lands in the reference (upsr.method.registration.
