@@ -301,3 +301,44 @@ def test_alternatives_are_on_the_side_of_their_neighbour_only():
     np.testing.assert_array_equal(
         grid_near[:, 16:20] == 1000.0, np.tile([1, 1, 0, 0], (28, 1)) == 1
     )
+
+
+def test_a_lone_outlier_of_the_reference_is_neither_kept_nor_blanked():
+    """It abstains: the other frames decide, and with none its neighbours' depth, never 0."""
+    from upsr.method.mixed import split_mixed_pixels
+    from upsr.method.trust import abstain_lone_outliers
+
+    rng = np.random.default_rng(8)
+    frames = (WALL + rng.laplace(0, 10 / np.sqrt(2), (9, 12, 16))).astype(np.float32)
+    frames[4, 5, 7] = WALL + 400.0
+    maps = np.zeros((9, 12 * R, 16 * R, 2), np.float32)
+    maps[:4, ..., 1] = -1000.0  # frames 0-3: outside
+    maps[5:, ..., 0] = 0.5 * R  # frames 5-8: half a low-res pixel away (low vote weights)
+    guide = np.full((12 * R, 16 * R), np.nan, np.float32)
+    guide[5 * R : 6 * R, 7 * R : 8 * R] = frames[4, 5, 7]  # the nearest forward sample
+    anchor, tol = reference_anchor(frames[4], 10.0, 3.0, 100.0)
+    assert anchor[5, 7] == 0.0
+    kw = dict(edge_mm=100.0, anchor=anchor, tolerance=tol, min_trusted=3, guide=guide)
+    kw["weight_sigma_px"] = 0.35 * R
+    block = (slice(5 * R, 6 * R), slice(7 * R, 8 * R))
+    marked = abstain_lone_outliers(frames, 4, anchor)
+    assert marked[4, 5, 7] < 0 and (np.delete(marked, 4, 0) == np.delete(frames, 4, 0)).all()
+    fused = register_and_fuse(marked, maps, R, 4, **kw)
+    assert (np.abs(fused[block] - WALL) < 30).all()
+    # no other frame at all: the neighbours' depth, never 0
+    alone = register_and_fuse(marked[4:5], maps[4:5], R, 0, **kw)
+    filled = split_mixed_pixels(alone, frames[4], marked[4], anchor)
+    assert (alone[block] == 0).all() and (np.abs(filled[block] - WALL) < 30).all()
+    out = upsr.super_resolve(frames, R, 9)[4]
+    assert (np.abs(out[block] - WALL) < 30).all()
+
+
+def test_the_engine_never_blanks_what_the_reference_measured_on_the_demo_scene():
+    """The demo's wall had r×r holes at its top border (lone outliers that won their block,
+    then the speckle filter): 54 px over 15 frames before."""
+    from upsr.research.synth import dynamic_scene
+
+    video = dynamic_scene(n_frames=15, lowres_shape=(48, 64), scale=4, noise_sigma_mm=30.0)
+    out = upsr.super_resolve(video.lowres, 4, 9)
+    measured = upsample_nearest(video.lowres, 4) > 0
+    assert not ((out == 0) & measured & (video.truth > 0)).any()

@@ -232,16 +232,18 @@ def split_mixed_pixels(
 
     Returns
     -------
-    ndarray float32 (r·h, r·w): ``fused`` with those blocks filled.
+    ndarray float32 (r·h, r·w): ``fused`` with those blocks filled (``fused`` itself when
+    nothing was removed).
     """
     z = np.nan_to_num(np.asarray(measured, np.float32), nan=0.0)
     c = np.nan_to_num(np.asarray(cleaned, np.float32), nan=0.0)
     removed = (z > 0) & ~(c > 0)
     f = np.ascontiguousarray(fused, np.float32)
+    if not removed.any():
+        return f
     out = f.copy()
-    if removed.any():
-        src = np.ascontiguousarray(source, np.float32)
-        _split_kernel(f, removed, z, src, int(f.shape[0] // z.shape[0]), out)
+    src = np.ascontiguousarray(source, np.float32)
+    _split_kernel(f, removed, z, src, int(f.shape[0] // z.shape[0]), out)
     return out
 
 

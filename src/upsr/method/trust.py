@@ -27,9 +27,11 @@ import numpy as np
 import numpy.typing as npt
 
 from upsr.method.consistency import registered_samples
+from upsr.method.mixed import ABSTAIN
 
 __all__ = [
     "TOLERANCE_FLOOR_MM",
+    "abstain_lone_outliers",
     "alternatives_on_grid",
     "choose_estimator",
     "fill_holes",
@@ -106,6 +108,37 @@ def _anchor_kernel(z, edge, sigma, k, floor, anchor, tol):  # pragma: no cover -
                     if u > 0 and abs(u - a0) <= edge:
                         relief = max(relief, abs(u - a0))
             tol[i, j] = max(k * sigma + relief, floor)
+
+
+def abstain_lone_outliers(lowres: np.ndarray, ref: int, anchor: npt.ArrayLike) -> np.ndarray:
+    """The window with the reference's lone outliers abstaining in the fusion.
+
+    A reference pixel with depth but no anchor (:func:`reference_anchor`: no 8-neighbour on
+    its surface) is a noise outlier; as a sample it would still win its own block (it lies
+    exactly at the block's centre, where the vote weight and the forward-splat guide favour
+    it), and the speckle filter would then blank the block. It abstains instead
+    (:data:`upsr.method.mixed.ABSTAIN`): the other frames decide, and where none does,
+    :func:`upsr.method.mixed.split_mixed_pixels` gives the block its neighbours' depth.
+
+    Parameters
+    ----------
+    lowres : ndarray float32 (N, h, w)
+        The window (mm, 0 = no depth).
+    ref : int
+        Index of the reference frame.
+    anchor : array_like (h, w)
+        :func:`reference_anchor` of ``lowres[ref]``.
+
+    Returns
+    -------
+    ndarray float32 (N, h, w): ``lowres`` itself when there is none, else a copy.
+    """
+    lone = (lowres[ref] > 0) & ~(np.asarray(anchor) > 0)
+    if not lone.any():
+        return lowres
+    out = np.array(lowres, np.float32, copy=True)
+    out[ref][lone] = ABSTAIN
+    return out
 
 
 def reference_anchor(

@@ -62,6 +62,7 @@ from upsr.method.registration import (
     to_output_grid,
 )
 from upsr.method.trust import (
+    abstain_lone_outliers,
     choose_estimator,
     fill_holes,
     noise_shape,
@@ -370,6 +371,7 @@ class UPSR:
                 anchor, tolerance = reference_anchor(
                     lowres[ref], noise, cfg.trust_k, self._front.edge_mm
                 )
+                lowres = abstain_lone_outliers(lowres, ref, anchor)
             offsets = untrusted = None
             if cfg.n_frames > 1 and (cfg.radial_compensation or cfg.check_registration):
                 registered = registered_samples(lowres, maps, r)
@@ -416,8 +418,9 @@ class UPSR:
                 min_trusted=cfg.min_trusted_samples,
                 estimator=stats.estimator,
             )
-            if stats.remove_mixed:
-                # the reference's mixed pixels no frame filled: split between their neighbours
+            if stats.remove_mixed or anchor is not None:
+                # the reference's mixed pixels and lone outliers no frame filled: the depth
+                # of their neighbours
                 source = lowres[ref] if anchor is None else anchor
                 fused = split_mixed_pixels(fused, measured[ref], lowres[ref], source)
         with self._timed("deblur"):

@@ -279,6 +279,21 @@ def _checked_stack(
     return stack.astype(np.float32), offsets
 
 
+def _abstaining(
+    measured: np.ndarray, ref: int, mixed: bool, cfg, edge_mm: float, noise_mm: float
+) -> np.ndarray:
+    """The window with its mixed pixels (``mixed``) and the reference's lone outliers (with
+    the trust test) abstaining, before anything is fused."""
+    from upsr.method.mixed import ABSTAIN, remove_mixed_pixels
+    from upsr.method.trust import abstain_lone_outliers, reference_anchor
+
+    lowres = remove_mixed_pixels(measured, edge_mm, marker=ABSTAIN) if mixed else measured
+    if cfg.trust_k is None:
+        return lowres
+    anchor = reference_anchor(lowres[ref], noise_mm, cfg.trust_k, edge_mm)[0]
+    return abstain_lone_outliers(lowres, ref, anchor)
+
+
 def _split_reference(
     fused: np.ndarray, measured: np.ndarray, cleaned: np.ndarray, cfg, edge_mm: float, noise_mm
 ) -> np.ndarray:
@@ -554,7 +569,6 @@ def super_resolve_straightforward(frames: npt.ArrayLike, config: UPSRConfig) -> 
     """
     from upsr.method.frontend import MotionFrontEnd
     from upsr.method.fusion import splat_nearest
-    from upsr.method.mixed import ABSTAIN, remove_mixed_pixels
     from upsr.method.motion import make_flow_backend
     from upsr.method.registration import (
         cumulative_flows,
@@ -587,9 +601,7 @@ def super_resolve_straightforward(frames: npt.ArrayLike, config: UPSRConfig) -> 
         s = window_start(t, t_total, cfg)
         ref = t - s
         measured = video[s : s + n]
-        lowres = measured
-        if stats.remove_mixed:  # before anything is fused: mixed pixels abstain
-            lowres = remove_mixed_pixels(measured, edge_mm, marker=ABSTAIN)
+        lowres = _abstaining(measured, ref, stats.remove_mixed, cfg, edge_mm, trust_mm)
         up = [upsample_nearest(f, r) for f in lowres]
         pre = [front.prefilter(video[k]) for k in range(s, s + n)]
         guides = [front.guide(p) for p in pre]
@@ -631,7 +643,7 @@ def super_resolve_straightforward(frames: npt.ArrayLike, config: UPSRConfig) -> 
             fused = np.where(only_own, fuse(edge_mm=np.inf), fused)
             fused = np.where(fallback, anchor, fused)
         fused[~upsample_nearest((lowres > 0).any(axis=0), r)] = 0.0
-        if stats.remove_mixed:
+        if stats.remove_mixed or cfg.trust_k is not None:
             fused = _split_reference(fused, measured[ref], lowres[ref], cfg, edge_mm, trust_mm)
         res = remove_speckles(
             deblur_numpy(fused, cfg.deblur, scale=r), cfg.speckle_size_px, cfg.edge_mm
