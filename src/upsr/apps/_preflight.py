@@ -140,3 +140,41 @@ def kernel_note(quiet: bool = False) -> None:
         return
     _STATE["noted"] = True
     print(KERNEL_NOTE, file=sys.stderr, flush=True)
+
+
+def check_first_frame(
+    input_path: Path,
+    frame0: Any,
+    output: Path,
+    n_frames: int,
+    *,
+    in_fmt: str,
+    out_fmt: str,
+    units_options: tuple[str, bool],
+    scale_given: bool,
+    scales: tuple[float, float],
+) -> None:
+    """Before any processing (``upsr run``, each recording of ``upsr batch``): the units of
+    the first frame (``--sensor``, ``--strict-units``, TUM PNGs read as mm), whether the
+    output format can hold ``n_frames`` frames, and whether a PNG output can hold the first
+    frame's depth at the output scale (``scales``: input, output raw units per metre)."""
+    from upsr.io import units
+
+    sensor, strict = units_options
+    check_units(
+        input_path,
+        frame0,
+        in_fmt=in_fmt,
+        sensor=sensor,
+        strict=strict,
+        scale_given=scale_given,
+        depth_scale=scales[0],
+    )
+    valid = frame0[frame0 > 0] if out_fmt == "png" else frame0[:0]
+    units.check_output_capacity(
+        output,
+        n_frames,
+        fmt=out_fmt,
+        max_depth_mm=float(valid.max()) if valid.size else None,
+        depth_scale=scales[1],
+    )

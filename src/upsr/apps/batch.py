@@ -22,10 +22,6 @@ that fails is reported, its partial chunks are removed, and the others go on.
 from __future__ import annotations
 
 import contextlib
-import dataclasses
-import hashlib
-import json
-import math
 import os
 import shutil
 import sys
@@ -38,8 +34,8 @@ from typing import Any
 
 import numpy as np
 
+from upsr.apps._batch_plan import prepare_recording
 from upsr.apps._batch_state import (
-    WORK_DIR,
     _batch_folder,
     _check_out_vs_inputs,
     _differences,
@@ -198,110 +194,6 @@ def output_name(path: Path) -> str:
     return p.stem if p.is_file() else p.name
 
 
-def _fingerprint(inp: Path, spec: dict[str, Any]) -> str:
-    st = []
-    p = Path(inp)
-    files = [p] if p.is_file() else sorted(q for q in p.iterdir() if q.is_file())
-    for q in files:
-        s = q.stat()
-        st.append((q.name, s.st_size, s.st_mtime_ns))
-    blob = json.dumps([str(p.resolve()), st, spec], sort_keys=True, default=str)
-    return hashlib.sha1(blob.encode()).hexdigest()[:12]
-
-
-# ---------------------------------------------------------------------------------------------
-# the driver
-# ---------------------------------------------------------------------------------------------
-def _prepare(
-    rec: Recording,
-    cfg: UPSRConfig,
-    read: dict[str, Any],
-    chunk_frames: int,
-    workers: int,
-    intrinsics: str | None,
-    shrink_frames: bool = False,
-    limits: dict[str, Any] | None = None,
-) -> list[dict[str, Any]]:
-    """Probe, check the resources, compute the video statistics and plan the chunks of one
-    recording (``limits``: ``out_fmt``, ``max_memory``, ``workers`` of the memory check)."""
-    from upsr.apps._preflight import check_run_resources
-    from upsr.io import identity
-    from upsr.io import video as io
-
-    info = io.probe(rec.input, key=read["key"], fmt=read["fmt"], topic=read["topic"])
-    if shrink_frames and cfg.n_frames > info.n_frames:
-        cfg = dataclasses.replace(cfg, n_frames=info.n_frames)
-    rec.config = cfg
-    if cfg.n_frames > info.n_frames:
-        raise InputError(
-            f"N={cfg.n_frames} > {info.n_frames} frames in {rec.input}: use --frames "
-            f"{info.n_frames} or less"
-        )
-    rec.n_frames = info.n_frames
-    lim = limits or {}
-    check_run_resources(
-        info.shape,
-        cfg,
-        workers=lim.get("workers", workers),
-        out_fmt=lim.get("out_fmt", "npy"),
-        output=rec.output,
-        max_memory=lim.get("max_memory"),
-    )
-    rec.camera = _camera(rec.input, info, read, intrinsics)
-    rec.frame_names = identity.read_frame_names(rec.input, fmt=read["fmt"])
-    rec.timestamps = identity.read_timestamps(
-        rec.input, fmt=read["fmt"], topic=read["topic"], key=read["key"]
-    )
-    first = []
-    # the first N frames only (not exhausted: their validity is not the whole video's)
-    with contextlib.closing(io.iter_frames(rec.input, **read, stop=cfg.n_frames)) as frames:
-        for frame in frames:
-            first.append(frame)
-            if len(first) == cfg.n_frames:
-                break
-    from upsr.method.windowed import pinned_config
-
-    pinned = pinned_config(np.stack(first), cfg)
-    m = chunk_frames or max(4 * cfg.n_frames, math.ceil(info.n_frames / max(workers, 1)))
-    config = dataclasses.asdict(pinned)
-    base = {
-        "input": str(rec.input),
-        **read,
-        "config": config,
-        "height": info.height,
-        "width": info.width,
-    }
-    fp = _fingerprint(rec.input, {**base, "chunk_frames": m})
-    work = rec.output.parent / WORK_DIR / f"{rec.output.name}.{fp}"
-    # chunks of an earlier run with other inputs/options are stale
-    with contextlib.suppress(OSError):
-        for old in (rec.output.parent / WORK_DIR).glob(f"{rec.output.name}.*"):
-            if old != work and old.name.rsplit(".", 1)[0] == rec.output.name:
-                shutil.rmtree(old, ignore_errors=True)
-    rec.work = work
-    specs = []
-    for a, b, lo, hi in chunk_plan(info.n_frames, cfg.n_frames, m):
-        part = work / f"chunk_{a:09d}_{b:09d}.npy"
-        specs.append(
-            {
-                **base,
-                "out_start": a,
-                "out_stop": b,
-                "in_start": lo,
-                "in_stop": hi,
-                "part": str(part),
-            }
-        )
-    return specs
-
-
-def _camera(inp: Path, info: Any, read: dict[str, Any], intrinsics: str | None) -> Any:
-    """The camera of a recording: :func:`upsr.apps._camera.input_camera`."""
-    from upsr.apps._camera import input_camera
-
-    return input_camera(inp, info, intrinsics, fmt=read["fmt"], topic=read["topic"])
-
-
 def _assemble(
     rec: Recording,
     cfg: UPSRConfig,
@@ -370,6 +262,9 @@ def run_batch(
     output_depth_scale: float = 1000.0,
     max_memory: int | None = None,
     keep_names: bool = True,
+    sensor: str = "default",
+    strict_units: bool = False,
+    scale_given: bool = False,
 ) -> BatchResult:
     """Super-resolve every recording of ``inputs`` into ``out_dir``.
 
@@ -410,6 +305,11 @@ def run_batch(
         each recording's estimate is checked before its work.
     keep_names : bool
         PNG/EXR folder outputs keep the input's frame names (False: 000000, …).
+    sensor, strict_units, scale_given
+        Each recording's first frame is checked as by ``upsr run`` (the plausible range of
+        ``sensor``, refused with ``strict_units``, else warned; TUM PNGs read as mm refused
+        unless ``scale_given``: the input depth scale was given), and so is its output's
+        capacity, before its work: a failing recording is reported, the others go on.
 
     Returns
     -------
@@ -447,7 +347,11 @@ def run_batch(
             overwrite=overwrite,
             progress=progress,
             shrink_frames=shrink_frames,
-            limits={"max_memory": max_memory, "keep_names": keep_names},
+            limits={
+                "max_memory": max_memory,
+                "keep_names": keep_names,
+                "units": (sensor, strict_units, scale_given, output_depth_scale),
+            },
         )
 
 
@@ -575,7 +479,7 @@ class _BatchRun:
                 continue
             try:
                 io.check_output_path([rec.input], rec.output, True, fmt=out_fmt)
-                rec.chunks = _prepare(
+                rec.chunks = prepare_recording(
                     rec,
                     self.config,
                     read,

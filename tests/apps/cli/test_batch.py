@@ -76,3 +76,38 @@ def test_batch_failures_and_resume(videos, tmp_path: Path, capsys) -> None:
     assert main(["batch", str(short), "--out", str(out), "-r", "1", "-q", "-w", "1"]) == 0
     assert np.load(out / "short.npy").shape == (3, 20, 24)
     assert main(["batch", str(d / "b.npy"), str(d / "b.npy"), "--out", str(out), "-r", "2"]) == 2
+
+
+def test_batch_checks_each_recordings_units_and_output_before_its_work(
+    videos, tmp_path: Path, capsys
+) -> None:
+    """As `upsr run` does: a TUM PNG folder read as mm, an implausible depth with
+    --strict-units and a PNG output that cannot hold the depth fail before their work, one
+    line each; the other recordings are done."""
+    import cv2
+
+    d, ref = videos
+    tum = tmp_path / "tum"
+    tum.mkdir()
+    for i, frame in enumerate(ref["b"][:, ::2, ::2] * 5):  # TUM: 5000 units per metre
+        _, buf = cv2.imencode(".png", np.round(frame).astype(np.uint16))
+        (tum / f"1305031102.{175304 + 33 * i}.png").write_bytes(buf.tobytes())
+    far = tmp_path / "far.npy"
+    np.save(far, np.load(d / "b.npy") * 100.0)  # metres read as mm: 100-400 m
+    out = tmp_path / "out"
+    base = ["--out", str(out), "-r", str(R), "-n", str(N), "-w", "1", "-q"]
+    assert main(["batch", str(tum), str(far), str(d / "b.npy"), *base, "--strict-units"]) == 2
+    cap = capsys.readouterr()
+    assert "1 done, 0 skipped (output exists), 2 failed" in cap.out
+    assert "TUM" in cap.err and "far.npy" in cap.err
+    assert sorted(p.name for p in out.iterdir()) == [".upsr-batch", "b.npy"]
+    # the input depth scale given: the TUM folder is read in its units
+    assert main(["batch", str(tum), *base, "--input-depth-scale", "5000"]) == 0
+    assert np.load(out / "tum.npy").shape[0] == len(list(tum.iterdir()))
+    # PNG output at 10 µm units: 65535 units hold 655 mm, the video's depth does not fit
+    png = tmp_path / "png"
+    args = ["batch", str(d / "b.npy"), "--out", str(png), "-r", str(R), "-n", str(N), "-w", "1"]
+    assert main([*args, "-q", "--format", "png", "--output-depth-scale", "100000"]) == 2
+    cap = capsys.readouterr()
+    assert "1 failed" in cap.out and "b.npy" in cap.err
+    assert not list(png.glob("b*"))  # nothing written for it

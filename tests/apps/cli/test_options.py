@@ -52,6 +52,8 @@ READ_OPTIONS = {
     "--output-depth-scale",
     "--intrinsics",
     "--keep-names",
+    "--sensor",
+    "--strict-units",
     "--max-memory",
 }
 

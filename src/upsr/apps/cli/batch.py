@@ -67,6 +67,8 @@ def batch(
     depth_scale: opt.DepthScaleAliasOpt = None,
     output_depth_scale: opt.OutputDepthScaleOpt = None,
     keep_names: opt.KeepNamesOpt = True,
+    sensor: opt.SensorOpt = opt.Sensor.default,
+    strict_units: opt.StrictUnitsOpt = False,
     max_memory: opt.MaxMemoryOpt = None,
     overwrite: Annotated[
         bool, typer.Option("--overwrite", help="Recompute outputs that exist [default: skip].")
@@ -101,6 +103,9 @@ def batch(
         output_depth_scale=s_out,
         max_memory=mem,
         keep_names=keep_names,
+        sensor=sensor.value,
+        strict_units=strict_units,
+        scale_given=depth_scale is not None or input_depth_scale is not None,
         output_format=output_format.value,
         intrinsics=intrinsics,
         scheduler=scheduler,

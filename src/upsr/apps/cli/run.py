@@ -163,7 +163,6 @@ def run(
     if not recursive:  # (the recursive state takes any video length)
         cfg = _fit_window(cfg, info.n_frames, input_path, explicit=frames is not None)
     io.check_output_path([input_path], output, overwrite, fmt=out_fmt)
-    units.check_output_capacity(output, info.n_frames, fmt=out_fmt, depth_scale=s_out)
     resolved_out = io._output_format(output, out_fmt)
     color_dest = _check_color(color, input_path, output, info.n_frames, overwrite)
     workers_now = pre.engine_workers(workers)
@@ -177,7 +176,7 @@ def run(
     source = io.iter_frames(input_path, key=key, depth_scale=s_in, fmt=in_fmt, topic=topic)
     with contextlib.closing(source):
         frame0 = next(source)
-        _check_first_frame(
+        pre.check_first_frame(
             input_path,
             frame0,
             output,
@@ -235,44 +234,6 @@ def _sidecar(camera: Any, scale: int, stamps: Any, names: list[str] | None) -> s
     return intrinsics_text(
         camera.scaled(scale), source=camera, scale=scale, timestamps_ns=stamps, frame_names=names
     )
-
-
-def _check_first_frame(
-    input_path: Path,
-    frame0: Any,
-    output: Path,
-    n_frames: int,
-    *,
-    in_fmt: str,
-    out_fmt: str,
-    units_options: tuple[str, bool],
-    scale_given: bool,
-    scales: tuple[float, float],
-) -> None:
-    """Units of the first frame (``--sensor``, ``--strict-units``, TUM), and whether a PNG
-    output can hold its depth at the output scale: before any processing."""
-    from upsr.apps import _preflight as pre
-    from upsr.io import units
-
-    sensor, strict = units_options
-    pre.check_units(
-        input_path,
-        frame0,
-        in_fmt=in_fmt,
-        sensor=sensor,
-        strict=strict,
-        scale_given=scale_given,
-        depth_scale=scales[0],
-    )
-    if out_fmt == "png":
-        valid = frame0[frame0 > 0]
-        units.check_output_capacity(
-            output,
-            n_frames,
-            fmt=out_fmt,
-            max_depth_mm=float(valid.max()) if valid.size else None,
-            depth_scale=scales[1],
-        )
 
 
 def _check_color(
