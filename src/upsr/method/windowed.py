@@ -363,9 +363,7 @@ class UPSR:
             if stats.remove_mixed:
                 # mixed (flying) input pixels abstain: the other frames fill them
                 lowres = remove_mixed_pixels(measured, self._front.edge_mm, marker=ABSTAIN)
-            noise = cfg.trust_noise_mm
-            if noise is None:
-                noise = stats.trust_noise_mm
+            noise = stats.trust_noise_mm  # (cfg.trust_noise_mm where given)
             anchor = tolerance = None
             if cfg.trust_k is not None:
                 anchor, tolerance = reference_anchor(

@@ -378,11 +378,15 @@ def misregistered_numpy(
     edge_mm: float,
     offsets: np.ndarray | None = None,
     radius_px: int = 2,
-    min_count: int = 2,
-    fraction: float = 0.2,
+    min_count: int | None = None,
+    fraction: float | None = None,
 ) -> np.ndarray:
     """:func:`upsr.method.consistency.misregistered` with NumPy (shifted copies and box sums
-    instead of loops)."""
+    instead of loops; the same defaults)."""
+    from upsr.method.consistency import MISMATCH_FRACTION, MISMATCH_MIN_COUNT
+
+    min_count = MISMATCH_MIN_COUNT if min_count is None else min_count
+    fraction = MISMATCH_FRACTION if fraction is None else fraction
     reg = np.asarray(registered, np.float32)
     z = np.nan_to_num(np.asarray(reference, np.float32), nan=0.0)
     h, w = reg.shape[1:]
