@@ -7,11 +7,11 @@ reference measured. A frame registered to the reference is checked against the r
 itself, on the low-res grid: frame k's sample at each reference pixel centre (moved by its
 map) should lie on the same surface as the reference there. Disagreement at a single pixel
 proves nothing (noise, a dropout, a sub-pixel shift across an edge), but disagreement at
-several *interior* pixels of the reference (pixels whose 8 neighbours all lie on their surface,
-where a sub-pixel shift cannot reach another surface) around a pixel, each seeing a depth of
-another surface in frame k, does: frame k is
-misregistered there and none of its samples near that pixel is trusted
-(:func:`misregistered`, read by :func:`upsr.method.fusion.register_and_fuse`).
+several *interior* pixels of the reference (pixels whose 8 neighbours all lie on their
+surface, where a sub-pixel shift cannot reach another surface) around a pixel, each seeing a
+depth of another surface in frame k, does: frame k is misregistered there and none of its
+samples near that pixel is trusted (:func:`misregistered`, read by
+:func:`upsr.method.fusion.register_and_fuse`).
 """
 
 from __future__ import annotations
