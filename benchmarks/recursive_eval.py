@@ -1,15 +1,18 @@
-"""Recursive against windowed UP-SR on a dense scene: frames/s, stage times and accuracy.
+"""Recursive against windowed UP-SR on dense scenes: frames/s, stage times and accuracy.
 
-Scene: :func:`upsr.research.synth.realistic.moving_camera_room` (every pixel measured, the
-camera moves), Laplacian noise of σ = 10 mm, at the ToF size 64×56 → 256×224 (r = 4) and at
-320×240 → 640×480 (r = 2). Per size, both modes run on the same frames with the defaults
-(windowed: one window at a time, ``workers=0``, and with the default workers); the rate is
-measured after a warm-up frame (numba compiled, caches filled), the stages from the
-engine's ``timings``, the accuracy (SPEC §6) on the frames after the first N.
+Scenes (``--scenes``, default the room): :mod:`upsr.research.synth.realistic` (the room seen by
+a moving camera, every pixel measured; the deforming body, the camera toward a wall, the
+galloping animal), Laplacian noise of σ = 10 mm, at the ToF size 64×56 → 256×224 (r = 4),
+160×120 → 320×240 and 320×240 → 640×480 (r = 2). Per size, both modes run on the same
+frames with the defaults (windowed: one window at a time, ``workers=0``, and with the default
+workers); the rate is measured after a warm-up frame (numba compiled, caches filled), the
+stages from the engine's ``timings``, the accuracy (SPEC §6) on the frames after the first N.
 
 Example::
 
     .venv/bin/python benchmarks/recursive_eval.py --frames 24
+    .venv/bin/python benchmarks/recursive_eval.py --scenes deforming room toward_wall gallop \
+        --sizes tof --frames 16
     .venv/bin/python benchmarks/recursive_eval.py --sizes tof --frames 40 --flow-preset fast
 """
 
@@ -26,9 +29,9 @@ import numpy as np
 
 import upsr
 from upsr.research.metrics import evaluate
-from upsr.research.synth.realistic import degrade, moving_camera_room
+from upsr.research.synth.realistic import SCENES, degrade, make_realistic
 
-SIZES = {"tof": ((56, 64), 4), "vga": ((240, 320), 2)}
+SIZES = {"tof": ((56, 64), 4), "qvga": ((120, 160), 2), "vga": ((240, 320), 2)}
 
 
 def _run(mode: str, low: np.ndarray, r: int, n: int, workers: int, options: dict) -> dict:
@@ -45,7 +48,8 @@ def _run(mode: str, low: np.ndarray, r: int, n: int, workers: int, options: dict
 
 def main(argv: Sequence[str] | None = None) -> int:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    p.add_argument("--sizes", nargs="+", default=list(SIZES), choices=list(SIZES))
+    p.add_argument("--sizes", nargs="+", default=["tof", "vga"], choices=list(SIZES))
+    p.add_argument("--scenes", nargs="+", default=["room"], choices=list(SCENES))
     p.add_argument("--frames", type=int, default=24, help="video length T")
     p.add_argument("-n", type=int, default=9, help="N (window / recursive cap)")
     p.add_argument("--sigma", type=float, default=10.0)
@@ -61,15 +65,16 @@ def main(argv: Sequence[str] | None = None) -> int:
     if args.iterations is not None:
         options["deblur_iterations"] = args.iterations
     rows = []
-    for size in args.sizes:
+    for scene, size in ((scene, size) for scene in args.scenes for size in args.sizes):
         shape, r = SIZES[size]
-        video = moving_camera_room(shape, scale=r, n_frames=args.frames)
+        video = make_realistic(scene, shape, scale=r, n_frames=args.frames)
         low = degrade(video, "laplace", np.random.default_rng(0), sigma_mm=args.sigma)
         for mode in args.modes:
             res = _run(mode, low, r, args.n, args.workers, options)
             sl = slice(args.n, None)
             m = evaluate(res["out"][sl], video.truth[sl], r)
             row = {
+                "scene": scene,
                 "size": f"{shape[1]}x{shape[0]}->{shape[1] * r}x{shape[0] * r} (r={r})",
                 "mode": mode,
                 "fps": round(res["fps"], 1),
