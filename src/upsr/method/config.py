@@ -245,7 +245,8 @@ class UPSRConfig:
         Subtract from each frame's samples its depth offset to the reference (motion along
         the viewing ray, a masked median over (2·radial_radius_px+1)² low-res px of one
         surface, kept where significant; :func:`upsr.method.trust.radial_offsets`) before the
-        trust test and the fusion.
+        trust test and the fusion; where the offset exceeds half the edge threshold (within
+        which it is measured, so truncated) the frame's samples abstain.
     radial_radius_px : int
         Half-size (low-res px) of the neighbourhood of the radial offsets.
     check_registration : bool

@@ -34,6 +34,7 @@ __all__ = [
     "abstain_lone_outliers",
     "alternatives_on_grid",
     "choose_estimator",
+    "far_offsets",
     "fill_holes",
     "noise_shape",
     "radial_offsets",
@@ -467,6 +468,16 @@ def radial_offsets(
     # (on every 2nd pixel of that neighbourhood, on a grid of 2f px: the cost of the first)
     _offset_kernel(*args, f * int(radius_px), wide, 2 * f, 2)
     return np.where(out != 0, out, wide)
+
+
+def far_offsets(offsets: npt.ArrayLike, edge_mm: float) -> np.ndarray:
+    """Where a radial offset is too large to be trusted: beyond half the edge threshold.
+
+    :func:`radial_offsets` measures the differences within ``edge_mm`` only, so an offset
+    near it (a frame far from an off-centre reference at the end of a clip while the camera
+    approaches a wall) is truncated towards 0; the samples of that frame there abstain
+    instead of biasing the output (bool, same shape as ``offsets``)."""
+    return np.abs(np.asarray(offsets, np.float32)) > 0.5 * float(edge_mm)
 
 
 def noise_shape(frames: npt.ArrayLike, edge_mm: float) -> tuple[float, float]:

@@ -64,6 +64,7 @@ from upsr.method.registration import (
 from upsr.method.trust import (
     abstain_lone_outliers,
     choose_estimator,
+    far_offsets,
     fill_holes,
     noise_shape,
     radial_offsets,
@@ -389,6 +390,11 @@ class UPSR:
                     untrusted = misregistered(
                         registered, lowres[ref], ref, edge_mm=self._front.edge_mm, offsets=offsets
                     )
+                if offsets is not None:
+                    # an offset near the edge threshold (within which it is measured) is
+                    # truncated: those samples abstain rather than bias the output
+                    far = far_offsets(offsets, self._front.edge_mm)
+                    untrusted = far if untrusted is None else untrusted | far
             guide = None
             if cfg.splat_radius_px and cfg.n_frames > 1:
                 # where each sample lands in the reference (upsr.method.registration.

@@ -261,7 +261,8 @@ def _checked_stack(
     noise_mm: float,
 ) -> tuple[np.ndarray, np.ndarray | None]:
     """The radial offsets of the window (or None) and the registered stack with the samples of
-    frames misregistered around a pixel abstaining there (NaN, like samples outside)."""
+    frames misregistered around a pixel, or with a radial offset too large to trust there,
+    abstaining (NaN, like samples outside)."""
     from upsr.method.trust import radial_offsets
     from upsr.method.upsampling import upsample_nearest
 
@@ -272,10 +273,13 @@ def _checked_stack(
             lowres, maps, r, ref, sigma_mm=noise_mm, edge_mm=edge_mm,
             radius_px=cfg.radial_radius_px,
         )  # fmt: skip
+    bad = np.zeros(lowres.shape, bool)
     if cfg.check_registration and n > 1:
         reg = registered_samples_numpy(lowres, maps, r)
         bad = misregistered_numpy(reg, lowres[ref], ref, edge_mm=edge_mm, offsets=offsets)
-        stack = np.where(np.stack([upsample_nearest(b, r) for b in bad]), np.nan, stack)
+    if offsets is not None:
+        bad |= np.abs(offsets) > 0.5 * edge_mm  # trust.far_offsets
+    stack = np.where(np.stack([upsample_nearest(b, r) for b in bad]), np.nan, stack)
     return stack.astype(np.float32), offsets
 
 
