@@ -170,11 +170,9 @@ def check_first_frame(
         scale_given=scale_given,
         depth_scale=scales[0],
     )
-    valid = frame0[frame0 > 0] if out_fmt == "png" else frame0[:0]
+    max_depth_mm = None  # (only a PNG output has a depth limit)
+    if out_fmt == "png" and (frame0 > 0).any():
+        max_depth_mm = float(frame0[frame0 > 0].max())
     units.check_output_capacity(
-        output,
-        n_frames,
-        fmt=out_fmt,
-        max_depth_mm=float(valid.max()) if valid.size else None,
-        depth_scale=scales[1],
+        output, n_frames, fmt=out_fmt, max_depth_mm=max_depth_mm, depth_scale=scales[1]
     )

@@ -363,17 +363,17 @@ def _offset_at(reg, ref, anc, k, i, j, edge, sigma, radius, stride, buf):
 
 
 @nb.njit(cache=True, nogil=True, parallel=True)
-def _offset_kernel(reg, ref, anc, ref_index, edge, sigma, radius, out, step=2, stride=1):
+def _offset_kernel(reg, ref, anc, ref_index, edge, sigma, radius, out, step=2, stride=1, own=True):
     # pragma: no cover - numba
     n, h, w = reg.shape
-    own = stride == 1  # off the grid's surface: its own offset (else none)
     for k in nb.prange(n):
         buf = np.empty((2 * radius + 1) ** 2, np.float32)
         if k == ref_index:
             out[k] = 0.0
             continue
         # on every step-th pixel of each axis (the offsets are smooth); a pixel takes the
-        # value of its grid pixel when that one lies on its surface, else its own
+        # value of its grid pixel when that one lies on its surface, else its own (``own``)
+        # or none
         for i in range(0, h, step):
             for j in range(0, w, step):
                 out[k, i, j] = _offset_at(reg, ref, anc, k, i, j, edge, sigma, radius, stride, buf)
@@ -465,8 +465,9 @@ def radial_offsets(
     # 10 mm per frame under 30 mm of noise), the same on a neighbourhood f× as wide
     wide = np.empty_like(out)
     f = COARSE_RADIUS_FACTOR
-    # (on every 2nd pixel of that neighbourhood, on a grid of 2f px: the cost of the first)
-    _offset_kernel(*args, f * int(radius_px), wide, 2 * f, 2)
+    # (on every 2nd pixel of that neighbourhood, on a grid of 2f px, none off the grid's
+    # surface: the cost of the first)
+    _offset_kernel(*args, f * int(radius_px), wide, 2 * f, 2, False)
     return np.where(out != 0, out, wide)
 
 

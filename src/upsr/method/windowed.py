@@ -422,11 +422,10 @@ class UPSR:
                 min_trusted=cfg.min_trusted_samples,
                 estimator=stats.estimator,
             )
-            if stats.remove_mixed or anchor is not None:
-                # the reference's mixed pixels and lone outliers no frame filled: the depth
-                # of their neighbours
-                source = lowres[ref] if anchor is None else anchor
-                fused = split_mixed_pixels(fused, measured[ref], lowres[ref], source)
+            # the reference's mixed pixels and lone outliers (those it measured that abstained)
+            # no frame filled: the depth of their neighbours
+            source = lowres[ref] if anchor is None else anchor
+            fused = split_mixed_pixels(fused, measured[ref], lowres[ref], source)
         with self._timed("deblur"):
             out = finish_fused(fused, cfg)
             if anchor is not None:

@@ -259,11 +259,12 @@ def _checked_stack(
     cfg,
     edge_mm: float,
     noise_mm: float,
+    anchor: np.ndarray | None,
 ) -> tuple[np.ndarray, np.ndarray | None]:
     """The radial offsets of the window (or None) and the registered stack with the samples of
     frames misregistered around a pixel, or with a radial offset too large to trust there,
     abstaining (NaN, like samples outside)."""
-    from upsr.method.trust import radial_offsets
+    from upsr.method.trust import far_offsets, radial_offsets
     from upsr.method.upsampling import upsample_nearest
 
     n, r = lowres.shape[0], cfg.scale
@@ -271,67 +272,52 @@ def _checked_stack(
     if cfg.radial_compensation and n > 1:
         offsets = radial_offsets(
             lowres, maps, r, ref, sigma_mm=noise_mm, edge_mm=edge_mm,
-            radius_px=cfg.radial_radius_px,
+            radius_px=cfg.radial_radius_px, anchor=anchor,
         )  # fmt: skip
     bad = np.zeros(lowres.shape, bool)
     if cfg.check_registration and n > 1:
         reg = registered_samples_numpy(lowres, maps, r)
         bad = misregistered_numpy(reg, lowres[ref], ref, edge_mm=edge_mm, offsets=offsets)
     if offsets is not None:
-        bad |= np.abs(offsets) > 0.5 * edge_mm  # trust.far_offsets
+        bad |= far_offsets(offsets, edge_mm)
     stack = np.where(np.stack([upsample_nearest(b, r) for b in bad]), np.nan, stack)
     return stack.astype(np.float32), offsets
 
 
 def _abstaining(
     measured: np.ndarray, ref: int, mixed: bool, cfg, edge_mm: float, noise_mm: float
-) -> np.ndarray:
+) -> tuple[np.ndarray, np.ndarray | None, np.ndarray | None]:
     """The window with its mixed pixels (``mixed``) and the reference's lone outliers (with
-    the trust test) abstaining, before anything is fused."""
+    the trust test) abstaining, before anything is fused; and the reference's anchor and
+    tolerance (None without the trust test), computed once as by :class:`upsr.UPSR`."""
     from upsr.method.mixed import ABSTAIN, remove_mixed_pixels
     from upsr.method.trust import abstain_lone_outliers, reference_anchor
 
     lowres = remove_mixed_pixels(measured, edge_mm, marker=ABSTAIN) if mixed else measured
     if cfg.trust_k is None:
-        return lowres
-    anchor = reference_anchor(lowres[ref], noise_mm, cfg.trust_k, edge_mm)[0]
-    return abstain_lone_outliers(lowres, ref, anchor)
-
-
-def _split_reference(
-    fused: np.ndarray, measured: np.ndarray, cleaned: np.ndarray, cfg, edge_mm: float, noise_mm
-) -> np.ndarray:
-    """:func:`upsr.method.mixed.split_mixed_pixels` of the reference, from its anchor (or
-    itself without the trust test)."""
-    from upsr.method.mixed import split_mixed_pixels
-    from upsr.method.trust import reference_anchor
-
-    source = cleaned
-    if cfg.trust_k is not None:
-        source = reference_anchor(cleaned, noise_mm, cfg.trust_k, edge_mm)[0]
-    return split_mixed_pixels(fused, measured, cleaned, source)
+        return lowres, None, None
+    anchor, tol = reference_anchor(lowres[ref], noise_mm, cfg.trust_k, edge_mm)
+    return abstain_lone_outliers(lowres, ref, anchor), anchor, tol
 
 
 def _trusted_stack(
     stack: np.ndarray,
-    lowres: np.ndarray,
+    anchor: np.ndarray,
+    tol: np.ndarray,
     offsets: np.ndarray | None,
-    ref: int,
     cfg,
     edge_mm: float,
-    noise,
 ):
     """The trust rules of the fusion (:mod:`upsr.method.trust`), on the registered high-res
     stack: radial offsets subtracted, untrusted samples abstaining (NaN). Returns the stack,
     the anchor (high-res, 0: none), and the pixels where the output is the anchor."""
-    from upsr.method.trust import alternatives_on_grid, reference_anchor, surface_alternatives
+    from upsr.method.trust import alternatives_on_grid, surface_alternatives
     from upsr.method.upsampling import upsample_nearest
 
     r = cfg.scale
     up = lambda a: upsample_nearest(a, r)  # noqa: E731
     if offsets is None:
-        offsets = np.zeros(lowres.shape, np.float32)
-    anchor, tol = reference_anchor(lowres[ref], noise, cfg.trust_k, edge_mm)
+        offsets = np.zeros((stack.shape[0], *anchor.shape), np.float32)
     alternatives = surface_alternatives(anchor, tol, edge_mm)
     near, near_tol, far, far_tol = alternatives_on_grid(alternatives, r)
     a_hr, t_hr = up(anchor), up(tol)
@@ -577,6 +563,7 @@ def super_resolve_straightforward(frames: npt.ArrayLike, config: UPSRConfig) -> 
     """
     from upsr.method.frontend import MotionFrontEnd
     from upsr.method.fusion import splat_nearest
+    from upsr.method.mixed import split_mixed_pixels
     from upsr.method.motion import make_flow_backend
     from upsr.method.registration import (
         cumulative_flows,
@@ -609,7 +596,7 @@ def super_resolve_straightforward(frames: npt.ArrayLike, config: UPSRConfig) -> 
         s = window_start(t, t_total, cfg)
         ref = t - s
         measured = video[s : s + n]
-        lowres = _abstaining(measured, ref, stats.remove_mixed, cfg, edge_mm, trust_mm)
+        lowres, anchor, tol = _abstaining(measured, ref, stats.remove_mixed, cfg, edge_mm, trust_mm)
         up = [upsample_nearest(f, r) for f in lowres]
         pre = [front.prefilter(video[k]) for k in range(s, s + n)]
         guides = [front.guide(p) for p in pre]
@@ -630,11 +617,11 @@ def super_resolve_straightforward(frames: npt.ArrayLike, config: UPSRConfig) -> 
         if cfg.splat_radius_px and n > 1:
             back = flows_to_reference(ref, bwd, fwd, (h * r, w * r))
             guide = splat_nearest(lowres, np.stack(back), r, cfg.splat_radius_px)
-        stack, offsets = _checked_stack(stack, lowres, maps, ref, cfg, edge_mm, trust_mm)
+        stack, offsets = _checked_stack(stack, lowres, maps, ref, cfg, edge_mm, trust_mm, anchor)
         fallback = only_own = None
-        if cfg.trust_k is not None:
-            stack, anchor, fallback, only_own = _trusted_stack(
-                stack, lowres, offsets, ref, cfg, edge_mm, trust_mm
+        if anchor is not None:
+            stack, anchor_hr, fallback, only_own = _trusted_stack(
+                stack, anchor, tol, offsets, cfg, edge_mm
             )
         fuse = functools.partial(
             temporal_median_numpy,
@@ -649,10 +636,10 @@ def super_resolve_straightforward(frames: npt.ArrayLike, config: UPSRConfig) -> 
         if fallback is not None:
             # the reference measured depth: its own surface's samples alone, or the anchor
             fused = np.where(only_own, fuse(edge_mm=np.inf), fused)
-            fused = np.where(fallback, anchor, fused)
+            fused = np.where(fallback, anchor_hr, fused)
         fused[~upsample_nearest((lowres > 0).any(axis=0), r)] = 0.0
-        if stats.remove_mixed or cfg.trust_k is not None:
-            fused = _split_reference(fused, measured[ref], lowres[ref], cfg, edge_mm, trust_mm)
+        source = lowres[ref] if anchor is None else anchor
+        fused = split_mixed_pixels(fused, measured[ref], lowres[ref], source)
         res = remove_speckles(
             deblur_numpy(fused, cfg.deblur, scale=r), cfg.speckle_size_px, cfg.edge_mm
         )
