@@ -260,6 +260,12 @@ class UPSRConfig:
         noise), the mean (ML under Gaussian noise; falls between quantisation steps), or
         ``"auto"``: chosen once per video from the excess kurtosis of the temporal differences
         of its static pixels (> 0.75: median; :func:`upsr.method.trust.noise_shape`).
+    follow_slopes : bool
+        After the deblurring, set the linear trend of each output block that lies on one
+        surface to that surface's slope, measured on the reference's anchor between the block
+        and its neighbours on the same surface, where the slope is significant (walls and
+        floors seen at grazing angles, whose sub-pixel detail the other frames cannot give;
+        never across a depth edge: :func:`upsr.method.slopes.follow_slopes`).
     fill_holes : bool
         INVENTED depth, off by default: after the deblurring, every pixel without depth takes
         the farthest (background-side) depth within r px, repeatedly, as the hole filling of
@@ -300,6 +306,7 @@ class UPSRConfig:
     radial_radius_px: int = 2
     check_registration: bool = True
     fusion_estimator: str = "auto"
+    follow_slopes: bool = True
     fill_holes: bool = False
     mode: str = "windowed"
     deblur: DeblurConfig = field(default_factory=DeblurConfig)
@@ -372,7 +379,7 @@ class UPSRConfig:
             or (_is_str(self.remove_mixed) and self.remove_mixed == "auto"),
             f"remove_mixed must be True, False or 'auto', not {_show(self.remove_mixed)}",
         )
-        for name in ("radial_compensation", "check_registration", "fill_holes"):
+        for name in ("radial_compensation", "check_registration", "follow_slopes", "fill_holes"):
             _check(isinstance(getattr(self, name), bool), f"{name} must be True or False")
         object.__setattr__(self, "scale", int(self.scale))
         object.__setattr__(self, "n_frames", int(self.n_frames))

@@ -87,13 +87,11 @@ from upsr.method.registration import _bilinear
 from upsr.method.trust import (
     _offset_kernel,
     choose_estimator,
-    fill_holes,
     noise_shape,
     reference_anchor,
-    surface_support,
 )
 from upsr.method.validation import as_depth_frame, as_depth_video
-from upsr.method.windowed import STAGES, finish_fused
+from upsr.method.windowed import STAGES, finish_frame, finish_fused
 
 __all__ = [
     "RADIAL_RADIUS_FACTOR",
@@ -557,14 +555,15 @@ class RecursiveUPSR:
                 # the mixed pixels the state did not fill: split between their neighbours
                 # (in the output only, the state holds measurements)
                 fused = split_mixed_pixels(fused, f, meas, anchor)
-            out = finish_fused(fused, cfg)
-            keep = surface_support(meas, front.edge_mm)
-            lost = np.repeat(np.repeat(keep, r, axis=0), r, axis=1) & (out == 0) & (fused > 0)
-            if lost.any():
-                out = np.where(lost, fused, out)
-            if cfg.fill_holes:
-                out = fill_holes(out, r, iterations=64)
-        return out
+            return finish_frame(
+                finish_fused(fused, cfg),
+                fused,
+                meas,
+                anchor,
+                cfg,
+                edge_mm=front.edge_mm,
+                noise_mm=noise,
+            )
 
     def feed(self, frame: npt.ArrayLike) -> list[np.ndarray]:
         """Add the next low-res frame; return ``[its high-res frame]`` (latency 0)."""

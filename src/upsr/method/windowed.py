@@ -61,6 +61,7 @@ from upsr.method.registration import (
     sample_centres,
     to_output_grid,
 )
+from upsr.method.slopes import follow_slopes
 from upsr.method.trust import (
     abstain_lone_outliers,
     choose_estimator,
@@ -76,6 +77,7 @@ from upsr.method.validation import as_depth_frame, as_depth_video
 __all__ = [
     "STAGES",
     "UPSR",
+    "finish_frame",
     "finish_fused",
     "fix_video_statistics",
     "pinned_config",
@@ -92,6 +94,56 @@ def finish_fused(fused_mm: np.ndarray, cfg: UPSRConfig) -> np.ndarray:
     then the removal of isolated outliers (:func:`upsr.method.outliers.remove_speckles`)."""
     out = deblur(fused_mm, cfg.deblur, scale=cfg.scale)
     return remove_speckles(out, cfg.speckle_size_px, cfg.edge_mm)
+
+
+def finish_frame(
+    out: np.ndarray,
+    fused: np.ndarray,
+    reference: np.ndarray,
+    anchor: np.ndarray | None,
+    cfg: UPSRConfig,
+    *,
+    edge_mm: float,
+    noise_mm: float,
+) -> np.ndarray:
+    """The steps beyond the paper after :func:`finish_fused`, for one output frame.
+
+    With an ``anchor`` (the trust rules are on), the speckle filter never erases what the
+    reference measured on a surface (a thin fast part kept by its anchor is an island, not
+    noise: there ``fused`` comes back); with ``cfg.follow_slopes`` the blocks on one surface
+    follow its slope (:func:`upsr.method.slopes.follow_slopes`); with ``cfg.fill_holes`` the
+    pixels without depth are filled from the background side (invented depth).
+
+    Parameters
+    ----------
+    out, fused : ndarray float32 (r·h, r·w)
+        :func:`finish_fused` of ``fused``, and ``fused`` (mm).
+    reference : ndarray float32 (h, w)
+        The reference frame as fused (mm; 0: none; mixed pixels removed).
+    anchor : ndarray float32 (h, w) or None
+        :func:`upsr.method.trust.reference_anchor` of ``reference``; None: computed here
+        where the slopes need it.
+    cfg : UPSRConfig
+    edge_mm, noise_mm : float
+        The video's edge threshold and noise std (mm).
+
+    Returns
+    -------
+    ndarray float32 (r·h, r·w)
+    """
+    r = cfg.scale
+    if anchor is not None:
+        keep = surface_support(reference, edge_mm)
+        lost = np.repeat(np.repeat(keep, r, axis=0), r, axis=1) & (out == 0) & (fused > 0)
+        if lost.any():
+            out = np.where(lost, fused, out)
+    if cfg.follow_slopes:
+        if anchor is None:
+            anchor = reference_anchor(reference, noise_mm, 1.0, edge_mm)[0]
+        out = follow_slopes(out, anchor, sigma_mm=noise_mm, edge_mm=edge_mm)
+    if cfg.fill_holes:
+        out = fill_holes(out, r, iterations=64)  # invented depth (off by default)
+    return out
 
 
 class VideoStatistics(NamedTuple):
@@ -427,17 +479,15 @@ class UPSR:
             source = lowres[ref] if anchor is None else anchor
             fused = split_mixed_pixels(fused, measured[ref], lowres[ref], source)
         with self._timed("deblur"):
-            out = finish_fused(fused, cfg)
-            if anchor is not None:
-                # the speckle filter never erases what the reference measured on a surface
-                # (a thin fast part kept by its anchor is an island, not noise)
-                keep = surface_support(lowres[ref], self._front.edge_mm)
-                lost = np.repeat(np.repeat(keep, r, axis=0), r, axis=1) & (out == 0) & (fused > 0)
-                if lost.any():
-                    out = np.where(lost, fused, out)
-            if cfg.fill_holes:
-                out = fill_holes(out, r, iterations=64)  # invented depth (off by default)
-            return out
+            return finish_frame(
+                finish_fused(fused, cfg),
+                fused,
+                lowres[ref],
+                anchor,
+                cfg,
+                edge_mm=self._front.edge_mm,  # type: ignore[union-attr]
+                noise_mm=noise,
+            )
 
     def _chain(self, k: int, m: int) -> np.ndarray:
         """Frame k's low-res sample centres carried by the consecutive flows to frame m (flow

@@ -571,7 +571,8 @@ def super_resolve_straightforward(frames: npt.ArrayLike, config: UPSRConfig) -> 
         sample_offsets,
         warp_nearest,
     )
-    from upsr.method.trust import fill_holes, surface_support
+    from upsr.method.slopes import follow_slopes
+    from upsr.method.trust import fill_holes, reference_anchor, surface_support
     from upsr.method.upsampling import upsample_nearest
     from upsr.method.validation import as_depth_video
     from upsr.method.windowed import fix_video_statistics, window_start
@@ -647,5 +648,9 @@ def super_resolve_straightforward(frames: npt.ArrayLike, config: UPSRConfig) -> 
             # the speckle filter never erases what the reference measured on a surface
             keep = upsample_nearest(surface_support(lowres[ref], edge_mm), r)
             res = np.where(keep & (res == 0) & (fused > 0), fused, res)
+        if cfg.follow_slopes:
+            if anchor is None:
+                anchor = reference_anchor(lowres[ref], trust_mm, 1.0, edge_mm)[0]
+            res = follow_slopes(res, anchor, sigma_mm=trust_mm, edge_mm=edge_mm)
         out[t] = fill_holes(res, r, iterations=64) if cfg.fill_holes else res
     return out

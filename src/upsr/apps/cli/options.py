@@ -433,6 +433,14 @@ NoRadialOpt = Annotated[
         help="No compensation of depth motion (toward/away from the camera) before fusion.",
     ),
 ]
+NoSlopesOpt = Annotated[
+    bool,
+    typer.Option(
+        "--no-slopes",
+        help="Keep each output block's own trend: do not make blocks on one surface follow "
+        "the slope measured between the reference's neighbouring pixels.",
+    ),
+]
 
 
 def config_from_options(
@@ -460,6 +468,7 @@ def config_from_options(
     mixed_removal: bool | None = None,
     no_registration_check: bool = False,
     no_radial: bool = False,
+    no_slopes: bool = False,
 ) -> UPSRConfig:
     """The :class:`UPSRConfig` of the method options shared by ``upsr run`` and ``upsr batch``
     (``None``: the default; ``frames=None``: N = 9)."""
@@ -512,6 +521,8 @@ def config_from_options(
         options["check_registration"] = False
     if no_radial:
         options["radial_compensation"] = False
+    if no_slopes:
+        options["follow_slopes"] = False
     return UPSRConfig.from_options(scale, DEFAULT_FRAMES if frames is None else frames, **options)
 
 
@@ -550,6 +561,7 @@ METHOD_OPTIONS: tuple[tuple[str, Any, Any], ...] = (
     ("mixed_removal", MixedRemovalOpt, None),
     ("no_registration_check", NoRegistrationCheckOpt, False),
     ("no_radial", NoRadialOpt, False),
+    ("no_slopes", NoSlopesOpt, False),
 )
 
 

@@ -1,0 +1,121 @@
+"""Slanted surfaces: output blocks follow their surface's slope (upsr.method.slopes)."""
+
+import numpy as np
+import pytest
+
+import upsr
+from upsr.method.slopes import follow_slopes, surface_slopes
+
+
+def _blocks(low: np.ndarray, r: int) -> np.ndarray:
+    return np.repeat(np.repeat(low, r, axis=-2), r, axis=-1)
+
+
+def _plane(h: int, w: int, r: int, gx: float, gy: float, z0: float = 2000.0):
+    """A plane sampled at the low-res pixel centres, and its high-res truth (mm)."""
+    yh, xh = np.mgrid[0 : h * r, 0 : w * r].astype(np.float64)
+    truth = z0 + gx * (xh + 0.5) / r + gy * (yh + 0.5) / r
+    yl, xl = np.mgrid[0:h, 0:w].astype(np.float64)
+    low = z0 + gx * (xl + 0.5) + gy * (yl + 0.5)
+    return low.astype(np.float32), truth.astype(np.float32)
+
+
+@pytest.mark.parametrize("r", [2, 3, 4])
+def test_a_staircase_on_a_plane_becomes_the_plane(r):
+    low, truth = _plane(8, 10, r, gx=40.0, gy=-25.0)
+    out = follow_slopes(_blocks(low, r), low, sigma_mm=0.0, edge_mm=100.0)
+    np.testing.assert_allclose(out, truth, atol=1e-2)
+
+
+def test_a_floor_steeper_than_the_edge_threshold_is_followed_evenly():
+    """A floor at a grazing angle steps by 150-300 mm per low-res px (beyond edge_mm): a run of
+    agreeing steps is one surface."""
+    rows = 2000.0 + 150.0 * np.arange(10) + 8.0 * np.arange(10) ** 2  # steps 158..294 mm
+    low = np.repeat(rows[:, None], 6, axis=1).astype(np.float32)
+    sy, sx = surface_slopes(low, 100.0)
+    assert (sx == 0).all()
+    assert (sy[1:-1, 0] > 150).all() and (sy[0] > 0).all() and (sy[-1] > 0).all()
+    out = follow_slopes(_blocks(low, 4), low, sigma_mm=5.0, edge_mm=100.0)
+    col = out[:, 0]
+    assert (np.diff(col) > 0).all()  # a ramp, not a staircase
+    assert np.abs(out.reshape(10, 4, 6, 4).mean(axis=(1, 3)) - low).max() < 1e-2  # means kept
+
+
+def test_never_across_a_depth_edge():
+    """Two surfaces, and a staircase of two edges (which agree, but are only two steps): no
+    slope links them, and no output pixel takes a depth between them."""
+    low = np.full((6, 9), 3000.0, np.float32)
+    low[:, :3] = 1000.0
+    low[:, 3:5] = 2000.0  # 1000 -> 2000 -> 3000: two edges of 1 m
+    sy, sx = surface_slopes(low, 100.0)
+    assert (sx == 0).all() and (sy == 0).all()
+    up = _blocks(low, 4)
+    np.testing.assert_array_equal(follow_slopes(up, low, sigma_mm=0.0, edge_mm=100.0), up)
+    # a slanted surface ending at an edge: its last block follows its own side only
+    ramp = np.tile(1000.0 + 30.0 * np.arange(9, dtype=np.float32), (6, 1))
+    ramp[:, 6:] = 4000.0
+    out = follow_slopes(_blocks(ramp, 4), ramp, sigma_mm=0.0, edge_mm=100.0)
+    near = out[:, : 6 * 4]
+    assert near.min() >= 1000.0 - 15.0 - 1e-3 and near.max() <= 1150.0 + 15.0 + 1e-3
+    assert (out[:, 6 * 4 :] == 4000.0).all()
+
+
+def test_holes_edges_inside_a_block_and_invalid_pixels_are_left_alone():
+    low, _ = _plane(6, 6, 4, gx=50.0, gy=0.0)
+    up = _blocks(low, 4)
+    up[8:12, 8:10] = 0.0  # a hole in block (2, 2)
+    up[12:14, 12:16] = 5000.0  # another surface inside block (3, 3)
+    low[0, 5] = 0.0
+    up[0:4, 20:24] = 0.0  # a pixel without depth
+    out = follow_slopes(up, low, sigma_mm=0.0, edge_mm=100.0)
+    np.testing.assert_array_equal(out[8:12, 8:12], up[8:12, 8:12])
+    np.testing.assert_array_equal(out[12:16, 12:16], up[12:16, 12:16])
+    assert (out[0:4, 20:24] == 0).all()
+    assert (out[(up == 0)] == 0).all()
+
+
+def test_an_insignificant_slope_keeps_the_blocks_own_detail():
+    """On a flat noisy surface the slope of the anchor is noise (below 2 σ): a block keeps the
+    sub-pixel trend the fusion found."""
+    low = np.full((6, 6), 2000.0, np.float32)
+    low[2, 3] = 2010.0  # noise of the anchor: a slope of 5 mm/px around it
+    up = _blocks(low, 4).astype(np.float32)
+    up[8:12, 8:12] += np.linspace(-6, 6, 4, dtype=np.float32)  # the fusion's own detail
+    out = follow_slopes(up, low, sigma_mm=10.0, edge_mm=100.0)
+    np.testing.assert_array_equal(out, up)
+    # with no noise the same slope is significant
+    assert not np.array_equal(follow_slopes(up, low, sigma_mm=0.0, edge_mm=100.0), up)
+
+
+def test_at_scale_1_nothing_changes():
+    low, _ = _plane(5, 6, 1, gx=60.0, gy=20.0)
+    np.testing.assert_array_equal(follow_slopes(low, low, sigma_mm=0.0, edge_mm=100.0), low)
+
+
+def test_follow_slopes_checks_its_shapes():
+    with pytest.raises(ValueError, match="multiple"):
+        follow_slopes(np.ones((10, 12), np.float32), np.ones((4, 4), np.float32), sigma_mm=0.0,
+                      edge_mm=100.0)  # fmt: skip
+
+
+@pytest.mark.parametrize("mode", ["windowed", "recursive"])
+@pytest.mark.parametrize("deblur", [True, False])
+def test_upsr_follows_a_slanted_wall_that_the_frames_cannot_resolve(mode, deblur):
+    """A static camera in front of a slanted wall: every frame samples the same points, the
+    fusion can only give the staircase; the slopes give the wall (and --no-slopes does not)."""
+    r = 4
+    low, truth = _plane(14, 16, r, gx=60.0, gy=20.0)
+    video = np.repeat(low[None], 5, axis=0)
+    kw = dict(mode=mode, noise_mm=1.0, deblur=deblur)
+    on = upsr.super_resolve(video, r, 5, **kw)
+    off = upsr.super_resolve(video, r, 5, follow_slopes=False, **kw)
+    # (the anchor, a 3×3 median, is biased on the frame's border rows and columns)
+    inner = (slice(None), slice(2 * r, -2 * r), slice(2 * r, -2 * r))
+
+    def rms(est):
+        return float(np.sqrt(np.mean((est[inner] - truth[None][inner]) ** 2)))
+
+    # the staircase of steps of 60 and 20 mm (18 mm rms; the deblurring rounds it off)
+    assert rms(off) > (5.0 if deblur else 17.0)
+    assert rms(on) < (0.3 * rms(off) if deblur else 0.01)
+    assert (on > 0).all()
