@@ -45,42 +45,66 @@ SIGNIFICANCE = 2.0
 STEEP_RATIO = 1.5
 
 
-def _agree(s: np.ndarray, t: np.ndarray) -> np.ndarray:
-    """Two consecutive steps of one slope: same sign, within :data:`STEEP_RATIO`."""
-    a, b = np.abs(s), np.abs(t)
-    with np.errstate(invalid="ignore"):
-        return (
-            (a > 0)
-            & (b > 0)
-            & (np.sign(s) == np.sign(t))
-            & (np.fmax(a, b) <= STEEP_RATIO * np.fmin(a, b))
-        )
+@nb.njit(cache=True, nogil=True, inline="always")
+def _step(row, k):  # pragma: no cover - numba
+    """Step of link k (pixels k and k + 1) of a row; NaN where either has no depth or the link
+    leaves the row."""
+    if k < 0 or k + 1 >= row.shape[0]:
+        return np.nan
+    a = row[k]
+    b = row[k + 1]
+    return b - a if (a > 0 and b > 0) else np.nan
 
 
-def _slope_along_last(z: np.ndarray, edge_mm: float) -> np.ndarray:
-    """Slope (mm per px) of ``z`` along its last axis, on one surface (see the module)."""
-    z = z.astype(np.float64)
-    valid = (z[..., :-1] > 0) & (z[..., 1:] > 0)
-    step = np.where(valid, np.diff(z, axis=-1), np.nan)  # link k joins pixels k and k + 1
-    agree = _agree(step[..., :-1], step[..., 1:])  # links k and k + 1 agree
-    no = np.zeros((*agree.shape[:-1], 2), bool)
-    ag = np.concatenate([no, agree, no], axis=-1)  # ag[..., k + 2] = agree[..., k]
-    n_links = step.shape[-1]
-    before2, before, after, after2 = (ag[..., o : o + n_links] for o in range(4))
-    # a steep link lies in a run of three agreeing links (centred, ending or starting at it)
-    steep_ok = (before & after) | (before2 & before) | (after & after2)
-    with np.errstate(invalid="ignore"):
-        ok = valid & ((np.abs(step) <= edge_mm) | steep_ok)
-    link = np.where(ok, step, np.nan)
-    pad = np.full((*z.shape[:-1], 1), np.nan)
-    left = np.concatenate([pad, link], axis=-1)
-    right = np.concatenate([link, pad], axis=-1)
-    slope = np.where(
-        np.isnan(left),
-        np.nan_to_num(right),
-        np.where(np.isnan(right), left, 0.5 * (left + right)),
-    )
-    return np.where(z > 0, slope, 0.0)
+@nb.njit(cache=True, nogil=True, inline="always")
+def _agree(s, t):  # pragma: no cover - numba
+    """Two consecutive steps of one slope: same sign, within :data:`STEEP_RATIO` (False for
+    a missing step)."""
+    if not (s != 0 and t != 0) or s != s or t != t or (s > 0) != (t > 0):
+        return False
+    a, b = abs(s), abs(t)
+    return max(a, b) <= STEEP_RATIO * min(a, b)
+
+
+@nb.njit(cache=True, nogil=True, inline="always")
+def _link(row, k, edge):  # pragma: no cover - numba
+    """The step of link k where it joins one surface (at most ``edge``, or a steep link in a
+    run of three agreeing links), else NaN."""
+    s = _step(row, k)
+    if s != s or abs(s) <= edge:
+        return s
+    b2, b1, a1, a2 = _step(row, k - 2), _step(row, k - 1), _step(row, k + 1), _step(row, k + 2)
+    before = _agree(b1, s)
+    after = _agree(s, a1)
+    if (before and after) or (before and _agree(b2, b1)) or (after and _agree(a1, a2)):
+        return s
+    return np.nan
+
+
+@nb.njit(cache=True, nogil=True, parallel=True)
+def _slopes_kernel(z, edge, out):  # pragma: no cover - numba
+    h, w = z.shape
+    for i in nb.prange(h):
+        row = z[i]
+        for j in range(w):
+            if not row[j] > 0:
+                out[i, j] = 0.0
+                continue
+            left = _link(row, j - 1, edge)
+            right = _link(row, j, edge)
+            if left != left:
+                out[i, j] = 0.0 if right != right else right
+            elif right != right:
+                out[i, j] = left
+            else:
+                out[i, j] = 0.5 * (left + right)
+
+
+def _slope_along_rows(z: np.ndarray, edge_mm: float) -> np.ndarray:
+    """Slope (mm per px) of ``z`` along its rows, on one surface (see the module)."""
+    out = np.empty(z.shape, np.float32)
+    _slopes_kernel(np.ascontiguousarray(z, np.float32), float(edge_mm), out)
+    return out
 
 
 def surface_slopes(anchor: npt.ArrayLike, edge_mm: float) -> tuple[np.ndarray, np.ndarray]:
@@ -107,10 +131,8 @@ def surface_slopes(anchor: npt.ArrayLike, edge_mm: float) -> tuple[np.ndarray, n
     >>> sx.tolist()
     [[10.0, 10.0, 10.0, 0.0]]
     """
-    z = np.nan_to_num(np.asarray(anchor, np.float64), nan=0.0)
-    sx = _slope_along_last(z, float(edge_mm))
-    sy = _slope_along_last(z.T, float(edge_mm)).T
-    return sy.astype(np.float32), sx.astype(np.float32)
+    z = np.nan_to_num(np.asarray(anchor, np.float32), nan=0.0)
+    return _slope_along_rows(z.T, edge_mm).T, _slope_along_rows(z, edge_mm)
 
 
 @nb.njit(cache=True, nogil=True, parallel=True)

@@ -68,9 +68,45 @@ def _median_inplace(buf, m):  # pragma: no cover - numba
     return buf[m // 2] if m % 2 == 1 else 0.5 * (buf[m // 2 - 1] + buf[m // 2])
 
 
+#: Devillard's median-of-9 network (19 compare-exchanges; the median lands in slot 4).
+_MEDIAN9 = np.array(
+    [(1, 2), (4, 5), (7, 8), (0, 1), (3, 4), (6, 7), (1, 2), (4, 5), (7, 8), (0, 3), (5, 8),
+     (4, 7), (3, 6), (1, 4), (2, 5), (4, 7), (4, 2), (6, 4), (4, 2)],
+    np.int64,
+)  # fmt: skip
+
+
+@nb.njit(cache=True, nogil=True, inline="always")
+def _interior_median(z, i, j, edge, buf, net):  # pragma: no cover - numba
+    """The anchor of an interior pixel whose 8 neighbours all lie within ``edge`` of it and
+    of their median (the common case; both steps of the general rule give that median), or
+    0 where that does not hold."""
+    v = z[i, j]
+    m = 0
+    for a in range(i - 1, i + 2):
+        for b in range(j - 1, j + 2):
+            u = z[a, b]
+            if not (u > 0 and abs(u - v) <= edge):
+                return 0.0
+            buf[m] = u
+            m += 1
+    for q in range(net.shape[0]):
+        x = buf[net[q, 0]]
+        y = buf[net[q, 1]]
+        buf[net[q, 0]] = min(x, y)
+        buf[net[q, 1]] = max(x, y)
+    c = buf[4]
+    for a in range(i - 1, i + 2):
+        for b in range(j - 1, j + 2):
+            if abs(z[a, b] - c) > edge:
+                return 0.0
+    return c
+
+
 @nb.njit(cache=True, nogil=True, parallel=True)
 def _anchor_kernel(z, edge, sigma, k, floor, anchor, tol):  # pragma: no cover - numba
     h, w = z.shape
+    net = _MEDIAN9
     for i in nb.prange(h):
         buf = np.empty(9, np.float32)
         for j in range(w):
@@ -78,6 +114,11 @@ def _anchor_kernel(z, edge, sigma, k, floor, anchor, tol):  # pragma: no cover -
             anchor[i, j] = 0.0
             if not v > 0:
                 continue
+            if 0 < i < h - 1 and 0 < j < w - 1:
+                c = _interior_median(z, i, j, edge, buf, net)
+                if c > 0:
+                    anchor[i, j] = c
+                    continue
             # the median of the neighbours on the pixel's surface, then of those on the
             # surface of that median: a noise outlier at the pixel itself (its neighbours
             # within the edge threshold of it all on one side) does not pull the anchor along
@@ -366,33 +407,40 @@ def _offset_at(reg, ref, anc, k, i, j, edge, sigma, radius, stride, buf):
 def _offset_kernel(reg, ref, anc, ref_index, edge, sigma, radius, out, step=2, stride=1, own=True):
     # pragma: no cover - numba
     n, h, w = reg.shape
-    for k in nb.prange(n):
-        buf = np.empty((2 * radius + 1) ** 2, np.float32)
+    n_grid = (h + step - 1) // step
+    size = (2 * radius + 1) ** 2
+    # on every step-th pixel of each axis (the offsets are smooth), in parallel over the
+    # (frame, row) pairs (one frame in recursive mode, N in a window)
+    for kr in nb.prange(n * n_grid):
+        k = kr // n_grid
+        i = (kr % n_grid) * step
         if k == ref_index:
-            out[k] = 0.0
             continue
-        # on every step-th pixel of each axis (the offsets are smooth); a pixel takes the
-        # value of its grid pixel when that one lies on its surface, else its own (``own``)
-        # or none
-        for i in range(0, h, step):
-            for j in range(0, w, step):
+        buf = np.empty(size, np.float32)
+        for j in range(0, w, step):
+            out[k, i, j] = _offset_at(reg, ref, anc, k, i, j, edge, sigma, radius, stride, buf)
+    # a pixel takes the value of its grid pixel when that one lies on its surface, else its
+    # own (``own``) or none
+    for kr in nb.prange(n * h):
+        k = kr // h
+        i = kr % h
+        if k == ref_index:
+            out[k, i] = 0.0
+            continue
+        buf = np.empty(size, np.float32)
+        gi = i - i % step
+        for j in range(w):
+            gj = j - j % step
+            if gi == i and gj == j:
+                continue
+            c = anc[i, j]
+            g = anc[gi, gj]
+            if c > 0 and g > 0 and abs(c - g) <= edge:
+                out[k, i, j] = out[k, gi, gj]
+            elif own:
                 out[k, i, j] = _offset_at(reg, ref, anc, k, i, j, edge, sigma, radius, stride, buf)
-        for i in range(h):
-            for j in range(w):
-                gi = i - i % step
-                gj = j - j % step
-                if gi == i and gj == j:
-                    continue
-                c = anc[i, j]
-                g = anc[gi, gj]
-                if c > 0 and g > 0 and abs(c - g) <= edge:
-                    out[k, i, j] = out[k, gi, gj]
-                elif own:
-                    out[k, i, j] = _offset_at(
-                        reg, ref, anc, k, i, j, edge, sigma, radius, stride, buf
-                    )
-                else:
-                    out[k, i, j] = 0.0
+            else:
+                out[k, i, j] = 0.0
 
 
 #: The wider neighbourhood of :func:`radial_offsets` where the first is not significant
