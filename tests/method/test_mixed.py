@@ -125,3 +125,14 @@ def test_a_steep_slope_from_another_surface_is_kept_a_short_ramp_is_not():
     ramp = np.repeat(col[:, None], 6, axis=1)
     out = remove_mixed_pixels(ramp, 100.0)
     assert (out[3:5] == 0).all() and (out[:3] == 4500).all() and (out[5:] == 1500).all()
+
+
+def test_a_line_of_mixed_pixels_beside_a_steep_surface_is_mixed():
+    """A ToF row along the edge between a flat wall and a box top seen at a grazing angle: the
+    step from the line into the box top (-519 mm) is 2.4 times the next one (-217), which a
+    slope seen at a grazing angle never does; the steep box top itself stays."""
+    col = np.array([3430, 3431, 3429, 3430, 2958, 2439, 2222, 2080, 1960, 1850], np.float32)
+    z = np.repeat(col[:, None], 8, axis=1)
+    out = remove_mixed_pixels(z, 100.0)
+    assert (out[4] == 0).all()  # the mixed line
+    np.testing.assert_array_equal(np.delete(out, 4, axis=0), np.delete(z, 4, axis=0))

@@ -46,7 +46,7 @@ Per frame t (only frame t and the state of t − 1 are read):
 
    so every pixel that frame t measured has depth in the output (the current frame anchors
    it), and a sample beyond τ never gets averaged in;
-6. the windowed engine's finishing steps (:func:`~upsr.method.windowed.finish_fused`:
+6. the windowed engine's finishing steps (:func:`~upsr.method.finishing.finish_fused`:
    deblurring, speckle removal, the speckle filter never erasing what frame t measured on a
    surface, optional hole filling) give the output; the state keeps the fused (not the
    deblurred) depth, so the deblurring is never applied on top of itself.
@@ -75,6 +75,7 @@ import numpy.typing as npt
 
 from upsr.errors import InputError
 from upsr.method.config import UPSRConfig
+from upsr.method.finishing import finish_frame, finish_fused
 from upsr.method.frontend import MotionFrontEnd
 from upsr.method.mixed import (
     footprint_share,
@@ -91,7 +92,7 @@ from upsr.method.trust import (
     reference_anchor,
 )
 from upsr.method.validation import as_depth_frame, as_depth_video
-from upsr.method.windowed import STAGES, finish_frame, finish_fused
+from upsr.method.windowed import STAGES
 
 __all__ = [
     "RADIAL_RADIUS_FACTOR",
@@ -563,6 +564,7 @@ class RecursiveUPSR:
                 cfg,
                 edge_mm=front.edge_mm,
                 noise_mm=noise,
+                measured=f,
             )
 
     def feed(self, frame: npt.ArrayLike) -> list[np.ndarray]:

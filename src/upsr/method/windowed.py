@@ -43,7 +43,7 @@ from upsr.errors import InputError
 from upsr.method._parallel import window_pool
 from upsr.method.config import UPSRConfig
 from upsr.method.consistency import misregistered, registered_samples
-from upsr.method.deblurring import deblur
+from upsr.method.finishing import finish_frame, finish_fused
 from upsr.method.frontend import MotionFrontEnd
 from upsr.method.fusion import register_and_fuse, splat_points
 from upsr.method.mixed import (
@@ -54,31 +54,25 @@ from upsr.method.mixed import (
     split_mixed_pixels,
 )
 from upsr.method.motion import FlowBackend, flow_backend_is_thread_safe, make_flow_backend
-from upsr.method.outliers import remove_speckles
 from upsr.method.registration import (
     advance_positions,
     cumulative_flows,
     sample_centres,
     to_output_grid,
 )
-from upsr.method.slopes import follow_slopes
 from upsr.method.trust import (
     abstain_lone_outliers,
     choose_estimator,
     far_offsets,
-    fill_holes,
     noise_shape,
     radial_offsets,
     reference_anchor,
-    surface_support,
 )
 from upsr.method.validation import as_depth_frame, as_depth_video
 
 __all__ = [
     "STAGES",
     "UPSR",
-    "finish_frame",
-    "finish_fused",
     "fix_video_statistics",
     "pinned_config",
     "super_resolve",
@@ -87,63 +81,6 @@ __all__ = [
 
 #: The stages of :attr:`UPSR.timings`.
 STAGES = ("prefilter", "flow", "registration", "fusion", "deblur")
-
-
-def finish_fused(fused_mm: np.ndarray, cfg: UPSRConfig) -> np.ndarray:
-    """UP-SR's steps after the fusion of a window: the deblurring (eq. 29–30, ``cfg.deblur``),
-    then the removal of isolated outliers (:func:`upsr.method.outliers.remove_speckles`)."""
-    out = deblur(fused_mm, cfg.deblur, scale=cfg.scale)
-    return remove_speckles(out, cfg.speckle_size_px, cfg.edge_mm)
-
-
-def finish_frame(
-    out: np.ndarray,
-    fused: np.ndarray,
-    reference: np.ndarray,
-    anchor: np.ndarray | None,
-    cfg: UPSRConfig,
-    *,
-    edge_mm: float,
-    noise_mm: float,
-) -> np.ndarray:
-    """The steps beyond the paper after :func:`finish_fused`, for one output frame.
-
-    With an ``anchor`` (the trust rules are on), the speckle filter never erases what the
-    reference measured on a surface (a thin fast part kept by its anchor is an island, not
-    noise: there ``fused`` comes back); with ``cfg.follow_slopes`` the blocks on one surface
-    follow its slope (:func:`upsr.method.slopes.follow_slopes`); with ``cfg.fill_holes`` the
-    pixels without depth are filled from the background side (invented depth).
-
-    Parameters
-    ----------
-    out, fused : ndarray float32 (r·h, r·w)
-        :func:`finish_fused` of ``fused``, and ``fused`` (mm).
-    reference : ndarray float32 (h, w)
-        The reference frame as fused (mm; 0: none; mixed pixels removed).
-    anchor : ndarray float32 (h, w) or None
-        :func:`upsr.method.trust.reference_anchor` of ``reference``; None: computed here
-        where the slopes need it.
-    cfg : UPSRConfig
-    edge_mm, noise_mm : float
-        The video's edge threshold and noise std (mm).
-
-    Returns
-    -------
-    ndarray float32 (r·h, r·w)
-    """
-    r = cfg.scale
-    if anchor is not None:
-        keep = surface_support(reference, edge_mm)
-        lost = np.repeat(np.repeat(keep, r, axis=0), r, axis=1) & (out == 0) & (fused > 0)
-        if lost.any():
-            out = np.where(lost, fused, out)
-    if cfg.follow_slopes:
-        if anchor is None:
-            anchor = reference_anchor(reference, noise_mm, 1.0, edge_mm)[0]
-        out = follow_slopes(out, anchor, sigma_mm=noise_mm, edge_mm=edge_mm)
-    if cfg.fill_holes:
-        out = fill_holes(out, r, iterations=64)  # invented depth (off by default)
-    return out
 
 
 class VideoStatistics(NamedTuple):
@@ -487,6 +424,7 @@ class UPSR:
                 cfg,
                 edge_mm=self._front.edge_mm,  # type: ignore[union-attr]
                 noise_mm=noise,
+                measured=measured[ref],
             )
 
     def _chain(self, k: int, m: int) -> np.ndarray:

@@ -648,6 +648,7 @@ def super_resolve_straightforward(frames: npt.ArrayLike, config: UPSRConfig) -> 
             # the speckle filter never erases what the reference measured on a surface
             keep = upsample_nearest(surface_support(lowres[ref], edge_mm), r)
             res = np.where(keep & (res == 0) & (fused > 0), fused, res)
+        res = split_mixed_pixels(res, measured[ref], lowres[ref], source)
         if cfg.follow_slopes:
             if anchor is None:
                 anchor = reference_anchor(lowres[ref], trust_mm, 1.0, edge_mm)[0]

@@ -41,7 +41,8 @@ import numpy as np
 
 from upsr.errors import InputError
 from upsr.method.config import DeblurConfig, UPSRConfig
-from upsr.method.windowed import finish_fused, super_resolve
+from upsr.method.finishing import finish_fused
+from upsr.method.windowed import super_resolve
 from upsr.research import baselines
 from upsr.research.experiments.common import (
     DEFAULT_DATA,
@@ -143,7 +144,7 @@ def search_deblur(
 
 def _deblur_frame(fused: np.ndarray, cfg: DeblurConfig, r: int) -> np.ndarray:
     """UP-SR's last steps on a fused frame with ``cfg``
-    (:func:`upsr.method.windowed.finish_fused`)."""
+    (:func:`upsr.method.finishing.finish_fused`)."""
     return finish_fused(fused, UPSRConfig(scale=r, deblur=cfg))
 
 

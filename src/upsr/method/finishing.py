@@ -1,0 +1,86 @@
+"""What follows the fusion of one output frame (windowed and recursive modes alike).
+
+:func:`finish_fused`: UP-SR's own last steps (the deblurring of eq. 29–30 and the removal of
+isolated outliers); :func:`finish_frame`: the rules beyond the paper that keep the output
+honest afterwards (what the reference measured is never erased, removed input pixels are
+split between their neighbours, blocks follow the slope of their surface, optional hole
+filling).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from upsr.method.config import UPSRConfig
+from upsr.method.deblurring import deblur
+from upsr.method.mixed import split_mixed_pixels
+from upsr.method.outliers import remove_speckles
+from upsr.method.slopes import follow_slopes
+from upsr.method.trust import fill_holes, reference_anchor, surface_support
+
+__all__ = ["finish_frame", "finish_fused"]
+
+
+def finish_fused(fused_mm: np.ndarray, cfg: UPSRConfig) -> np.ndarray:
+    """UP-SR's steps after the fusion of a window: the deblurring (eq. 29–30, ``cfg.deblur``),
+    then the removal of isolated outliers (:func:`upsr.method.outliers.remove_speckles`)."""
+    out = deblur(fused_mm, cfg.deblur, scale=cfg.scale)
+    return remove_speckles(out, cfg.speckle_size_px, cfg.edge_mm)
+
+
+def finish_frame(
+    out: np.ndarray,
+    fused: np.ndarray,
+    reference: np.ndarray,
+    anchor: np.ndarray | None,
+    cfg: UPSRConfig,
+    *,
+    edge_mm: float,
+    noise_mm: float,
+    measured: np.ndarray | None = None,
+) -> np.ndarray:
+    """The steps beyond the paper after :func:`finish_fused`, for one output frame.
+
+    With an ``anchor`` (the trust rules are on), the speckle filter never erases what the
+    reference measured on a surface (a thin fast part kept by its anchor is an island, not
+    noise: there ``fused`` comes back); the blocks of the reference's removed pixels (mixed,
+    lone outliers) that it emptied are split between their neighbours again
+    (:func:`upsr.method.mixed.split_mixed_pixels`: never a hole where the camera measured
+    something); with ``cfg.follow_slopes`` the blocks on one surface
+    follow its slope (:func:`upsr.method.slopes.follow_slopes`); with ``cfg.fill_holes`` the
+    pixels without depth are filled from the background side (invented depth).
+
+    Parameters
+    ----------
+    out, fused : ndarray float32 (r·h, r·w)
+        :func:`finish_fused` of ``fused``, and ``fused`` (mm).
+    reference : ndarray float32 (h, w)
+        The reference frame as fused (mm; 0: none; mixed pixels removed).
+    anchor : ndarray float32 (h, w) or None
+        :func:`upsr.method.trust.reference_anchor` of ``reference``; None: computed here
+        where the slopes need it.
+    cfg : UPSRConfig
+    edge_mm, noise_mm : float
+        The video's edge threshold and noise std (mm).
+    measured : ndarray float32 (h, w), optional
+        The reference as measured, before its mixed pixels and lone outliers were removed.
+
+    Returns
+    -------
+    ndarray float32 (r·h, r·w)
+    """
+    r = cfg.scale
+    if anchor is not None:
+        keep = surface_support(reference, edge_mm)
+        lost = np.repeat(np.repeat(keep, r, axis=0), r, axis=1) & (out == 0) & (fused > 0)
+        if lost.any():
+            out = np.where(lost, fused, out)
+    if measured is not None:
+        out = split_mixed_pixels(out, measured, reference, reference if anchor is None else anchor)
+    if cfg.follow_slopes:
+        if anchor is None:
+            anchor = reference_anchor(reference, noise_mm, 1.0, edge_mm)[0]
+        out = follow_slopes(out, anchor, sigma_mm=noise_mm, edge_mm=edge_mm)
+    if cfg.fill_holes:
+        out = fill_holes(out, r, iterations=64)  # invented depth (off by default)
+    return out
