@@ -241,7 +241,7 @@ class UPSRConfig:
         reference's mixed pixel is split between the surfaces around it
         (:func:`upsr.method.mixed.remove_mixed_pixels`,
         :func:`~upsr.method.mixed.split_mixed_pixels`). ``"auto"``: decided once per video
-        from its first frames, on when a third or more of its edges between flat surfaces
+        from its first frames, on when 30 % or more of its edges between flat surfaces
         have a pixel between them (:func:`upsr.method.mixed.footprint_share`; a
         point-sampling sensor has none, and its steep slopes would be taken for mixed).
     radial_compensation : bool
