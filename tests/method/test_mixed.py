@@ -2,6 +2,7 @@
 the reference's (upsr.method.mixed)."""
 
 import numpy as np
+import pytest
 
 import upsr
 from upsr.method.config import UPSRConfig
@@ -91,9 +92,12 @@ def test_a_mixed_reference_pixel_no_frame_fills_is_split_between_its_neighbours(
     fused = np.repeat(np.repeat(cleaned, 4, 0), 4, 1)
     fused[0, 13] = 1500.0  # a value some frame gave: kept
     out = split_mixed_pixels(fused, measured, cleaned, cleaned)
-    block = out[4:20, 12:16]
-    # the half facing the foreground takes it, the other half the wall: never 0, never 2200
-    np.testing.assert_array_equal(block[:, :2], 1000.0)
+    block = out[4:8, 12:16]
+    # the side facing the foreground takes it, the other the wall, in the shares of the mix
+    # (0.4 : 0.6 of the footprint): never 0, never 2200
+    assert set(np.unique(block)) == {1000.0, WALL}
+    assert (block == 1000.0).sum() == round(0.4 * 16)
+    np.testing.assert_array_equal(block[:, 0], 1000.0)
     np.testing.assert_array_equal(block[:, 2:], WALL)
     assert out[0, 13] == 1500.0
     np.testing.assert_array_equal(
@@ -136,3 +140,30 @@ def test_a_line_of_mixed_pixels_beside_a_steep_surface_is_mixed():
     out = remove_mixed_pixels(z, 100.0)
     assert (out[4] == 0).all()  # the mixed line
     np.testing.assert_array_equal(np.delete(out, 4, axis=0), np.delete(z, 4, axis=0))
+
+
+def test_the_split_of_a_mixed_pixel_keeps_its_footprints_mean():
+    """A ToF pixel a quarter on the near wall and three quarters on the far one is split 4 : 12
+    (r = 4), the near pixels on the near wall's side: the block's mean is the measurement,
+    and no pixel takes a depth between the walls."""
+    from upsr.method.mixed import split_mixed_pixels
+
+    r = 4
+    measured = np.full((5, 7), 3000.0, np.float32)
+    measured[:, :3] = 1000.0
+    measured[:, 3] = 0.25 * 1000.0 + 0.75 * 3000.0
+    cleaned = remove_mixed_pixels(measured, 100.0)
+    assert (cleaned[:, 3] == 0).all()
+    fused = np.repeat(np.repeat(cleaned, r, axis=0), r, axis=1)
+    out = split_mixed_pixels(fused, measured, cleaned, cleaned)
+    block = out[2 * r : 3 * r, 3 * r : 4 * r]
+    assert set(np.unique(block)) == {1000.0, 3000.0}
+    assert block.mean() == pytest.approx(measured[2, 3])
+    assert (block[:, 0] == 1000.0).all() and (block[:, 1:] == 3000.0).all()
+    # a lone outlier (one side only) takes its neighbours' depth
+    lone = np.full((5, 5), 2000.0, np.float32)
+    lone[2, 2] = 2600.0
+    kept = lone.copy()
+    kept[2, 2] = 0.0
+    out = split_mixed_pixels(np.repeat(np.repeat(kept, r, 0), r, 1), lone, kept, kept)
+    assert (out == 2000.0).all()
