@@ -14,6 +14,7 @@ Example::
     .venv/bin/python benchmarks/recursive_eval.py --scenes deforming room toward_wall gallop \
         --sizes tof --frames 16
     .venv/bin/python benchmarks/recursive_eval.py --sizes tof --frames 40 --flow-preset fast
+    .venv/bin/python benchmarks/recursive_eval.py --sizes vga --modes recursive --flow-scale 2
 """
 
 from __future__ import annotations
@@ -56,12 +57,15 @@ def main(argv: Sequence[str] | None = None) -> int:
     p.add_argument("--modes", nargs="+", default=["recursive", "windowed"])
     p.add_argument("--workers", type=int, default=0, help="windowed workers")
     p.add_argument("--flow-preset", default=None)
+    p.add_argument("--flow-scale", type=int, default=None, help="flow grid scale s (default: auto)")
     p.add_argument("--iterations", type=int, default=None, help="deblur iterations")
     p.add_argument("--json", type=Path, default=None)
     args = p.parse_args(argv)
     options: dict = {}
     if args.flow_preset:
         options["flow_preset"] = args.flow_preset
+    if args.flow_scale is not None:
+        options["flow_scale"] = args.flow_scale
     if args.iterations is not None:
         options["deblur_iterations"] = args.iterations
     rows = []
