@@ -197,9 +197,9 @@ def remove_mixed_pixels(frames: npt.ArrayLike, edge_mm: float, marker: float = 0
 def _side(removed, source, i, j, m, nearer):  # pragma: no cover - numba
     """The kept 8-neighbour of (i, j) nearest by centre (a tie: the depth nearest m) whose
     depth lies in front of m (``nearer``) or behind it: (depth, row, column), depth 0 where
-    there is none. (Looking further, 2 px away, found the nearer surface of 70 % more of the
-    ToF room's mixed pixels but, on box tops seen at grazing angles, depths 300 mm off the
-    surface next to the pixel: flying pixels.)"""
+    there is none. (Looking 2 px away as well gave blocks on box tops seen at grazing angles
+    depths up to 300 mm off the surface next to them: on the ToF room the flying pixels rose
+    from 0.67 to 2.04 %.)"""
     h, w = removed.shape
     best = np.inf
     pick = 0.0

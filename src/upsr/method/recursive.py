@@ -46,10 +46,11 @@ Per frame t (only frame t and the state of t − 1 are read):
 
    so every pixel that frame t measured has depth in the output (the current frame anchors
    it), and a sample beyond τ never gets averaged in;
-6. the windowed engine's finishing steps (:func:`~upsr.method.finishing.finish_fused`:
-   deblurring, speckle removal, the speckle filter never erasing what frame t measured on a
-   surface, optional hole filling) give the output; the state keeps the fused (not the
-   deblurred) depth, so the deblurring is never applied on top of itself.
+6. the windowed engine's finishing steps (:mod:`upsr.method.finishing`: deblurring, speckle
+   removal, the speckle filter never erasing what frame t measured on a surface, frame t's
+   removed pixels split between their neighbours, blocks following their surface's slope,
+   optional hole filling) give the output; the state keeps the fused (not the deblurred)
+   depth, so the deblurring is never applied on top of itself.
 
 Relation to the windowed median (paper §5, eq. 28): on a static pixel the state with the mean
 estimator is the running mean of the last ≈ N samples (exactly the mean of all of them until N
