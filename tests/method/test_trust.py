@@ -159,6 +159,32 @@ def test_a_static_scene_gets_no_radial_offset():
     assert not off[4].any()
 
 
+def test_a_frame_that_moved_has_its_offsets_measured_at_a_lower_significance():
+    """Where the frame moved (a camera along a slanted wall), an offset of 3 standard errors
+    of the 5×5 median is kept there; where it did not, it needs 4 and the frame falls back on
+    the wide neighbourhood, whose median is the offset of the rest of the frame."""
+    from upsr.method.trust import OFFSET_SIGNIFICANCE, OFFSET_SIGNIFICANCE_MOVED, significance
+
+    sigma = 30.0
+    se = 1.2533 * np.sqrt(2.0) * sigma / 5.0  # of the median of 25 differences
+    ref = np.full((40, 48), 2000.0, np.float32)
+    frames = np.repeat(ref[None], 3, axis=0)
+    frames[0] += 8.0 * se
+    frames[0, :, 20:28] = ref[:, 20:28] + 3.0 * se  # a stripe 8 px wide
+    still = np.zeros((3, 40, 48, 2), np.float32)
+    moved = still.copy()
+    moved[0] = 0.01  # moves, but every sample still lands on its own pixel
+    sig = significance(moved, (40, 48))
+    assert (sig[0] == OFFSET_SIGNIFICANCE_MOVED).all() and (sig[1:] == OFFSET_SIGNIFICANCE).all()
+    kw = dict(sigma_mm=sigma, edge_mm=500.0)
+    stripe = (slice(None), slice(22, 26))
+    got = radial_offsets(frames, moved, 1, 1, **kw)[0]
+    np.testing.assert_allclose(got[stripe], 3.0 * se, rtol=1e-5)
+    np.testing.assert_allclose(got[:, :18], 8.0 * se, rtol=1e-5)
+    static = radial_offsets(frames, still, 1, 1, **kw)[0]
+    np.testing.assert_allclose(static[stripe], 8.0 * se, rtol=1e-5)
+
+
 def test_a_slow_radial_motion_under_strong_noise_is_found_on_a_wider_neighbourhood():
     rng = np.random.default_rng(5)
     frames = (2000.0 + rng.laplace(0, 30 / np.sqrt(2), (9, 40, 48))).astype(np.float32)

@@ -91,6 +91,7 @@ from upsr.method.trust import (
     choose_estimator,
     noise_shape,
     reference_anchor,
+    significance,
 )
 from upsr.method.validation import as_depth_frame, as_depth_video
 from upsr.method.windowed import STAGES
@@ -369,6 +370,7 @@ def recursive_update(
             -1,  # (no frame of reg is the reference)
             float(edge_mm),
             STATE_NOISE_FACTOR * float(sigma_mm),
+            significance(fl[None], (h, w)),
             int(radial_radius_px),
             off,
         )

@@ -30,6 +30,8 @@ from upsr.method.consistency import registered_samples
 from upsr.method.mixed import ABSTAIN
 
 __all__ = [
+    "OFFSET_SIGNIFICANCE",
+    "OFFSET_SIGNIFICANCE_MOVED",
     "TOLERANCE_FLOOR_MM",
     "abstain_lone_outliers",
     "alternatives_on_grid",
@@ -40,6 +42,7 @@ __all__ = [
     "radial_offsets",
     "reference_anchor",
     "side_of_centre",
+    "significance",
     "surface_alternatives",
     "surface_support",
     "trust_arrays",
@@ -48,6 +51,14 @@ __all__ = [
 #: Smallest trust tolerance (mm): noiseless or coarsely quantised data still trust their own
 #: surface's samples.
 TOLERANCE_FLOOR_MM = 2.0
+
+#: Standard errors of its median beyond which a radial offset is kept (:func:`radial_offsets`)
+#: where the frame did not move there (zero motion: noise alone never shifts a static frame).
+OFFSET_SIGNIFICANCE = 4.0
+#: The same where the frame moved there: a surface seen from a moving camera changes depth,
+#: and offsets below 4 standard errors, left unmeasured, biased the fused frames of a camera
+#: moving along slanted walls (see :func:`radial_offsets`).
+OFFSET_SIGNIFICANCE_MOVED = 2.0
 
 #: Excess kurtosis of the temporal differences above which the noise is heavy-tailed and the
 #: median is kept (difference of two Laplace samples: 1.5; of two Gaussian ones: 0; of two
@@ -374,7 +385,7 @@ def _select_median(buf, m):  # pragma: no cover - numba
 
 
 @nb.njit(cache=True, nogil=True, inline="always")
-def _offset_at(reg, ref, anc, k, i, j, edge, sigma, radius, stride, buf):
+def _offset_at(reg, ref, anc, k, i, j, edge, sigma, radius, stride, buf, signif):
     # pragma: no cover - numba
     """The significant median of frame k's registered differences around (i, j) (every
     ``stride``-th pixel of the window), or 0 (the pixel's surface: the reference's within
@@ -397,14 +408,16 @@ def _offset_at(reg, ref, anc, k, i, j, edge, sigma, radius, stride, buf):
     if m < 5:
         return 0.0
     med = _select_median(buf, m)
-    # significant only: beyond 4 standard errors of the median of m differences of two
-    # noisy samples (a static scene stays unchanged)
+    # significant only: beyond ``signif`` standard errors of the median of m differences of
+    # two noisy samples
     se = 1.2533 * math.sqrt(2.0) * sigma / math.sqrt(m)
-    return med if abs(med) > 4.0 * se else 0.0
+    return med if abs(med) > signif[k, i, j] * se else 0.0
 
 
 @nb.njit(cache=True, nogil=True, parallel=True)
-def _offset_kernel(reg, ref, anc, ref_index, edge, sigma, radius, out, step=2, stride=1, own=True):
+def _offset_kernel(
+    reg, ref, anc, ref_index, edge, sigma, signif, radius, out, step=2, stride=1, own=True
+):
     # pragma: no cover - numba
     n, h, w = reg.shape
     n_grid = (h + step - 1) // step
@@ -418,7 +431,9 @@ def _offset_kernel(reg, ref, anc, ref_index, edge, sigma, radius, out, step=2, s
             continue
         buf = np.empty(size, np.float32)
         for j in range(0, w, step):
-            out[k, i, j] = _offset_at(reg, ref, anc, k, i, j, edge, sigma, radius, stride, buf)
+            out[k, i, j] = _offset_at(
+                reg, ref, anc, k, i, j, edge, sigma, radius, stride, buf, signif
+            )
     # a pixel takes the value of its grid pixel when that one lies on its surface, else its
     # own (``own``) or none
     for kr in nb.prange(n * h):
@@ -438,7 +453,9 @@ def _offset_kernel(reg, ref, anc, ref_index, edge, sigma, radius, out, step=2, s
             if c > 0 and g > 0 and abs(c - g) <= edge:
                 out[k, i, j] = out[k, gi, gj]
             elif own:
-                out[k, i, j] = _offset_at(reg, ref, anc, k, i, j, edge, sigma, radius, stride, buf)
+                out[k, i, j] = _offset_at(
+                    reg, ref, anc, k, i, j, edge, sigma, radius, stride, buf, signif
+                )
             else:
                 out[k, i, j] = 0.0
 
@@ -465,8 +482,13 @@ def radial_offsets(
     Frame k's sample at each reference pixel's centre (moved by its map) minus the reference
     there, where both have depth and differ by at most ``edge_mm``; the median of those
     differences over the (2·radius+1)² low-res neighbours on the pixel's surface. Kept only
-    where it exceeds 4 standard errors of that median, from at least 5 differences (noise
-    alone never shifts a frame); elsewhere the same over a neighbourhood
+    where it exceeds :data:`OFFSET_SIGNIFICANCE` (4) standard errors of that median, from at
+    least 5 differences, where the frame did not move at the pixel (noise alone never shifts a
+    static frame), :data:`OFFSET_SIGNIFICANCE_MOVED` (2) where it moved (on the realistic
+    scenes, ``benchmarks/realistic_eval.py --quick``, 4 everywhere left the offsets of a
+    camera moving along slanted walls unmeasured: moving-surface rmse of the Kinect room 22.2
+    against 16.0 mm with 2, bias +5.1 against +0.9 mm; Laplace σ = 10 room 17.4 against 15.2;
+    camera approaching a wall at σ = 30: 13.4 against 11.2); elsewhere the same over a neighbourhood
     :data:`COARSE_RADIUS_FACTOR` times as wide, every second pixel of it (its standard error
     ≈ 3.4 times smaller at R = 2: a slow radial motion under strong noise), where significant.
 
@@ -506,7 +528,8 @@ def radial_offsets(
     if anchor is None:
         anchor = reference_anchor(lr[ref], sigma_mm, 1.0, edge_mm)[0]
     anc = np.ascontiguousarray(anchor, np.float32)
-    args = (reg, lr[ref], anc, int(ref), float(edge_mm), float(sigma_mm))
+    signif = significance(maps, (h, w))
+    args = (reg, lr[ref], anc, int(ref), float(edge_mm), float(sigma_mm), signif)
     out = np.empty((n, h, w), np.float32)
     _offset_kernel(*args, int(radius_px), out)
     # where the neighbourhood is too small for the offset to be significant (a camera moving
@@ -515,8 +538,37 @@ def radial_offsets(
     f = COARSE_RADIUS_FACTOR
     # (on every 2nd pixel of that neighbourhood, on a grid of 2f px, none off the grid's
     # surface: the cost of the first)
-    _offset_kernel(*args, f * int(radius_px), wide, 2 * f, 2, False)
+    # (4 standard errors everywhere: its error is so small that the differences of a camera's
+    # motion across it would be taken for an offset)
+    strict = np.full_like(signif, OFFSET_SIGNIFICANCE)
+    _offset_kernel(*args[:-1], strict, f * int(radius_px), wide, 2 * f, 2, False)
     return np.where(out != 0, out, wide)
+
+
+def significance(maps: npt.ArrayLike, lowres_shape: tuple[int, int]) -> np.ndarray:
+    """Per frame and low-res pixel, the standard errors beyond which a radial offset is kept:
+    :data:`OFFSET_SIGNIFICANCE_MOVED` where the motion (the map at the pixel centre's nearest
+    flow-grid node, as :func:`upsr.method.consistency.registered_samples` reads it) is not
+    zero, :data:`OFFSET_SIGNIFICANCE` where it is.
+
+    Parameters
+    ----------
+    maps : array_like (N, s·h, s·w, 2)
+        Motion of each frame on the flow grid (flow px).
+    lowres_shape : (int, int)
+        (h, w).
+
+    Returns
+    -------
+    ndarray float32 (N, h, w)
+    """
+    m = np.asarray(maps, np.float32)
+    h, w = lowres_shape
+    gh, gw = m.shape[1:3]
+    yg = np.clip(((np.arange(h) + 0.5) * (gh / h)).astype(np.int64), 0, gh - 1)
+    xg = np.clip(((np.arange(w) + 0.5) * (gw / w)).astype(np.int64), 0, gw - 1)
+    moved = (np.abs(m[:, yg][:, :, xg]) > 1e-3).any(axis=-1)
+    return np.where(moved, OFFSET_SIGNIFICANCE_MOVED, OFFSET_SIGNIFICANCE).astype(np.float32)
 
 
 def far_offsets(offsets: npt.ArrayLike, edge_mm: float) -> np.ndarray:
