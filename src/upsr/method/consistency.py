@@ -20,7 +20,13 @@ import numba as nb
 import numpy as np
 import numpy.typing as npt
 
-__all__ = ["MISMATCH_FRACTION", "MISMATCH_MIN_COUNT", "misregistered", "registered_samples"]
+__all__ = [
+    "MISMATCH_FRACTION",
+    "MISMATCH_MIN_COUNT",
+    "maps_at_centres",
+    "misregistered",
+    "registered_samples",
+]
 
 #: Fewest mismatching interior pixels in a neighbourhood that make a frame untrusted there.
 MISMATCH_MIN_COUNT = 2
@@ -52,6 +58,29 @@ def _registered_kernel(lowres, maps, scale, ratio, out):  # pragma: no cover - n
                     xl = int((qx + 0.5) / scale)
                     yl = int((qy + 0.5) / scale)
                     out[k, i, j] = lowres[k, yl, xl]
+
+
+def maps_at_centres(maps: npt.ArrayLike, lowres_shape: tuple[int, int]) -> np.ndarray:
+    """Each frame's motion at every low-res pixel centre: the map at the flow-grid node
+    nearest to it, as :func:`registered_samples` reads it.
+
+    Parameters
+    ----------
+    maps : array_like (N, s·h, s·w, 2)
+        Motion of each frame on the flow grid (flow px).
+    lowres_shape : (int, int)
+        (h, w).
+
+    Returns
+    -------
+    ndarray float64 (N, h, w, 2)
+    """
+    m = np.asarray(maps, np.float64)
+    h, w = lowres_shape
+    gh, gw = m.shape[1:3]
+    yg = np.clip(((np.arange(h) + 0.5) * (gh / h)).astype(np.int64), 0, gh - 1)
+    xg = np.clip(((np.arange(w) + 0.5) * (gw / w)).astype(np.int64), 0, gw - 1)
+    return m[:, yg][:, :, xg]
 
 
 def registered_samples(lowres: npt.ArrayLike, maps: npt.ArrayLike, scale: int) -> np.ndarray:

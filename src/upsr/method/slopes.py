@@ -37,6 +37,8 @@ import numba as nb
 import numpy as np
 import numpy.typing as npt
 
+from upsr.method.mixed import _steps_agree
+
 __all__ = ["SIGNIFICANCE", "STEEP_RATIO", "follow_slopes", "surface_slopes"]
 
 #: A slope is used where it exceeds this many σ (mm per low-res px).
@@ -58,12 +60,9 @@ def _step(row, k):  # pragma: no cover - numba
 
 @nb.njit(cache=True, nogil=True, inline="always")
 def _agree(s, t):  # pragma: no cover - numba
-    """Two consecutive steps of one slope: same sign, within :data:`STEEP_RATIO` (False for
-    a missing step)."""
-    if not (s != 0 and t != 0) or s != s or t != t or (s > 0) != (t > 0):
-        return False
-    a, b = abs(s), abs(t)
-    return max(a, b) <= STEEP_RATIO * min(a, b)
+    """Two consecutive steps of one slope (:func:`upsr.method.mixed._steps_agree` within
+    :data:`STEEP_RATIO`); False for a missing step."""
+    return s == s and t == t and _steps_agree(s, t, STEEP_RATIO)
 
 
 @nb.njit(cache=True, nogil=True, inline="always")

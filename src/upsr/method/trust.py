@@ -26,7 +26,7 @@ import numba as nb
 import numpy as np
 import numpy.typing as npt
 
-from upsr.method.consistency import registered_samples
+from upsr.method.consistency import maps_at_centres, registered_samples
 from upsr.method.mixed import ABSTAIN
 
 __all__ = [
@@ -487,10 +487,11 @@ def radial_offsets(
     static frame), :data:`OFFSET_SIGNIFICANCE_MOVED` (2) where it moved (on the realistic
     scenes, ``benchmarks/realistic_eval.py --quick``, 4 everywhere left the offsets of a
     camera moving along slanted walls unmeasured: moving-surface rmse of the Kinect room 22.2
-    against 16.0 mm with 2, bias +5.1 against +0.9 mm; Laplace σ = 10 room 17.4 against 15.2;
-    camera approaching a wall at σ = 30: 13.4 against 11.2); elsewhere the same over a neighbourhood
-    :data:`COARSE_RADIUS_FACTOR` times as wide, every second pixel of it (its standard error
-    ≈ 3.4 times smaller at R = 2: a slow radial motion under strong noise), where significant.
+    against 15.9 mm with 2, bias +5.1 against +1.1 mm; Laplace σ = 10 room 17.4 against 15.6;
+    camera approaching a wall at σ = 30: 13.4 against 11.8); elsewhere the same over a
+    neighbourhood :data:`COARSE_RADIUS_FACTOR` times as wide, every second pixel of it (its
+    standard error ≈ 3.4 times smaller at R = 2: a slow radial motion under strong noise),
+    where it exceeds :data:`OFFSET_SIGNIFICANCE`.
 
     Parameters
     ----------
@@ -537,9 +538,8 @@ def radial_offsets(
     wide = np.empty_like(out)
     f = COARSE_RADIUS_FACTOR
     # (on every 2nd pixel of that neighbourhood, on a grid of 2f px, none off the grid's
-    # surface: the cost of the first)
-    # (4 standard errors everywhere: its error is so small that the differences of a camera's
-    # motion across it would be taken for an offset)
+    # surface: the cost of the first; 4 standard errors everywhere: its error is so small that
+    # the differences of a camera's motion across it would be taken for an offset)
     strict = np.full_like(signif, OFFSET_SIGNIFICANCE)
     _offset_kernel(*args[:-1], strict, f * int(radius_px), wide, 2 * f, 2, False)
     return np.where(out != 0, out, wide)
@@ -547,9 +547,9 @@ def radial_offsets(
 
 def significance(maps: npt.ArrayLike, lowres_shape: tuple[int, int]) -> np.ndarray:
     """Per frame and low-res pixel, the standard errors beyond which a radial offset is kept:
-    :data:`OFFSET_SIGNIFICANCE_MOVED` where the motion (the map at the pixel centre's nearest
-    flow-grid node, as :func:`upsr.method.consistency.registered_samples` reads it) is not
-    zero, :data:`OFFSET_SIGNIFICANCE` where it is.
+    :data:`OFFSET_SIGNIFICANCE_MOVED` where the motion
+    (:func:`upsr.method.consistency.maps_at_centres`) is not zero,
+    :data:`OFFSET_SIGNIFICANCE` where it is.
 
     Parameters
     ----------
@@ -562,12 +562,7 @@ def significance(maps: npt.ArrayLike, lowres_shape: tuple[int, int]) -> np.ndarr
     -------
     ndarray float32 (N, h, w)
     """
-    m = np.asarray(maps, np.float32)
-    h, w = lowres_shape
-    gh, gw = m.shape[1:3]
-    yg = np.clip(((np.arange(h) + 0.5) * (gh / h)).astype(np.int64), 0, gh - 1)
-    xg = np.clip(((np.arange(w) + 0.5) * (gw / w)).astype(np.int64), 0, gw - 1)
-    moved = (np.abs(m[:, yg][:, :, xg]) > 1e-3).any(axis=-1)
+    moved = (np.abs(maps_at_centres(maps, lowres_shape)) > 1e-3).any(axis=-1)
     return np.where(moved, OFFSET_SIGNIFICANCE_MOVED, OFFSET_SIGNIFICANCE).astype(np.float32)
 
 

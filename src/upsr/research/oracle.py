@@ -342,15 +342,13 @@ def _trusted_stack(
 def registered_samples_numpy(lowres: np.ndarray, maps: np.ndarray, scale: int) -> np.ndarray:
     """:func:`upsr.method.consistency.registered_samples` with NumPy: each frame's low-res
     sample at every reference pixel centre moved by the map at its nearest flow-grid node."""
+    from upsr.method.consistency import maps_at_centres
+
     lr = np.nan_to_num(np.asarray(lowres, np.float32), nan=0.0)
     n, h, w = lr.shape
-    maps = np.asarray(maps)
-    gh, gw = maps.shape[1:3]
     r = int(scale)
-    yg = np.clip(((np.arange(h) + 0.5) * (gh / h)).astype(np.int64), 0, gh - 1)
-    xg = np.clip(((np.arange(w) + 0.5) * (gw / w)).astype(np.int64), 0, gw - 1)
-    m = np.asarray(maps, np.float64)[:, yg][:, :, xg]
-    ratio = r * w / gw
+    m = maps_at_centres(maps, (h, w))
+    ratio = r * w / np.shape(maps)[2]
     qx = ((np.arange(w) + 0.5) * r - 0.5)[None, None, :] + m[..., 0] * ratio
     qy = ((np.arange(h) + 0.5) * r - 0.5)[None, :, None] + m[..., 1] * ratio
     inside = (qx >= -0.5) & (qx < w * r - 0.5) & (qy >= -0.5) & (qy < h * r - 0.5)
@@ -561,6 +559,7 @@ def super_resolve_straightforward(frames: npt.ArrayLike, config: UPSRConfig) -> 
     -------
     ndarray float32 (T, r·h, r·w)
     """
+    from upsr.method.finishing import finish_frame
     from upsr.method.frontend import MotionFrontEnd
     from upsr.method.fusion import splat_nearest
     from upsr.method.mixed import split_mixed_pixels
@@ -571,8 +570,6 @@ def super_resolve_straightforward(frames: npt.ArrayLike, config: UPSRConfig) -> 
         sample_offsets,
         warp_nearest,
     )
-    from upsr.method.slopes import follow_slopes
-    from upsr.method.trust import fill_holes, reference_anchor, surface_support
     from upsr.method.upsampling import upsample_nearest
     from upsr.method.validation import as_depth_video
     from upsr.method.windowed import fix_video_statistics, window_start
@@ -644,14 +641,9 @@ def super_resolve_straightforward(frames: npt.ArrayLike, config: UPSRConfig) -> 
         res = remove_speckles(
             deblur_numpy(fused, cfg.deblur, scale=r), cfg.speckle_size_px, cfg.edge_mm
         )
-        if fallback is not None:
-            # the speckle filter never erases what the reference measured on a surface
-            keep = upsample_nearest(surface_support(lowres[ref], edge_mm), r)
-            res = np.where(keep & (res == 0) & (fused > 0), fused, res)
-        res = split_mixed_pixels(res, measured[ref], lowres[ref], source)
-        if cfg.follow_slopes:
-            if anchor is None:
-                anchor = reference_anchor(lowres[ref], trust_mm, 1.0, edge_mm)[0]
-            res = follow_slopes(res, anchor, sigma_mm=trust_mm, edge_mm=edge_mm)
-        out[t] = fill_holes(res, r, iterations=64) if cfg.fill_holes else res
+        # the rules beyond the paper after the deblurring, as the engine applies them
+        out[t] = finish_frame(
+            res, fused, lowres[ref], anchor, cfg, edge_mm=edge_mm, noise_mm=trust_mm,
+            measured=measured[ref],
+        )  # fmt: skip
     return out
