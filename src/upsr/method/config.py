@@ -173,8 +173,9 @@ class UPSRConfig:
         and gain a lot of speed (256×147 at r = 4: s = 2, 4.5× faster than s = 4 with DIS
         medium). Measured by ``benchmarks/flow_grid_eval.py`` (see the README). In recursive
         mode the smallest s ≥ 1: its one flow per frame on 320×240 frames is as accurate at
-        s = 1 as at s = 2 on the realistic scenes at 320×240 (surface RMSE within ±3 %, edge
-        accuracy within 0.2 points) and costs a third of the prefilter and flow time.
+        s = 1 as at s = 2 on four realistic scenes at 320×240 (surface RMSE −0.8 to +1.2 %,
+        edge accuracy −0.1 to +0.2 points; ``benchmarks/recursive_eval.py --sizes vga --modes
+        recursive``) and the prefilter and flow take a fifth of the time.
     depth_range_mm : tuple of float or None
         (near, far) depths mapped to the 8-bit images the flow sees. ``None``: fixed once per
         video from the 1st–99th percentiles of the valid depths of the first window.
