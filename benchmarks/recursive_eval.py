@@ -59,6 +59,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     p.add_argument("--flow-preset", default=None)
     p.add_argument("--flow-scale", type=int, default=None, help="flow grid scale s (default: auto)")
     p.add_argument("--iterations", type=int, default=None, help="deblur iterations")
+    p.add_argument("--step-decay", type=float, default=None, help="deblur step decay")
     p.add_argument("--json", type=Path, default=None)
     args = p.parse_args(argv)
     options: dict = {}
@@ -68,6 +69,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         options["flow_scale"] = args.flow_scale
     if args.iterations is not None:
         options["deblur_iterations"] = args.iterations
+    if args.step_decay is not None:
+        options["deblur_step_decay"] = args.step_decay
     rows = []
     for scene, size in ((scene, size) for scene in args.scenes for size in args.sizes):
         shape, r = SIZES[size]

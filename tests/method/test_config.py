@@ -28,6 +28,12 @@ def test_from_options_routes_deblur_prefix():
         {"scale": 2, "depth_range_mm": (500.0, 100.0)},
         {"scale": 2, "min_valid_fraction": 1.0},
         {"scale": 2, "flow_preset": "slow"},
+        {"scale": 2, "trust_noise_profile": "quadratic"},
+        {"scale": 2, "trust_noise_profile": (2.0,)},
+        {"scale": 2, "trust_noise_profile": (-1.0, 2.0)},
+        {"scale": 2, "trust_noise_profile": (2.0, 9.0)},
+        {"scale": 2, "trust_noise_profile": (float("nan"), 2.0)},
+        {"scale": 2, "trust_noise_profile": None},
     ],
 )
 def test_bad_parameters_rejected(kwargs):

@@ -1,12 +1,81 @@
-"""The robust noise estimate (upsr.method.noise)."""
+"""The robust noise estimates (upsr.method.noise)."""
 
 import numpy as np
 import pytest
 
-from upsr.method.noise import estimate_noise_mm
+from upsr.errors import InputError
+from upsr.method.noise import (
+    PROFILE_MIN_POWER,
+    choose_estimator,
+    estimate_noise_mm,
+    noise_at_depth,
+    noise_profile,
+    noise_shape,
+)
+from upsr.research.synth.degradation import kinect
 
 
 def test_noise_estimate():
     rng = np.random.default_rng(3)
     z = 2000 + rng.normal(0, 10, (200, 200)).astype(np.float32)
     assert estimate_noise_mm(z) == pytest.approx(10, rel=0.1)
+
+
+def test_noise_estimate_from_every_kth_row_is_a_sample_of_the_same_estimate():
+    rng = np.random.default_rng(4)
+    z = (2000 + rng.normal(0, 10, (400, 300))).astype(np.float32)
+    full = estimate_noise_mm(z, 2)
+    assert estimate_noise_mm(z, 2, row_step=1) == full
+    assert estimate_noise_mm(z, 2, row_step=4) == pytest.approx(full, rel=0.05)
+    assert estimate_noise_mm(z, 2, row_step=4) != full  # (it did use fewer rows)
+    with pytest.raises(InputError):
+        estimate_noise_mm(z, 2, row_step=0)
+
+
+def _two_planes(sigma_at, near=1500.0, far=3000.0, t=3, shape=(60, 80), seed=0):
+    """A slanted near plane on the left, a far wall on the right, noise std sigma_at(z)."""
+    rng = np.random.default_rng(seed)
+    _ys, xs = np.mgrid[0 : shape[0], 0 : shape[1]].astype(np.float64)
+    z = np.where(xs < shape[1] // 2, near + 4.0 * xs, far)
+    return (z + rng.normal(0.0, 1.0, (t, *shape)) * sigma_at(z)).astype(np.float32)
+
+
+def test_the_profile_finds_noise_that_grows_as_the_square_of_depth():
+    frames = _two_planes(lambda z: 3.0 * (z / 1000.0) ** 2)
+    sigma_1m, power = noise_profile(frames, 100.0)
+    assert power == pytest.approx(2.0, abs=0.2)
+    assert sigma_1m == pytest.approx(3.0, rel=0.2)
+    z = np.array([0.0, 1000.0, 2000.0])
+    np.testing.assert_allclose(
+        noise_at_depth(z, sigma_1m, power), [0, sigma_1m, sigma_1m * 2**power], rtol=1e-6
+    )
+
+
+def test_noise_that_does_not_depend_on_depth_has_power_zero_and_its_level():
+    sigma_1m, power = noise_profile(_two_planes(lambda z: 10.0 + 0 * z), 100.0)
+    assert power == 0.0
+    assert sigma_1m == pytest.approx(10.0, rel=0.1)  # (the slanted plane's slope cancels)
+
+
+def test_a_narrow_depth_span_or_no_depth_fits_no_power():
+    frames = _two_planes(lambda z: 3.0 * (z / 1000.0) ** 2, near=2800.0, far=3000.0)
+    assert noise_profile(frames, 100.0)[1] == 0.0
+    assert noise_profile(np.zeros((2, 10, 10), np.float32), 100.0) == (0.0, 0.0)
+    with pytest.raises(InputError):
+        noise_profile(np.zeros(5, np.float32), 100.0)
+
+
+def test_the_kinect_model_has_a_profile_and_its_quantisation_is_counted_in_it():
+    clean = np.where(np.arange(96)[None, :] < 48, 1800.0, 3000.0) * np.ones((3, 72, 1))
+    frames = kinect(clean, np.random.default_rng(2), image_focal_px=580.0)
+    sigma_1m, power = noise_profile(frames, 100.0)
+    assert power > 1.0 > PROFILE_MIN_POWER
+    # at 3 m: axial noise 14.0 mm and a disparity step of 25.9 mm (uniform: 7.5 mm)
+    assert float(noise_at_depth(3000.0, sigma_1m, power)) == pytest.approx(15.9, rel=0.2)
+
+
+def test_the_noise_shape_keeps_the_tails_of_strong_laplacian_noise():
+    rng = np.random.default_rng(7)
+    frames = (2000.0 + rng.laplace(0, 50 / np.sqrt(2), (9, 60, 80))).astype(np.float32)
+    kurtosis, std = noise_shape(frames, 141.0)  # the edge threshold at 50 mm of noise
+    assert choose_estimator(kurtosis) == "median" and std == pytest.approx(50.0, rel=0.05)

@@ -8,10 +8,9 @@ import upsr
 from upsr.errors import InputError
 from upsr.method.config import UPSRConfig
 from upsr.method.fusion import register_and_fuse
+from upsr.method.noise import choose_estimator, noise_shape
 from upsr.method.trust import (
-    choose_estimator,
     fill_holes,
-    noise_shape,
     radial_offsets,
     reference_anchor,
 )
@@ -122,6 +121,38 @@ def test_anchor_follows_its_surface_and_tolerance_its_relief():
     assert anchor[1, 1] == 0.0 and tol[1, 1] == 0.0
 
 
+def test_with_a_noise_profile_the_tolerance_follows_the_depth_of_the_anchor():
+    z = np.full((6, 12), 1000.0, np.float32)
+    z[:, 6:] = 3000.0
+    profile = (2.0, 2.0)  # σ(z) = 2 mm · (z / 1 m)²
+    _, tol = reference_anchor(z, 50.0, 3.0, 100.0, noise_profile=profile)
+    assert tol[2, 2] == pytest.approx(3.0 * 2.0)
+    assert tol[2, 9] == pytest.approx(3.0 * 2.0 * 9.0)
+    # a power of 0 is one σ: the video's
+    _, flat = reference_anchor(z, 50.0, 3.0, 100.0, noise_profile=(2.0, 0.0))
+    assert flat[2, 2] == flat[2, 9] == pytest.approx(150.0)
+
+
+def test_with_a_noise_profile_a_small_offset_of_a_near_surface_is_significant():
+    """A near surface (1 m, σ 2 mm) moved 6 mm toward the camera while the far wall (3 m,
+    σ 18 mm) sets the video's one σ: with one σ the offset is not significant there (4 standard
+    errors of the median of 25 differences of σ = 18 mm: 25 mm), with the profile it is."""
+    rng = np.random.default_rng(6)
+    ref = np.full((20, 40), 1000.0, np.float32)
+    ref[:, 20:] = 3000.0
+    sigma = np.where(ref < 2000.0, 2.0, 18.0)
+    frames = (ref + rng.normal(0.0, 1.0, (3, 20, 40)) * sigma).astype(np.float32)
+    frames[0, :, :20] -= 6.0
+    maps = np.zeros((3, 20, 40, 2), np.float32)
+    kw = dict(sigma_mm=18.0, edge_mm=150.0)
+    near = (slice(2, -2), slice(2, 18))
+    assert not radial_offsets(frames, maps, 1, 1, **kw)[0][near].any()
+    got = radial_offsets(frames, maps, 1, 1, noise_profile=(2.0, 2.0), **kw)
+    assert np.median(got[0][near]) == pytest.approx(-6.0, abs=1.5)
+    assert not got[1].any()  # the reference
+    assert not got[2][near].any()  # noise alone is not an offset, with the profile either
+
+
 def _approach_video(t=12, h=16, w=20, speed=25.0, noise=3.0, seed=3):
     """A camera moving ``speed`` mm/frame toward a slanted wall (no lateral motion)."""
     rng = np.random.default_rng(seed)
@@ -213,13 +244,6 @@ def test_the_anchor_ignores_a_lone_outlier_and_keeps_a_thin_line():
     line[:, 4] = 1500.0  # a thin part one pixel wide
     anchor, _ = reference_anchor(line, 10.0, 3.0, 100.0)
     np.testing.assert_array_equal(anchor[:, 4], 1500.0)
-
-
-def test_the_noise_shape_keeps_the_tails_of_strong_laplacian_noise():
-    rng = np.random.default_rng(7)
-    frames = (2000.0 + rng.laplace(0, 50 / np.sqrt(2), (9, 60, 80))).astype(np.float32)
-    kurtosis, std = noise_shape(frames, 141.0)  # the edge threshold at 50 mm of noise
-    assert choose_estimator(kurtosis) == "median" and std == pytest.approx(50.0, rel=0.05)
 
 
 def _kinect(z, rng, f=580.0, b=75.0, sigma_px=0.07):

@@ -148,8 +148,7 @@ def test_streaming_bad_input():
 
 def test_chunk_with_the_videos_statistics_equals_the_whole_run():
     from upsr.method.motion import depth_range
-    from upsr.method.noise import estimate_noise_mm
-    from upsr.method.trust import choose_estimator, noise_shape
+    from upsr.method.noise import choose_estimator, estimate_noise_mm, noise_shape
     from upsr.method.windowed import window_start
 
     scene = dynamic_scene(n_frames=14, lowres_shape=(16, 20), scale=2, noise_sigma_mm=20, seed=4)
@@ -272,7 +271,7 @@ def test_an_error_while_finishing_a_window_reaches_the_caller(monkeypatch):
     scene = dynamic_scene(n_frames=8, lowres_shape=(12, 16), scale=2, noise_sigma_mm=10, seed=8)
     calls = []
 
-    def broken(fused, cfg):
+    def broken(fused, cfg, **_):
         calls.append(1)
         if len(calls) == 2:
             raise RuntimeError("deblurring failed")
@@ -284,7 +283,7 @@ def test_an_error_while_finishing_a_window_reaches_the_caller(monkeypatch):
         for frame in scene.lowres:
             engine.push(frame)
     engine.reset()
-    monkeypatch.setattr(pipeline, "finish_fused", lambda fused, cfg: fused)
+    monkeypatch.setattr(pipeline, "finish_fused", lambda fused, cfg, **_: fused)
     assert len(list(engine.process(scene.lowres))) == 8
 
 
@@ -319,3 +318,31 @@ def test_sample_chains_kept_across_windows_equal_the_traced_ones(monkeypatch):
             t - s, [fwd.get(k) for k in idx], [bwd.get(k) for k in idx], (12, 16), 2
         )
         np.testing.assert_array_equal(positions, expected)
+
+
+def test_the_trust_profile_is_estimated_once_per_video_given_or_switched_off():
+    from upsr.method.config import UPSRConfig
+    from upsr.method.frontend import MotionFrontEnd
+    from upsr.method.windowed import fix_video_statistics, pinned_config, trust_profile
+    from upsr.research.synth.degradation import kinect
+
+    clean = np.where(np.arange(96)[None, :] < 48, 1800.0, 3000.0) * np.ones((5, 72, 1))
+    frames = kinect(clean, np.random.default_rng(2), image_focal_px=580.0)
+    cfg = UPSRConfig(scale=2, n_frames=5)
+    stats = fix_video_statistics(MotionFrontEnd(cfg, 96), frames, cfg)
+    sigma_1m, power = stats.trust_noise_profile
+    assert power > 1.0 and sigma_1m > 0
+    pinned = pinned_config(frames, cfg)
+    assert pinned.trust_noise_profile == (sigma_1m, power)
+    assert trust_profile(frames, pinned, 100.0) == (sigma_1m, power)  # a chunk: the same
+    for off in (
+        dict(trust_noise_profile="constant"),
+        dict(trust_noise_mm=10.0),  # a given noise is the noise
+        dict(noise_mm=10.0),
+        dict(trust_noise_profile=(2.0, 0.0)),
+    ):
+        assert trust_profile(frames, UPSRConfig(scale=2, **off), 100.0) is None
+    # time-of-flight or Laplacian noise: one σ per video
+    flat = (clean + np.random.default_rng(3).laplace(0, 7, clean.shape)).astype(np.float32)
+    assert fix_video_statistics(MotionFrontEnd(cfg, 96), flat, cfg).trust_noise_profile is None
+    assert pinned_config(flat, cfg).trust_noise_profile == "constant"

@@ -109,19 +109,28 @@ def test_btv_subgradient_matches_kernel(radius, edge_mm):
     np.testing.assert_allclose(ref, btv_subgradient(x, guide, **kw), atol=1e-4, rtol=0)
 
 
-@pytest.mark.parametrize("smooth", [None, 30.0])
-def test_deblur_matches_kernel(smooth):
+@pytest.mark.parametrize(
+    ("smooth", "profile"), [(None, None), (30.0, None), (None, (2.0, 2.0)), (30.0, (2.0, 1.5))]
+)
+def test_deblur_matches_kernel(smooth, profile):
     rng = np.random.default_rng(3)
     z = np.full((24, 28), 1000.0, np.float32)
     z[:, 14:] = 1600.0
     z += rng.normal(0.0, 4.0, z.shape).astype(np.float32)
     z[rng.random(z.shape) < 0.1] = 0.0
     cfg = DeblurConfig(iterations=10, smooth_sigma_mm=smooth)
-    expected = deblur(z, cfg)
-    actual = deblur_numpy(z, cfg)
+    expected = deblur(z, cfg, noise_profile=profile)
+    actual = deblur_numpy(z, cfg, noise_profile=profile)
     assert actual.dtype == np.float32
     np.testing.assert_array_equal(actual == 0, z == 0)
-    np.testing.assert_allclose(actual, expected, atol=0.05, rtol=0)
+    # the same up to sign ties (a difference of exactly 0 in float32 rounding, which the
+    # compiled kernel's fused multiply-adds round otherwise): a few pixels, within a step
+    err = np.abs(actual - expected)
+    assert np.mean(err > 0.05) < 0.03 and err.max() < 1.0
+    if profile is None:
+        np.testing.assert_allclose(actual, expected, atol=0.05, rtol=0)
+    else:  # the profile's steps are not the plain steps
+        assert np.abs(actual - deblur(z, cfg)).max() > 0.5
 
 
 @pytest.mark.parametrize("lag", [1, 2, 4])

@@ -45,6 +45,9 @@ MAX_ITERATIONS = 1000
 MAX_TOLERANCE = 1e6
 #: Speckles (px): the largest output frame (MAX_SCALE² · the largest input frame).
 MAX_SPECKLE_PX = MAX_SCALE * MAX_SCALE * (1 << 28)
+#: Power of a noise profile σ₁·(z / 1 m)^p (disparity-based cameras: about 2).
+MAX_NOISE_POWER = 4.0
+_PROFILE_NAMES = ("auto", "constant")
 
 BlurModel = Literal["none", "box", "gaussian"]
 FlowBackendName = Literal["dis", "farneback"]
@@ -231,6 +234,13 @@ class UPSRConfig:
         first window (which sees the quantisation steps of structured-light depth). Give it
         (with ``noise_mm``, ``depth_range_mm`` and ``fusion_estimator``) to process a chunk
         exactly as the whole video.
+    trust_noise_profile : "auto", "constant" or (float, float)
+        How σ of the trust tolerance depends on depth. ``"auto"``: estimated once per video
+        from its first frames (:func:`upsr.method.noise.noise_profile`): where the noise grows
+        with depth (structured light, stereo: about as z²) the tolerance of each pixel follows
+        σ(z) = σ₁·(z / 1 m)^p at its anchor, else (ToF, p ≈ 0) one σ for the video; one σ too
+        where ``noise_mm`` or ``trust_noise_mm`` is given. ``"constant"``: one σ.
+        ``(σ₁, p)``: this profile (mm at 1 m, power ≥ 0; p = 0: one σ).
     min_trusted : int or None
         With fewer trusted samples than this the output is the anchor (the reference denoised
         on its surface): the window length becomes per pixel. ``None``:
@@ -263,7 +273,7 @@ class UPSRConfig:
         Estimate of the fused samples of a surface: the median (eq. 28, ML under Laplacian
         noise), the mean (ML under Gaussian noise; falls between quantisation steps), or
         ``"auto"``: chosen once per video from the excess kurtosis of the temporal differences
-        of its static pixels (> 0.75: median; :func:`upsr.method.trust.noise_shape`).
+        of its static pixels (> 0.75: median; :func:`upsr.method.noise.noise_shape`).
     follow_slopes : bool
         After the deblurring, set the linear trend of each output block that lies on one
         surface to that surface's slope, measured on the reference's anchor between the block
@@ -304,6 +314,7 @@ class UPSRConfig:
     edge_weight_floor: float = 0.25
     trust_k: float | None = 3.0
     trust_noise_mm: float | None = None
+    trust_noise_profile: tuple[float, float] | str = "auto"
     min_trusted: int | None = None
     remove_mixed: bool | str = "auto"
     radial_compensation: bool = True
@@ -367,6 +378,17 @@ class UPSRConfig:
         )
         _number("trust_k", self.trust_k, 0, MAX_TOLERANCE, lo_open=True, none=True)
         _number("trust_noise_mm", self.trust_noise_mm, 0, MAX_DEPTH_PARAM_MM, none=True)
+        if not (_is_str(self.trust_noise_profile) and self.trust_noise_profile in _PROFILE_NAMES):
+            message = (
+                "trust_noise_profile must be 'auto', 'constant' or (sigma_1m_mm, power), not "
+                f"{_show(self.trust_noise_profile)}"
+            )
+            try:
+                sigma_1m, power = self.trust_noise_profile  # type: ignore[misc]
+            except (TypeError, ValueError):
+                raise InputError(message) from None
+            _number("trust_noise_profile sigma_1m_mm", sigma_1m, 0, MAX_DEPTH_PARAM_MM)
+            _number("trust_noise_profile power", power, 0, MAX_NOISE_POWER)
         _number("min_trusted", self.min_trusted, 1, MAX_N_FRAMES, integer=True, none=True)
         _number("radial_radius_px", self.radial_radius_px, 1, MAX_BTV_RADIUS_PX, integer=True)
         _check(

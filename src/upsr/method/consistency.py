@@ -75,12 +75,13 @@ def maps_at_centres(maps: npt.ArrayLike, lowres_shape: tuple[int, int]) -> np.nd
     -------
     ndarray float64 (N, h, w, 2)
     """
-    m = np.asarray(maps, np.float64)
+    m = np.asarray(maps)
     h, w = lowres_shape
     gh, gw = m.shape[1:3]
     yg = np.clip(((np.arange(h) + 0.5) * (gh / h)).astype(np.int64), 0, gh - 1)
     xg = np.clip(((np.arange(w) + 0.5) * (gw / w)).astype(np.int64), 0, gw - 1)
-    return m[:, yg][:, :, xg]
+    # (the nodes first, then float64: the whole map is never converted)
+    return np.take(np.take(m, yg, axis=1), xg, axis=2).astype(np.float64)
 
 
 def registered_samples(lowres: npt.ArrayLike, maps: npt.ArrayLike, scale: int) -> np.ndarray:

@@ -25,7 +25,7 @@ import numpy as np
 import numpy.typing as npt
 
 from upsr.method.config import DeblurConfig
-from upsr.method.noise import estimate_noise_mm
+from upsr.method.noise import estimate_noise_mm, noise_at_depth
 from upsr.method.smoothing import smooth_surfaces
 
 __all__ = [
@@ -97,12 +97,13 @@ def _btv_gradient_kernel(xp, masks, weights, dls, dms, pad, out):  # pragma: no 
 
 @nb.njit(cache=True, nogil=True, parallel=True, fastmath=True)
 def _descent_step(
-    xp, z, spans, masks, weights, dls, dms, pos, pad, step, n_chunks, out
+    xp, z, spans, masks, weights, dls, dms, pos, pad, step, scales, n_chunks, out
 ):  # pragma: no cover - numba
     """One normalised subgradient step of eq. 30 with B = I, fused in one pass:
     out = x − step·(sign(x − z) + λ·∂Γ_BTV/∂x) on the pixels valid in z (0 elsewhere, as
     ``out`` already holds outside the span [spans[i, 0], spans[i, 1]) of valid pixels of each
-    row); ``xp`` and ``out`` are padded by ``pad``; the weights include λ.
+    row); ``xp`` and ``out`` are padded by ``pad``; the weights include λ; ``scales`` (h, w):
+    the step of each pixel relative to ``step`` (a 0×0 array: 1 everywhere).
 
     Each pair of pixels is visited once: the term T_b(p) = w_b·sign(x_p − x_{p+s_b}) of a
     shift s_b in ``pos`` (the half of the shifts that point down or right) enters the
@@ -158,11 +159,34 @@ def _descent_step(
                     acc[j] += cur[j] - prev[j]
             orow = out[i + pad, pad + j0 : pad + j1]
             zr = z[i, j0:j1]
-            for j in range(n):
-                zv = zr[j]
-                d = xr[j] - zv
-                sgn = np.float32(d > 0) - np.float32(d < 0)
-                orow[j] = (xr[j] - step * (sgn + acc[j])) if zv > 0 else np.float32(0.0)
+            if scales.shape[0] == 0:
+                for j in range(n):
+                    zv = zr[j]
+                    d = xr[j] - zv
+                    sgn = np.float32(d > 0) - np.float32(d < 0)
+                    orow[j] = (xr[j] - step * (sgn + acc[j])) if zv > 0 else np.float32(0.0)
+            else:
+                sr = scales[i, j0:j1]
+                for j in range(n):
+                    zv = zr[j]
+                    d = xr[j] - zv
+                    sgn = np.float32(d > 0) - np.float32(d < 0)
+                    sj = step * sr[j]
+                    orow[j] = (xr[j] - sj * (sgn + acc[j])) if zv > 0 else np.float32(0.0)
+
+
+def _step_scales(
+    z: np.ndarray, mask: np.ndarray, noise_profile: tuple[float, float] | None
+) -> np.ndarray:
+    """σ(z)/median σ(z) over the valid pixels of a noise profile with p > 0, float32 (H, W);
+    else a (0, 0) array (one step)."""
+    if noise_profile is None or not noise_profile[1] > 0:
+        return np.zeros((0, 0), np.float32)
+    sigma = noise_at_depth(z, *noise_profile)
+    typical = float(np.median(sigma[mask]))
+    if not typical > 0:
+        return np.zeros((0, 0), np.float32)
+    return (sigma / np.float32(typical)).astype(np.float32)
 
 
 def _padded(x: np.ndarray, pad: int) -> np.ndarray:
@@ -308,7 +332,14 @@ def deblur_energy(x: npt.ArrayLike, z: npt.ArrayLike, cfg: DeblurConfig, scale: 
     )
 
 
-def deblur(z: npt.ArrayLike, cfg: DeblurConfig | None = None, *, scale: int = 1) -> np.ndarray:
+def deblur(
+    z: npt.ArrayLike,
+    cfg: DeblurConfig | None = None,
+    *,
+    scale: int = 1,
+    noise_row_step: int = 1,
+    noise_profile: tuple[float, float] | None = None,
+) -> np.ndarray:
     """Estimate x̂ of eq. 30 from the fused image z by normalised subgradient descent, then
     smooth each surface (``cfg.smooth_sigma_mm``, beyond the paper).
 
@@ -320,6 +351,14 @@ def deblur(z: npt.ArrayLike, cfg: DeblurConfig | None = None, *, scale: int = 1)
         λ, α, P, blur model, step schedule, iterations, edge rule (see :class:`DeblurConfig`).
     scale : int
         SR factor r (size of the ``"box"`` blur model).
+    noise_row_step : int
+        The first step β₀ (without ``cfg.step_mm``) is the noise of z estimated from every
+        ``noise_row_step``-th row (:func:`upsr.method.noise.estimate_noise_mm`).
+    noise_profile : (float, float), optional
+        (σ₁, p) of :func:`upsr.method.noise.noise_profile`: with p > 0 the step of each pixel
+        is β·σ(z)/median σ(z) over the valid pixels (B = I only): the noise that the first
+        step β measures is the image's typical noise, and a near surface of a
+        structured-light camera, less noisy than the far ones, is smoothed less.
 
     Returns
     -------
@@ -331,7 +370,11 @@ def deblur(z: npt.ArrayLike, cfg: DeblurConfig | None = None, *, scale: int = 1)
     if not cfg.enabled or not mask.any():
         return z.copy()
     op = _blur_operator(mask, cfg, scale)
-    beta = cfg.step_mm if cfg.step_mm is not None else max(0.5, estimate_noise_mm(z, scale))
+    beta = (
+        cfg.step_mm
+        if cfg.step_mm is not None
+        else max(0.5, estimate_noise_mm(z, scale, row_step=noise_row_step))
+    )
     s1 = sum(cfg.alpha ** abs(k) for k in range(-cfg.radius_px, cfg.radius_px + 1))
     norm = 1.0 + cfg.lam * 2.0 * (s1 * s1 - 1.0)
     edge = _edge(cfg.edge_mm)
@@ -345,9 +388,12 @@ def deblur(z: npt.ArrayLike, cfg: DeblurConfig | None = None, *, scale: int = 1)
         spans = _valid_spans(mask)
         n_chunks = min(nb.get_num_threads(), z.shape[0])
         xp, nxt = _padded(z, pad), _padded(np.zeros_like(z), pad)
+        scales = _step_scales(z, mask, noise_profile)
         for _ in range(cfg.iterations):
             step = np.float32(beta / norm)
-            _descent_step(xp, z, spans, masks, weights, dls, dms, pos, pad, step, n_chunks, nxt)
+            _descent_step(
+                xp, z, spans, masks, weights, dls, dms, pos, pad, step, scales, n_chunks, nxt
+            )
             xp, nxt = nxt, xp
             beta *= cfg.step_decay
         x = xp[pad : pad + z.shape[0], pad : pad + z.shape[1]].copy()

@@ -21,10 +21,24 @@ from upsr.method.trust import fill_holes, reference_anchor, surface_support
 __all__ = ["finish_frame", "finish_fused"]
 
 
-def finish_fused(fused_mm: np.ndarray, cfg: UPSRConfig) -> np.ndarray:
-    """UP-SR's steps after the fusion of a window: the deblurring (eq. 29–30, ``cfg.deblur``),
-    then the removal of isolated outliers (:func:`upsr.method.outliers.remove_speckles`)."""
-    out = deblur(fused_mm, cfg.deblur, scale=cfg.scale)
+def finish_fused(
+    fused_mm: np.ndarray,
+    cfg: UPSRConfig,
+    *,
+    noise_row_step: int = 1,
+    noise_profile: tuple[float, float] | None = None,
+) -> np.ndarray:
+    """UP-SR's steps after the fusion of a window: the deblurring (eq. 29–30, ``cfg.deblur``;
+    its first step from the noise of every ``noise_row_step``-th row, each pixel's step
+    following the ``noise_profile`` where it grows with depth), then the removal of isolated
+    outliers (:func:`upsr.method.outliers.remove_speckles`)."""
+    out = deblur(
+        fused_mm,
+        cfg.deblur,
+        scale=cfg.scale,
+        noise_row_step=noise_row_step,
+        noise_profile=noise_profile,
+    )
     return remove_speckles(out, cfg.speckle_size_px, cfg.edge_mm)
 
 

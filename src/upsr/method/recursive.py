@@ -74,6 +74,7 @@ import numba as nb
 import numpy as np
 import numpy.typing as npt
 
+from upsr._numba import SAFE_FASTMATH
 from upsr.errors import InputError
 from upsr.method.config import UPSRConfig
 from upsr.method.finishing import finish_frame, finish_fused
@@ -85,16 +86,16 @@ from upsr.method.mixed import (
     split_mixed_pixels,
 )
 from upsr.method.motion import FlowBackend, make_flow_backend
-from upsr.method.registration import _bilinear
+from upsr.method.noise import choose_estimator, noise_shape
+from upsr.method.registration import interpolation_tables
 from upsr.method.trust import (
     _offset_kernel,
-    choose_estimator,
-    noise_shape,
+    _sigma_and_power,
     reference_anchor,
     significance,
 )
 from upsr.method.validation import as_depth_frame, as_depth_video
-from upsr.method.windowed import STAGES
+from upsr.method.windowed import STAGES, trust_profile
 
 __all__ = [
     "RADIAL_RADIUS_FACTOR",
@@ -109,27 +110,45 @@ RADIAL_RADIUS_FACTOR = 1
 #: Std of (sample − state) in units of σ in the radial significance test (the state of ≈ N
 #: samples is far less noisy than a frame): √((1 + 1/N)/2) of the two-sample test ≈ 0.75.
 STATE_NOISE_FACTOR = 0.75
+#: The deblurring's first step comes from the noise of about this many output pixels (every
+#: k-th row of a larger output: the estimate is made anew for every frame).
+NOISE_SAMPLE_PX = 65536
 
 
 # ---------------------------------------------------------------------------------------------
 # compiled kernels
 # ---------------------------------------------------------------------------------------------
-@nb.njit(cache=True, nogil=True, inline="always")
-def _lookup(flow, ratio, inv, y, x):  # pragma: no cover - numba
-    """Position q (high-res px of the previous grid) that output pixel (y, x) comes from."""
-    u = (x + 0.5) * inv - 0.5
-    v = (y + 0.5) * inv - 0.5
-    return x + _bilinear(flow, u, v, 0) * ratio, y + _bilinear(flow, u, v, 1) * ratio
+@nb.njit(cache=True, nogil=True, parallel=True, fastmath=SAFE_FASTMATH, error_model="numpy")
+def _positions_kernel(flow, ratio, cols, fx, rows, fy, qx, qy):  # pragma: no cover - numba
+    """(qx, qy)[y, x]: the position (high-res px of the previous grid) that output pixel
+    (y, x) comes from: (x, y) + ratio · the flow read bilinearly at the pixel's centre on the
+    flow grid (the tables of :func:`upsr.method.registration.interpolation_tables`)."""
+    hh, ww = qx.shape
+    for y in nb.prange(hh):
+        r0 = rows[y, 0]
+        r1 = rows[y, 1]
+        wy = fy[y]
+        for x in range(ww):
+            c0 = cols[x, 0]
+            c1 = cols[x, 1]
+            wx = fx[x]
+            for c in range(2):
+                top = flow[r0, c0, c] + (flow[r0, c1, c] - flow[r0, c0, c]) * wx
+                bot = flow[r1, c0, c] + (flow[r1, c1, c] - flow[r1, c0, c]) * wx
+                v = top + (bot - top) * wy
+                if c == 0:
+                    qx[y, x] = x + v * ratio
+                else:
+                    qy[y, x] = y + v * ratio
 
 
-@nb.njit(cache=True, nogil=True, parallel=True)
-def _registered_state_kernel(depth, flow, ratio, scale, out):  # pragma: no cover - numba
+@nb.njit(cache=True, nogil=True, parallel=True, fastmath=SAFE_FASTMATH, error_model="numpy")
+def _registered_state_kernel(depth, qx, qy, scale, out):  # pragma: no cover - numba
     """out[i, j]: the state at low-res pixel (i, j)'s centre, moved by the flow: the mean of
     the (nearest) state at the 1 (odd r) or 2×2 (even r) output pixels around the centre, 0
     where one of them has no state or they lie on different surfaces."""
     h, w = out.shape
     hh, ww = depth.shape
-    inv = 1.0 / ratio
     c = scale // 2
     lo = c - 1 if scale % 2 == 0 else c
     for i in nb.prange(h):
@@ -140,9 +159,8 @@ def _registered_state_kernel(depth, flow, ratio, scale, out):  # pragma: no cove
             m = 0
             for y in range(i * scale + lo, i * scale + c + 1):
                 for x in range(j * scale + lo, j * scale + c + 1):
-                    qx, qy = _lookup(flow, ratio, inv, y, x)
-                    xi = math.floor(qx + 0.5)
-                    yi = math.floor(qy + 0.5)
+                    xi = math.floor(qx[y, x] + 0.5)
+                    yi = math.floor(qy[y, x] + 0.5)
                     v = 0.0
                     if 0 <= xi < ww and 0 <= yi < hh:
                         v = depth[yi, xi]
@@ -155,7 +173,7 @@ def _registered_state_kernel(depth, flow, ratio, scale, out):  # pragma: no cove
             out[i, j] = total / m if m == n_px and vmax - vmin < 100.0 else 0.0
 
 
-@nb.njit(cache=True, nogil=True, inline="always")
+@nb.njit(cache=True, nogil=True, inline="always", fastmath=SAFE_FASTMATH, error_model="numpy")
 def _step(d, m, n, use_mean, sigma):  # pragma: no cover - numba
     e = m - d
     if use_mean:
@@ -164,7 +182,7 @@ def _step(d, m, n, use_mean, sigma):  # pragma: no cover - numba
     return d + min(abs(e), a) * (1.0 if e > 0 else -1.0)
 
 
-@nb.njit(cache=True, nogil=True, inline="always")
+@nb.njit(cache=True, nogil=True, inline="always", fastmath=SAFE_FASTMATH, error_model="numpy")
 def _same_surface(depth, count, qx, qy, x0, y0, c0, thr):  # pragma: no cover - numba
     """The state at q, bilinear among the (at most 4) state pixels around q that lie within
     ``thr`` of ``c0`` (never across a depth edge): (depth, count)."""
@@ -187,28 +205,27 @@ def _same_surface(depth, count, qx, qy, x0, y0, c0, thr):  # pragma: no cover - 
     return sd / sw, sn / sw
 
 
-@nb.njit(cache=True, nogil=True, inline="always")
-def _centre_agrees(depth, flow, ratio, inv, i, j, scale, off, a, tl):  # pragma: no cover - numba
+@nb.njit(cache=True, nogil=True, inline="always", fastmath=SAFE_FASTMATH, error_model="numpy")
+def _centre_agrees(depth, qx, qy, i, j, scale, off, a, tl):  # pragma: no cover - numba
     """Whether the state looked up at the centre pixel of low-res block (i, j) lies within
     ``tl`` of ``a`` (the block's surface is where the state has it: its edge is known)."""
     hh, ww = depth.shape
     yc = i * scale + scale // 2
     xc = j * scale + scale // 2
-    qx, qy = _lookup(flow, ratio, inv, yc, xc)
-    xn = math.floor(qx + 0.5)
-    yn = math.floor(qy + 0.5)
+    xn = math.floor(qx[yc, xc] + 0.5)
+    yn = math.floor(qy[yc, xc] + 0.5)
     if 0 <= xn < ww and 0 <= yn < hh:
         v = depth[yn, xn]
         return v > 0 and abs(v - off - a) <= tl
     return False
 
 
-@nb.njit(cache=True, nogil=True, parallel=True)
+@nb.njit(cache=True, nogil=True, parallel=True, fastmath=SAFE_FASTMATH, error_model="numpy")
 def _update_kernel(
     depth,
     count,
-    flow,
-    ratio,
+    qxs,
+    qys,
     meas,
     anchor,
     tol,
@@ -223,7 +240,6 @@ def _update_kernel(
 ):  # pragma: no cover - numba
     hh, ww = out_d.shape
     h, w = meas.shape
-    inv = 1.0 / ratio
     half = scale // 2
     odd = scale % 2 == 1
     for y in nb.prange(hh):
@@ -238,7 +254,8 @@ def _update_kernel(
             a = anchor[i, j]
             tl = tol[i, j]
             off = offsets[i, j]
-            qx, qy = _lookup(flow, ratio, inv, y, x)
+            qx = qxs[y, x]
+            qy = qys[y, x]
             xn = math.floor(qx + 0.5)
             yn = math.floor(qy + 0.5)
             x0 = math.floor(qx)
@@ -277,7 +294,7 @@ def _update_kernel(
                     if (
                         c0 == 0.0
                         and nearest > 0
-                        and _centre_agrees(depth, flow, ratio, inv, i, j, scale, off, a, tl)
+                        and _centre_agrees(depth, qxs, qys, i, j, scale, off, a, tl)
                     ):
                         # the other surface of a depth edge inside the block (the state has
                         # the block's surface at its centre: an edge, not a part newly seen)?
@@ -318,6 +335,7 @@ def recursive_update(
     sigma_mm: float = 0.0,
     edge_mm: float = 100.0,
     radial_radius_px: int | None = 2,
+    noise_profile: tuple[float, float] | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """One step of the recursive fusion (see the module): the state (``depth``, ``count``) of
     the previous frame, registered and updated with the current frame's ``measurement``.
@@ -344,6 +362,9 @@ def recursive_update(
         Depth step that separates two surfaces (radial offsets).
     radial_radius_px : int or None
         Half-size of the radial-offset neighbourhood (low-res px); None: no compensation.
+    noise_profile : (float, float), optional
+        (σ₁, p): the radial significance test with σ(z) = σ₁·(z / 1 m)^p (p > 0) for
+        ``sigma_mm`` (:func:`upsr.method.noise.noise_profile`).
 
     Returns
     -------
@@ -354,11 +375,15 @@ def recursive_update(
     fl = np.ascontiguousarray(flow, np.float32)
     meas = np.ascontiguousarray(measurement, np.float32)
     h, w = meas.shape
-    ratio = float(d.shape[1]) / fl.shape[1]
+    (cols, fx), (rows, fy), ratio = interpolation_tables(d.shape, fl.shape[:2])
+    qx = np.empty(d.shape, np.float32)
+    qy = np.empty(d.shape, np.float32)
+    _positions_kernel(fl, ratio, cols, fx, rows, fy, qx, qy)
     offsets = np.zeros((h, w), np.float32)
+    sigma, power = _sigma_and_power(sigma_mm, noise_profile)
     if radial_radius_px and (d > 0).any():
         reg = np.empty((1, h, w), np.float32)
-        _registered_state_kernel(d, fl, ratio, int(scale), reg[0])
+        _registered_state_kernel(d, qx, qy, int(scale), reg[0])
         off = np.empty((1, h, w), np.float32)
         # the state is far less noisy than a frame: the significance test of
         # trust.radial_offsets (made for the difference of two noisy samples) with the std of
@@ -369,7 +394,8 @@ def recursive_update(
             anchor,
             -1,  # (no frame of reg is the reference)
             float(edge_mm),
-            STATE_NOISE_FACTOR * float(sigma_mm),
+            STATE_NOISE_FACTOR * sigma,
+            power,
             significance(fl[None], (h, w)),
             int(radial_radius_px),
             off,
@@ -378,7 +404,7 @@ def recursive_update(
     out_d = np.empty_like(d)
     out_n = np.empty_like(c)
     _update_kernel(
-        d, c, fl, ratio, meas,
+        d, c, qx, qy, meas,
         np.ascontiguousarray(anchor, np.float32), np.ascontiguousarray(tolerance, np.float32),
         offsets, int(scale), float(cap), estimator == "mean", float(sigma_mm), float(edge_mm),
         out_d, out_n,
@@ -442,6 +468,7 @@ class RecursiveUPSR:
         self._depth: np.ndarray | None = None
         self._conf: np.ndarray | None = None
         self._temporal_mm = 0.0
+        self._profile: tuple[float, float] | None = None
         est = cfg.fusion_estimator
         self._estimator = "median" if est == "auto" else est
         self._remove_mixed = cfg.remove_mixed is True
@@ -498,6 +525,7 @@ class RecursiveUPSR:
             # per-video statistics from the first frame (latency 0: nothing later is known)
             self._front.fix_statistics([f])
             self._first = f
+            self._profile = trust_profile(f[None], cfg, self._front.edge_mm)
             if cfg.remove_mixed == "auto":
                 self._remove_mixed = has_mixed_pixels(footprint_share(f, self._front.edge_mm))
         elif f.shape != self._shape:
@@ -524,7 +552,9 @@ class RecursiveUPSR:
             meas = remove_mixed_pixels(f, front.edge_mm) if self._remove_mixed else f
             noise = self._noise()
             k = cfg.trust_k
-            anchor, tol = reference_anchor(meas, noise, k if k is not None else 1.0, front.edge_mm)
+            anchor, tol = reference_anchor(
+                meas, noise, k if k is not None else 1.0, front.edge_mm, noise_profile=self._profile
+            )
             if k is None:
                 tol = np.zeros_like(tol)  # every state sample is trusted
             if flow is None or self._depth is None:
@@ -550,6 +580,7 @@ class RecursiveUPSR:
                 radial_radius_px=(
                     RADIAL_RADIUS_FACTOR * cfg.radial_radius_px if cfg.radial_compensation else None
                 ),
+                noise_profile=self._profile,
             )
         self._depth, self._conf = fused, conf
         self._prev_pre, self._prev_guide = pre, guide
@@ -560,7 +591,12 @@ class RecursiveUPSR:
                 # (in the output only, the state holds measurements)
                 fused = split_mixed_pixels(fused, f, meas, anchor)
             return finish_frame(
-                finish_fused(fused, cfg),
+                finish_fused(
+                    fused,
+                    cfg,
+                    noise_row_step=max(1, fused.size // NOISE_SAMPLE_PX),
+                    noise_profile=self._profile,
+                ),
                 fused,
                 meas,
                 anchor,

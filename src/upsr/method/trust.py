@@ -12,9 +12,6 @@ along the viewing ray, and the mixed ("flying") pixels of ToF sensors
 * :func:`radial_offsets`: per frame of the window, the depth offset of the frame registered to
   the reference (motion along the viewing ray), a masked median over a neighbourhood of one
   surface, subtracted from that frame's samples before trust and fusion;
-* :func:`noise_shape`: the excess kurtosis and the std of the temporal differences of static
-  pixels, which choose the estimator (median for heavy tails, mean of the trusted samples for
-  Gaussian or quantised noise);
 * :func:`fill_holes`: optional filling of pixels without depth from the background side.
 """
 
@@ -35,10 +32,8 @@ __all__ = [
     "TOLERANCE_FLOOR_MM",
     "abstain_lone_outliers",
     "alternatives_on_grid",
-    "choose_estimator",
     "far_offsets",
     "fill_holes",
-    "noise_shape",
     "radial_offsets",
     "reference_anchor",
     "side_of_centre",
@@ -59,11 +54,6 @@ OFFSET_SIGNIFICANCE = 4.0
 #: and offsets below 4 standard errors, left unmeasured, biased the fused frames of a camera
 #: moving along slanted walls (see :func:`radial_offsets`).
 OFFSET_SIGNIFICANCE_MOVED = 2.0
-
-#: Excess kurtosis of the temporal differences above which the noise is heavy-tailed and the
-#: median is kept (difference of two Laplace samples: 1.5; of two Gaussian ones: 0; of two
-#: quantisation errors: −0.6).
-KURTOSIS_MEDIAN = 0.75
 
 
 @nb.njit(cache=True, nogil=True, inline="always")
@@ -115,7 +105,7 @@ def _interior_median(z, i, j, edge, buf, net):  # pragma: no cover - numba
 
 
 @nb.njit(cache=True, nogil=True, parallel=True)
-def _anchor_kernel(z, edge, sigma, k, floor, anchor, tol):  # pragma: no cover - numba
+def _anchor_kernel(z, edge, sigma, power, k, floor, anchor, tol):  # pragma: no cover - numba
     h, w = z.shape
     net = _MEDIAN9
     for i in nb.prange(h):
@@ -160,7 +150,8 @@ def _anchor_kernel(z, edge, sigma, k, floor, anchor, tol):  # pragma: no cover -
                     u = anchor[a, b]
                     if u > 0 and abs(u - a0) <= edge:
                         relief = max(relief, abs(u - a0))
-            tol[i, j] = max(k * sigma + relief, floor)
+            sig = sigma if power == 0.0 else sigma * (a0 / 1000.0) ** power
+            tol[i, j] = max(k * sig + relief, floor)
 
 
 def abstain_lone_outliers(lowres: np.ndarray, ref: int, anchor: npt.ArrayLike) -> np.ndarray:
@@ -194,8 +185,23 @@ def abstain_lone_outliers(lowres: np.ndarray, ref: int, anchor: npt.ArrayLike) -
     return out
 
 
+def _sigma_and_power(
+    sigma_mm: float, noise_profile: tuple[float, float] | None
+) -> tuple[float, float]:
+    """(σ, 0) of one noise std, or (σ₁, p) of a profile whose power is not 0 (kernels'
+    arguments: σ(z) = σ₁·(z / 1 m)^p)."""
+    if noise_profile is not None and noise_profile[1] > 0:
+        return float(noise_profile[0]), float(noise_profile[1])
+    return float(sigma_mm), 0.0
+
+
 def reference_anchor(
-    reference: npt.ArrayLike, sigma_mm: float, k: float, edge_mm: float
+    reference: npt.ArrayLike,
+    sigma_mm: float,
+    k: float,
+    edge_mm: float,
+    *,
+    noise_profile: tuple[float, float] | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """The reference's own depth, robustly, and how far a trusted sample may lie from it.
 
@@ -205,6 +211,9 @@ def reference_anchor(
         The reference low-res frame (mm, 0 = no measurement).
     sigma_mm : float
         Noise std of the video (mm).
+    noise_profile : (float, float), optional
+        (σ₁, p) of :func:`upsr.method.noise.noise_profile`: with p > 0 the σ of the tolerance
+        is σ₁·(a / 1 m)^p at each pixel's anchor a instead of ``sigma_mm``.
     k : float
         Tolerance in units of the noise std.
     edge_mm : float
@@ -220,7 +229,8 @@ def reference_anchor(
         lies on its surface (a lone outlier, which the other frames then outvote; a thin
         part one pixel wide still has neighbours along it).
     tolerance : ndarray float32 (h, w)
-        τ = k·σ + the largest difference to the anchor of a 4-neighbour on the same surface
+        τ = k·σ (or k·σ(anchor)) + the largest difference to the anchor of a 4-neighbour on
+        the same surface
         (the relief of a slanted surface over one low-res pixel), at least
         :data:`TOLERANCE_FLOOR_MM`; 0 where the reference has no depth.
     """
@@ -228,7 +238,8 @@ def reference_anchor(
     z = np.where(np.isnan(z), np.float32(0.0), z)
     anchor = np.empty(z.shape, np.float32)
     tol = np.empty(z.shape, np.float32)
-    _anchor_kernel(z, float(edge_mm), float(sigma_mm), float(k), TOLERANCE_FLOOR_MM, anchor, tol)
+    sigma, power = _sigma_and_power(sigma_mm, noise_profile)
+    _anchor_kernel(z, float(edge_mm), sigma, power, float(k), TOLERANCE_FLOOR_MM, anchor, tol)
     return anchor, tol
 
 
@@ -385,14 +396,16 @@ def _select_median(buf, m):  # pragma: no cover - numba
 
 
 @nb.njit(cache=True, nogil=True, inline="always")
-def _offset_at(reg, ref, anc, k, i, j, edge, sigma, radius, stride, buf, signif):
+def _offset_at(reg, ref, anc, k, i, j, edge, sigma, power, radius, stride, buf, signif):
     # pragma: no cover - numba
     """The significant median of frame k's registered differences around (i, j) (every
     ``stride``-th pixel of the window), or 0 (the pixel's surface: the reference's within
-    ``edge`` of its anchor ``anc``)."""
+    ``edge`` of its anchor ``anc``); the noise std ``sigma``, or σ₁ = ``sigma`` of the
+    profile σ₁·(z / 1 m)^power at the mean depth z of the reference's samples used."""
     h, w = ref.shape
     c = anc[i, j]
     m = 0
+    zsum = 0.0
     for a in range(max(i - radius, i % stride), min(i + radius + 1, h), stride):
         for b in range(max(j - radius, j % stride), min(j + radius + 1, w), stride):
             u = ref[a, b]
@@ -405,18 +418,20 @@ def _offset_at(reg, ref, anc, k, i, j, edge, sigma, radius, stride, buf, signif)
             if abs(d) <= edge:
                 buf[m] = d
                 m += 1
+                zsum += u
     if m < 5:
         return 0.0
     med = _select_median(buf, m)
+    sig = sigma if power == 0.0 else sigma * (zsum / m / 1000.0) ** power
     # significant only: beyond ``signif`` standard errors of the median of m differences of
     # two noisy samples
-    se = 1.2533 * math.sqrt(2.0) * sigma / math.sqrt(m)
+    se = 1.2533 * math.sqrt(2.0) * sig / math.sqrt(m)
     return med if abs(med) > signif[k, i, j] * se else 0.0
 
 
 @nb.njit(cache=True, nogil=True, parallel=True)
 def _offset_kernel(
-    reg, ref, anc, ref_index, edge, sigma, signif, radius, out, step=2, stride=1, own=True
+    reg, ref, anc, ref_index, edge, sigma, power, signif, radius, out, step=2, stride=1, own=True
 ):
     # pragma: no cover - numba
     n, h, w = reg.shape
@@ -432,7 +447,7 @@ def _offset_kernel(
         buf = np.empty(size, np.float32)
         for j in range(0, w, step):
             out[k, i, j] = _offset_at(
-                reg, ref, anc, k, i, j, edge, sigma, radius, stride, buf, signif
+                reg, ref, anc, k, i, j, edge, sigma, power, radius, stride, buf, signif
             )
     # a pixel takes the value of its grid pixel when that one lies on its surface, else its
     # own (``own``) or none
@@ -454,7 +469,7 @@ def _offset_kernel(
                 out[k, i, j] = out[k, gi, gj]
             elif own:
                 out[k, i, j] = _offset_at(
-                    reg, ref, anc, k, i, j, edge, sigma, radius, stride, buf, signif
+                    reg, ref, anc, k, i, j, edge, sigma, power, radius, stride, buf, signif
                 )
             else:
                 out[k, i, j] = 0.0
@@ -476,6 +491,7 @@ def radial_offsets(
     radius_px: int = 2,
     registered: npt.ArrayLike | None = None,
     anchor: npt.ArrayLike | None = None,
+    noise_profile: tuple[float, float] | None = None,
 ) -> np.ndarray:
     """Depth offset of each frame registered to the reference (motion along the viewing ray).
 
@@ -514,6 +530,9 @@ def radial_offsets(
         already computed.
     anchor : array_like (h, w), optional
         :func:`reference_anchor` of the reference (any k), when already computed.
+    noise_profile : (float, float), optional
+        (σ₁, p) of :func:`upsr.method.noise.noise_profile`: with p > 0 the significance test
+        takes σ₁·(z / 1 m)^p at the neighbourhood's depth z instead of ``sigma_mm``.
 
     Returns
     -------
@@ -530,7 +549,8 @@ def radial_offsets(
         anchor = reference_anchor(lr[ref], sigma_mm, 1.0, edge_mm)[0]
     anc = np.ascontiguousarray(anchor, np.float32)
     signif = significance(maps, (h, w))
-    args = (reg, lr[ref], anc, int(ref), float(edge_mm), float(sigma_mm), signif)
+    sigma, power = _sigma_and_power(sigma_mm, noise_profile)
+    args = (reg, lr[ref], anc, int(ref), float(edge_mm), sigma, power, signif)
     out = np.empty((n, h, w), np.float32)
     _offset_kernel(*args, int(radius_px), out)
     # where the neighbourhood is too small for the offset to be significant (a camera moving
@@ -562,8 +582,9 @@ def significance(maps: npt.ArrayLike, lowres_shape: tuple[int, int]) -> np.ndarr
     -------
     ndarray float32 (N, h, w)
     """
-    moved = (np.abs(maps_at_centres(maps, lowres_shape)) > 1e-3).any(axis=-1)
-    return np.where(moved, OFFSET_SIGNIFICANCE_MOVED, OFFSET_SIGNIFICANCE).astype(np.float32)
+    at = maps_at_centres(maps, lowres_shape)
+    moved = (np.abs(at[..., 0]) > 1e-3) | (np.abs(at[..., 1]) > 1e-3)
+    return np.where(moved, np.float32(OFFSET_SIGNIFICANCE_MOVED), np.float32(OFFSET_SIGNIFICANCE))
 
 
 def far_offsets(offsets: npt.ArrayLike, edge_mm: float) -> np.ndarray:
@@ -574,46 +595,6 @@ def far_offsets(offsets: npt.ArrayLike, edge_mm: float) -> np.ndarray:
     approaches a wall) is truncated towards 0; the samples of that frame there abstain
     instead of biasing the output (bool, same shape as ``offsets``)."""
     return np.abs(np.asarray(offsets, np.float32)) > 0.5 * float(edge_mm)
-
-
-def noise_shape(frames: npt.ArrayLike, edge_mm: float) -> tuple[float, float]:
-    """Excess kurtosis and std (mm, per sample) of the temporal noise of static pixels.
-
-    From the differences of consecutive frames where both have depth and the difference is
-    within 4·``edge_mm`` (depth edges that moved left out) and then within 8 robust stds
-    (1.4826·MAD: static pixels; the tails of the noise itself kept, or a heavy-tailed noise
-    would look Gaussian). Std per sample = std of the differences / √2.
-
-    Returns
-    -------
-    (kurtosis, std_mm); (nan, 0) with fewer than 50 differences.
-    """
-    z = np.asarray(frames, np.float32)
-    z = np.where(np.isnan(z), np.float32(0.0), z)
-    if z.shape[0] < 2:
-        return math.nan, 0.0
-    a, b = z[1:], z[:-1]
-    d = (a - b)[(a > 0) & (b > 0)].astype(np.float64)
-    d = d[np.abs(d) <= 4.0 * edge_mm]
-    if d.size < 50:
-        return math.nan, 0.0
-    d = d - np.median(d)
-    scale = 1.4826 * np.median(np.abs(d))
-    if scale <= 0:
-        scale = float(d.std())
-    d = d[np.abs(d) <= 8.0 * scale] if scale > 0 else d
-    var = float(d.var())
-    if d.size < 50 or var <= 0:
-        return math.nan, math.sqrt(max(var, 0.0) / 2.0)
-    kurt = float(np.mean((d - d.mean()) ** 4) / var**2 - 3.0)
-    return kurt, math.sqrt(var / 2.0)
-
-
-def choose_estimator(kurtosis: float) -> str:
-    """``"median"`` for heavy-tailed noise (or unknown), else ``"mean"`` of trusted samples."""
-    if not math.isfinite(kurtosis) or kurtosis > KURTOSIS_MEDIAN:
-        return "median"
-    return "mean"
 
 
 @nb.njit(cache=True, nogil=True)

@@ -54,6 +54,7 @@ from upsr.method.mixed import (
     split_mixed_pixels,
 )
 from upsr.method.motion import FlowBackend, flow_backend_is_thread_safe, make_flow_backend
+from upsr.method.noise import choose_estimator, noise_profile, noise_shape
 from upsr.method.registration import (
     advance_positions,
     cumulative_flows,
@@ -62,9 +63,7 @@ from upsr.method.registration import (
 )
 from upsr.method.trust import (
     abstain_lone_outliers,
-    choose_estimator,
     far_offsets,
-    noise_shape,
     radial_offsets,
     reference_anchor,
 )
@@ -76,6 +75,7 @@ __all__ = [
     "fix_video_statistics",
     "pinned_config",
     "super_resolve",
+    "trust_profile",
     "window_start",
 ]
 
@@ -92,6 +92,8 @@ class VideoStatistics(NamedTuple):
     trust_noise_mm: float
     #: Whether the mixed input pixels are removed.
     remove_mixed: bool
+    #: (σ₁, p) of a trust tolerance that grows with depth, or None (one σ).
+    trust_noise_profile: tuple[float, float] | None = None
 
 
 def fix_video_statistics(
@@ -101,7 +103,7 @@ def fix_video_statistics(
 
     The front-end's depth range and noise estimate (:meth:`MotionFrontEnd.fix_statistics`),
     the fusion's estimator and trust noise from the shape of the temporal noise
-    (:func:`upsr.method.trust.noise_shape`): the median for Laplacian noise, the mean of the
+    (:func:`upsr.method.noise.noise_shape`): the median for Laplacian noise, the mean of the
     trusted samples for Gaussian or quantised noise; and whether the sensor mixes depths at
     edges (:func:`upsr.method.mixed.footprint_share`) for ``remove_mixed="auto"``.
     """
@@ -118,7 +120,25 @@ def fix_video_statistics(
     mixed = cfg.remove_mixed
     if mixed == "auto":
         mixed = has_mixed_pixels(footprint_share(first_frames, front.edge_mm))
-    return VideoStatistics(estimator, trust_mm, bool(mixed))
+    profile = trust_profile(first_frames, cfg, front.edge_mm)
+    return VideoStatistics(estimator, trust_mm, bool(mixed), profile)
+
+
+def trust_profile(
+    first_frames: np.ndarray, cfg: UPSRConfig, edge_mm: float
+) -> tuple[float, float] | None:
+    """The (σ₁, p) of ``cfg.trust_noise_profile``, estimated from the first frames (T, h, w)
+    for ``"auto"`` (:func:`upsr.method.noise.noise_profile`, surfaces split at ``edge_mm``)
+    unless a noise is given; None for one σ per video."""
+    profile = cfg.trust_noise_profile
+    if profile == "constant":
+        return None
+    if profile == "auto":
+        if cfg.noise_mm is not None or cfg.trust_noise_mm is not None:
+            return None  # a given noise is the noise
+        profile = noise_profile(first_frames, edge_mm)
+    sigma_1m, power = (float(v) for v in profile)  # type: ignore[misc]
+    return (sigma_1m, power) if power > 0 else None
 
 
 def pinned_config(first_frames: np.ndarray, cfg: UPSRConfig) -> UPSRConfig:
@@ -136,6 +156,7 @@ def pinned_config(first_frames: np.ndarray, cfg: UPSRConfig) -> UPSRConfig:
         fusion_estimator=stats.estimator,
         trust_noise_mm=stats.trust_noise_mm,
         remove_mixed=stats.remove_mixed,
+        trust_noise_profile=stats.trust_noise_profile or "constant",
     )
 
 
@@ -357,7 +378,11 @@ class UPSR:
             anchor = tolerance = None
             if cfg.trust_k is not None:
                 anchor, tolerance = reference_anchor(
-                    lowres[ref], noise, cfg.trust_k, self._front.edge_mm
+                    lowres[ref],
+                    noise,
+                    cfg.trust_k,
+                    self._front.edge_mm,
+                    noise_profile=stats.trust_noise_profile,
                 )
                 lowres = abstain_lone_outliers(lowres, ref, anchor)
             offsets = untrusted = None
@@ -374,6 +399,7 @@ class UPSR:
                         radius_px=cfg.radial_radius_px,
                         registered=registered,
                         anchor=anchor,
+                        noise_profile=stats.trust_noise_profile,
                     )
                 if cfg.check_registration:
                     untrusted = misregistered(
@@ -417,7 +443,7 @@ class UPSR:
             fused = split_mixed_pixels(fused, measured[ref], lowres[ref], source)
         with self._timed("deblur"):
             return finish_frame(
-                finish_fused(fused, cfg),
+                finish_fused(fused, cfg, noise_profile=stats.trust_noise_profile),
                 fused,
                 lowres[ref],
                 anchor,

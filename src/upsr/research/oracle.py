@@ -23,6 +23,7 @@ import numpy as np
 import numpy.typing as npt
 
 from upsr.method.config import DeblurConfig, UPSRConfig
+from upsr.method.noise import noise_at_depth
 from upsr.method.outliers import remove_speckles
 from upsr.method.smoothing import smooth_surfaces
 
@@ -260,6 +261,7 @@ def _checked_stack(
     edge_mm: float,
     noise_mm: float,
     anchor: np.ndarray | None,
+    profile: tuple[float, float] | None = None,
 ) -> tuple[np.ndarray, np.ndarray | None]:
     """The radial offsets of the window (or None) and the registered stack with the samples of
     frames misregistered around a pixel, or with a radial offset too large to trust there,
@@ -272,7 +274,7 @@ def _checked_stack(
     if cfg.radial_compensation and n > 1:
         offsets = radial_offsets(
             lowres, maps, r, ref, sigma_mm=noise_mm, edge_mm=edge_mm,
-            radius_px=cfg.radial_radius_px, anchor=anchor,
+            radius_px=cfg.radial_radius_px, anchor=anchor, noise_profile=profile,
         )  # fmt: skip
     bad = np.zeros(lowres.shape, bool)
     if cfg.check_registration and n > 1:
@@ -285,7 +287,13 @@ def _checked_stack(
 
 
 def _abstaining(
-    measured: np.ndarray, ref: int, mixed: bool, cfg, edge_mm: float, noise_mm: float
+    measured: np.ndarray,
+    ref: int,
+    mixed: bool,
+    cfg,
+    edge_mm: float,
+    noise_mm: float,
+    profile: tuple[float, float] | None = None,
 ) -> tuple[np.ndarray, np.ndarray | None, np.ndarray | None]:
     """The window with its mixed pixels (``mixed``) and the reference's lone outliers (with
     the trust test) abstaining, before anything is fused; and the reference's anchor and
@@ -296,7 +304,9 @@ def _abstaining(
     lowres = remove_mixed_pixels(measured, edge_mm, marker=ABSTAIN) if mixed else measured
     if cfg.trust_k is None:
         return lowres, None, None
-    anchor, tol = reference_anchor(lowres[ref], noise_mm, cfg.trust_k, edge_mm)
+    anchor, tol = reference_anchor(
+        lowres[ref], noise_mm, cfg.trust_k, edge_mm, noise_profile=profile
+    )
     return abstain_lone_outliers(lowres, ref, anchor), anchor, tol
 
 
@@ -475,14 +485,19 @@ def btv_subgradient_numpy(
 
 
 def deblur_numpy(
-    z: npt.ArrayLike, cfg: DeblurConfig | None = None, *, scale: int = 1
+    z: npt.ArrayLike,
+    cfg: DeblurConfig | None = None,
+    *,
+    scale: int = 1,
+    noise_profile: tuple[float, float] | None = None,
 ) -> np.ndarray:
     """BTV-L1 deblurring with B = I in plain NumPy: the reference of
     :func:`upsr.method.deblurring.deblur` (same step rule, same result up to sign ties).
 
     x₀ = z; x_{k+1} = x_k − β_k / norm · (sign(x_k − z) + λ ∂Γ_BTV(x_k)) on the pixels valid
     in z (0 elsewhere), β₀ = ``cfg.step_mm`` or max(0.5, noise of z), β_{k+1} = β_k ·
-    ``cfg.step_decay``, norm = 1 + 2λ((Σ_k α^|k|)² − 1); then x ≥ 10⁻³ mm on the valid pixels
+    ``cfg.step_decay``, norm = 1 + 2λ((Σ_k α^|k|)² − 1) (with a ``noise_profile`` (σ₁, p),
+    p > 0, each pixel's step times σ(z)/median σ(z)); then x ≥ 10⁻³ mm on the valid pixels
     and :func:`upsr.method.smoothing.smooth_surfaces` if ``cfg.smooth_sigma_mm`` is set.
 
     Parameters
@@ -518,8 +533,12 @@ def deblur_numpy(
     s1 = sum(cfg.alpha ** abs(k) for k in range(-cfg.radius_px, cfg.radius_px + 1))
     norm = 1.0 + cfg.lam * 2.0 * (s1 * s1 - 1.0)
     x = z.copy()
+    scales = np.float32(1.0)
+    if noise_profile is not None and noise_profile[1] > 0:
+        sigma = noise_at_depth(z, *noise_profile)
+        scales = (sigma / np.float32(np.median(sigma[mask]))).astype(np.float32)
     for _ in range(cfg.iterations):
-        step = np.float32(beta / norm)
+        step = np.float32(beta / norm) * scales
         d = x - z
         data = (d > 0).astype(np.float32) - (d < 0).astype(np.float32)
         reg = btv_subgradient_numpy(
@@ -594,7 +613,9 @@ def super_resolve_straightforward(frames: npt.ArrayLike, config: UPSRConfig) -> 
         s = window_start(t, t_total, cfg)
         ref = t - s
         measured = video[s : s + n]
-        lowres, anchor, tol = _abstaining(measured, ref, stats.remove_mixed, cfg, edge_mm, trust_mm)
+        lowres, anchor, tol = _abstaining(
+            measured, ref, stats.remove_mixed, cfg, edge_mm, trust_mm, stats.trust_noise_profile
+        )
         up = [upsample_nearest(f, r) for f in lowres]
         pre = [front.prefilter(video[k]) for k in range(s, s + n)]
         guides = [front.guide(p) for p in pre]
@@ -615,7 +636,9 @@ def super_resolve_straightforward(frames: npt.ArrayLike, config: UPSRConfig) -> 
         if cfg.splat_radius_px and n > 1:
             back = flows_to_reference(ref, bwd, fwd, (h * r, w * r))
             guide = splat_nearest(lowres, np.stack(back), r, cfg.splat_radius_px)
-        stack, offsets = _checked_stack(stack, lowres, maps, ref, cfg, edge_mm, trust_mm, anchor)
+        stack, offsets = _checked_stack(
+            stack, lowres, maps, ref, cfg, edge_mm, trust_mm, anchor, stats.trust_noise_profile
+        )
         fallback = only_own = None
         if anchor is not None:
             stack, anchor_hr, fallback, only_own = _trusted_stack(
@@ -639,7 +662,9 @@ def super_resolve_straightforward(frames: npt.ArrayLike, config: UPSRConfig) -> 
         source = lowres[ref] if anchor is None else anchor
         fused = split_mixed_pixels(fused, measured[ref], lowres[ref], source)
         res = remove_speckles(
-            deblur_numpy(fused, cfg.deblur, scale=r), cfg.speckle_size_px, cfg.edge_mm
+            deblur_numpy(fused, cfg.deblur, scale=r, noise_profile=stats.trust_noise_profile),
+            cfg.speckle_size_px,
+            cfg.edge_mm,
         )
         # the rules beyond the paper after the deblurring, as the engine applies them
         out[t] = finish_frame(

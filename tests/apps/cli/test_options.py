@@ -39,6 +39,7 @@ METHOD_OPTIONS = {
     "--trust-k",
     "--no-trust",
     "--fusion-estimator",
+    "--noise-model",
     "--mixed-removal",
     "--no-registration-check",
     "--no-radial",

@@ -32,6 +32,7 @@ __all__ = [
     "FlowPreset",
     "FusionEstimator",
     "InFormat",
+    "NoiseModel",
     "OutFormat",
     "Sensor",
     "config_from_options",
@@ -53,6 +54,7 @@ HELP_DEFAULTS: dict[str, Any] = {
     "flow_preset": "medium",
     "trust_k": 3.0,
     "fusion_estimator": "auto",
+    "trust_noise_profile": "auto",
 }
 _D = HELP_DEFAULTS
 
@@ -101,6 +103,11 @@ class FusionEstimator(str, Enum):
     auto = "auto"
     median = "median"
     mean = "mean"
+
+
+class NoiseModel(str, Enum):
+    auto = "auto"
+    constant = "constant"
 
 
 class Blur(str, Enum):
@@ -408,6 +415,17 @@ FusionEstimatorOpt = Annotated[
         f"heavy-tailed noise, else mean) [default: {_D['fusion_estimator']}].",
     ),
 ]
+NoiseModelOpt = Annotated[
+    NoiseModel | None,
+    typer.Option(
+        "--noise-model",
+        case_sensitive=False,
+        help="Noise of the trust test and the deblurring's steps: auto (measured from the "
+        "first frames; grows with depth where it does, as for structured-light and stereo "
+        "cameras) or constant (one noise level per video) "
+        f"[default: {_D['trust_noise_profile']}].",
+    ),
+]
 MixedRemovalOpt = Annotated[
     bool | None,
     typer.Option(
@@ -465,6 +483,7 @@ def config_from_options(
     trust_k: float | None = None,
     no_trust: bool = False,
     fusion_estimator: Enum | None = None,
+    noise_model: Enum | None = None,
     mixed_removal: bool | None = None,
     no_registration_check: bool = False,
     no_radial: bool = False,
@@ -498,6 +517,7 @@ def config_from_options(
         ("flow_preset", flow_preset),
         ("refine_preset", refine_preset),
         ("fusion_estimator", fusion_estimator),
+        ("trust_noise_profile", noise_model),
     ):
         if choice is not None:
             options[name] = choice.value
@@ -558,6 +578,7 @@ METHOD_OPTIONS: tuple[tuple[str, Any, Any], ...] = (
     ("trust_k", TrustKOpt, None),
     ("no_trust", NoTrustOpt, False),
     ("fusion_estimator", FusionEstimatorOpt, None),
+    ("noise_model", NoiseModelOpt, None),
     ("mixed_removal", MixedRemovalOpt, None),
     ("no_registration_check", NoRegistrationCheckOpt, False),
     ("no_radial", NoRadialOpt, False),
