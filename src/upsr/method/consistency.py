@@ -12,10 +12,19 @@ surface, where a sub-pixel shift cannot reach another surface) around a pixel, e
 depth of another surface in frame k, does: frame k is misregistered there and none of its
 samples near that pixel is trusted (:func:`misregistered`, read by
 :func:`upsr.method.fusion.register_and_fuse`).
+
+Where the reference measured nothing next to a depth edge (the projector shadow of
+structured light lies beside every foreground edge, on its far side; a dropout there), a
+sample showing a surface nearer than everything the reference measured around the hole
+(:func:`hole_backgrounds`) is misregistered too and abstains
+(:func:`upsr.method.fusion.register_and_fuse` with ``hole_floors``; the recursive update
+forgets such a state): the shadow of a moving body is filled from the background side or
+stays empty, never with the body that other frames show there.
 """
 
 from __future__ import annotations
 
+import cv2
 import numba as nb
 import numpy as np
 import numpy.typing as npt
@@ -23,6 +32,7 @@ import numpy.typing as npt
 __all__ = [
     "MISMATCH_FRACTION",
     "MISMATCH_MIN_COUNT",
+    "hole_backgrounds",
     "maps_at_centres",
     "misregistered",
     "registered_samples",
@@ -229,3 +239,22 @@ def misregistered(
         out,
     )
     return out
+
+
+def hole_backgrounds(reference: npt.ArrayLike) -> np.ndarray:
+    """At each pixel the reference did not measure (0 or NaN, not a removed pixel's negative
+    marker), the farthest depth among its 8 neighbours; 0 elsewhere and where no neighbour
+    has depth.
+
+    Parameters
+    ----------
+    reference : array_like (h, w)
+        Low-res frame (mm; 0/NaN: no measurement; negative: a measurement that abstains).
+
+    Returns
+    -------
+    ndarray float32 (h, w)
+    """
+    z = np.nan_to_num(np.asarray(reference, np.float32), nan=0.0)
+    far = cv2.dilate(np.maximum(z, 0.0), np.ones((3, 3), np.uint8), borderType=cv2.BORDER_CONSTANT)
+    return np.where(z == 0, far, np.float32(0.0)).astype(np.float32)

@@ -25,6 +25,7 @@ import numpy as np
 import numpy.typing as npt
 
 from upsr._numba import SAFE_FASTMATH
+from upsr.method.consistency import hole_backgrounds
 from upsr.method.registration import interpolation_tables, weight_table
 from upsr.method.sorting import _centre_sorted, _network, _sort_columns, sorting_network
 from upsr.method.splat import splat_nearest, splat_points
@@ -187,6 +188,7 @@ def _register_fuse_kernel(
     alt_hi,
     alt_thi,
     untrusted,
+    hole_floor,
     min_trusted,
     use_mean,
     out,
@@ -234,6 +236,9 @@ def _register_fuse_kernel(
         on_jd = np.empty(m_on, np.float64)
         on_anc = np.empty(m_on, np.float32)  # the reference's anchor (0: none, no trust test)
         on_tol = np.empty(m_on, np.float32)
+        # the nearest depth a sample may have (a hole of the reference beside an edge: the
+        # farthest depth measured around it − edge_mm; −inf elsewhere)
+        on_floor = np.empty(m_on, np.float32)
         # at a depth edge: the nearest and the farthest other surface among the low-res
         # neighbours on the pixel's side of the centre (0: none), whose samples compete
         # (trust.surface_alternatives)
@@ -245,6 +250,7 @@ def _register_fuse_kernel(
         li = low_of[i]
         anc_row = anchor[li]
         tol_row = tol[li]
+        floor_row = hole_floor[li]
         sy = side_of[i]  # the side of its low-res pixel's centre the row lies on
         for q in range(m_on):
             j = on[q]
@@ -256,6 +262,7 @@ def _register_fuse_kernel(
             on_low[q] = lj
             on_anc[q] = anc_row[lj]
             on_tol[q] = tol_row[lj]
+            on_floor[q] = floor_row[lj]
             sx = side_of[j]
             on_ax[q] = alt_lo[sy, sx, li, lj]
             on_tx[q] = alt_tlo[sy, sx, li, lj]
@@ -292,10 +299,11 @@ def _register_fuse_kernel(
                     vc = v - off_k[on_low[q]]
                     own_k = (v > 0) & (a > 0) & (abs(vc - a) <= on_tol[q])
                     side = (abs(vc - on_ax[q]) <= on_tx[q]) | (abs(vc - on_ay[q]) <= on_ty[q])
-                    ok = (v > 0) & ((a <= 0) | own_k | side)
+                    fits = ~((v > 0) & (vc < on_floor[q]))  # (not nearer than a hole allows)
+                    ok = (v > 0) & ((a <= 0) | own_k | side) & fits
                     # an untrusted sample abstains entirely (neither depth nor "no depth"),
                     # and so does a removed mixed pixel (mixed.ABSTAIN)
-                    vote = ((a <= 0) | ok) & (v >= 0)
+                    vote = ((a <= 0) | ok) & (v >= 0) & fits
                     n_own[q] += 1 if own_k else 0
                     raw_k[q] = (vc if v > 0 else v) if vote else nan
                     srt_k[q] = vc if ok else inf
@@ -337,11 +345,12 @@ def _register_fuse_kernel(
             for q in range(m_on):
                 t = at[q]
                 v = lk[max(t, 0)]
-                # outside, frame k misregistered around this pixel, or a removed mixed
-                # pixel (mixed.ABSTAIN): abstains
-                inside = (t >= 0) & ~bad_k[on_low[q]] & (v >= 0)
                 a = on_anc[q]
                 vc = v - off_k[on_low[q]]  # radial motion compensated
+                # outside, frame k misregistered around this pixel, a removed mixed pixel
+                # (mixed.ABSTAIN), or nearer than a hole of the reference allows: abstains
+                fits = ~((v > 0) & (vc < on_floor[q]))
+                inside = (t >= 0) & ~bad_k[on_low[q]] & (v >= 0) & fits
                 own_k = inside & (v > 0) & (a > 0) & (abs(vc - a) <= on_tol[q])
                 side = (abs(vc - on_ax[q]) <= on_tx[q]) | (abs(vc - on_ay[q]) <= on_ty[q])
                 valid = inside & (v > 0) & ((a <= 0) | own_k | side)
@@ -518,9 +527,15 @@ def temporal_median(
     return out
 
 
-def _trust_inputs(anchor, tolerance, offsets, alternatives, untrusted, lr, edge_mm):
-    """The trust arrays of :func:`register_and_fuse` as its kernel reads them."""
+def _trust_inputs(anchor, tolerance, offsets, alternatives, untrusted, lr, edge_mm, holes_of):
+    """The trust arrays of :func:`register_and_fuse` as its kernel reads them; the nearest
+    depth a sample may have at each reference pixel (``holes_of``: the reference's index, or
+    None for no limit)."""
     n, h, w = lr.shape
+    nearest = np.full((h, w), -np.inf, np.float32)
+    if holes_of is not None:
+        bg = hole_backgrounds(lr[holes_of])
+        nearest = np.where(bg > 0, bg - np.float32(edge_mm), nearest).astype(np.float32)
     anc, tol, offs = trust_arrays(anchor, tolerance, offsets, (n, h, w))
     if alternatives is None:
         alternatives = surface_alternatives(anc, tol, edge_mm)
@@ -529,7 +544,7 @@ def _trust_inputs(anchor, tolerance, offsets, alternatives, untrusted, lr, edge_
         bad = np.zeros((n, h, w), np.bool_)
     else:
         bad = np.ascontiguousarray(untrusted, np.bool_).reshape(n, h, w)
-    return anc, tol, offs, alts, bad
+    return anc, tol, offs, alts, bad, nearest
 
 
 def register_and_fuse(
@@ -552,6 +567,7 @@ def register_and_fuse(
     estimator: str = "median",
     alternatives: tuple[npt.ArrayLike, ...] | None = None,
     untrusted: npt.ArrayLike | None = None,
+    hole_floors: bool = False,
 ) -> np.ndarray:
     """Registration (eq. 20) and invalid-aware median fusion (eq. 28) in one compiled pass.
 
@@ -606,6 +622,9 @@ def register_and_fuse(
         Frame k misregistered around reference pixel (i, j)
         (:func:`upsr.method.consistency.misregistered`): its samples there abstain like
         samples outside the frame. ``None``: none.
+    hole_floors : bool
+        Where the reference has no depth, samples over ``edge_mm`` nearer than the farthest
+        depth around it (:func:`upsr.method.consistency.hole_backgrounds`) abstain.
 
     Returns
     -------
@@ -629,8 +648,8 @@ def register_and_fuse(
     rules = (np.ascontiguousarray(gd), float(guide_bonus), ref, float(min_valid_fraction))
     rules += (float(edge_mm), measured, _network(n))
     still = ref if not mp[ref].any() else -1  # the reference's map is zero: a shortcut
-    trust = _trust_inputs(anchor, tolerance, offsets, alternatives, untrusted, lr, edge_mm)
-    anc, tol, offs, alts, bad = trust
+    trust = (anchor, tolerance, offsets, alternatives, untrusted, lr, edge_mm)
+    anc, tol, offs, alts, bad, nearest = _trust_inputs(*trust, ref if hole_floors else None)
     out = np.empty((hh, ww), np.float32)
     _register_fuse_kernel(
         *geometry,
@@ -642,6 +661,7 @@ def register_and_fuse(
         offs,
         *alts,
         bad,
+        nearest,
         max(int(min_trusted), 1),
         estimator == "mean",
         out,

@@ -77,6 +77,7 @@ import numpy.typing as npt
 from upsr._numba import SAFE_FASTMATH
 from upsr.errors import InputError
 from upsr.method.config import UPSRConfig
+from upsr.method.consistency import hole_backgrounds
 from upsr.method.finishing import finish_frame, finish_fused
 from upsr.method.frontend import MotionFrontEnd
 from upsr.method.mixed import (
@@ -235,6 +236,7 @@ def _update_kernel(
     use_mean,
     sigma,
     edge,
+    holes,
     out_d,
     out_n,
 ):  # pragma: no cover - numba
@@ -266,11 +268,14 @@ def _update_kernel(
             if 0 <= xn < ww and 0 <= yn < hh:
                 c0 = depth[yn, xn]
             if not m > 0:
-                # no measurement: keep what is known, less and less confidently
+                # no measurement: keep what is known, less and less confidently, unless it is
+                # nearer than all the frame measured around the hole (the projector shadow
+                # beside a moving body: the body is not there)
                 if c0 > 0:
                     s, n = _same_surface(depth, count, qx, qy, x0, y0, c0, edge)
                     n *= 0.5
-                    if n >= 1.0:
+                    bg = holes[i, j]
+                    if n >= 1.0 and not (bg > 0 and s - off < bg - edge):
                         out_d[y, x] = s - off
                         out_n[y, x] = n
                         continue
@@ -336,6 +341,7 @@ def recursive_update(
     edge_mm: float = 100.0,
     radial_radius_px: int | None = 2,
     noise_profile: tuple[float, float] | None = None,
+    holes: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """One step of the recursive fusion (see the module): the state (``depth``, ``count``) of
     the previous frame, registered and updated with the current frame's ``measurement``.
@@ -365,6 +371,10 @@ def recursive_update(
     noise_profile : (float, float), optional
         (σ₁, p): the radial significance test with σ(z) = σ₁·(z / 1 m)^p (p > 0) for
         ``sigma_mm`` (:func:`upsr.method.noise.noise_profile`).
+    holes : ndarray float32 (h, w), optional
+        :func:`upsr.method.consistency.hole_backgrounds` of the current frame: where it
+        measured nothing, a state more than ``edge_mm`` nearer than this is forgotten.
+        Default: those of ``measurement``.
 
     Returns
     -------
@@ -401,13 +411,15 @@ def recursive_update(
             off,
         )
         offsets = off[0]
+    if holes is None:
+        holes = hole_backgrounds(meas)
     out_d = np.empty_like(d)
     out_n = np.empty_like(c)
     _update_kernel(
         d, c, qx, qy, meas,
         np.ascontiguousarray(anchor, np.float32), np.ascontiguousarray(tolerance, np.float32),
         offsets, int(scale), float(cap), estimator == "mean", float(sigma_mm), float(edge_mm),
-        out_d, out_n,
+        np.ascontiguousarray(holes, np.float32), out_d, out_n,
     )  # fmt: skip
     return out_d, out_n
 
@@ -581,6 +593,8 @@ class RecursiveUPSR:
                     RADIAL_RADIUS_FACTOR * cfg.radial_radius_px if cfg.radial_compensation else None
                 ),
                 noise_profile=self._profile,
+                # (the holes of the frame as measured: its removed mixed pixels are not holes)
+                holes=np.where(f > 0, np.float32(0.0), hole_backgrounds(meas)),
             )
         self._depth, self._conf = fused, conf
         self._prev_pre, self._prev_guide = pre, guide

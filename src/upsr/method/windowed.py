@@ -436,6 +436,7 @@ class UPSR:
                 untrusted=untrusted,
                 min_trusted=cfg.min_trusted_samples,
                 estimator=stats.estimator,
+                hole_floors=cfg.check_registration,
             )
             # the reference's mixed pixels and lone outliers (those it measured that abstained)
             # no frame filled: the depth of their neighbours

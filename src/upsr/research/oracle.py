@@ -264,8 +264,9 @@ def _checked_stack(
     profile: tuple[float, float] | None = None,
 ) -> tuple[np.ndarray, np.ndarray | None]:
     """The radial offsets of the window (or None) and the registered stack with the samples of
-    frames misregistered around a pixel, or with a radial offset too large to trust there,
-    abstaining (NaN, like samples outside)."""
+    frames misregistered around a pixel, or with a radial offset too large to trust there, or
+    nearer than a hole of the reference allows, abstaining (NaN, like samples outside)."""
+    from upsr.method.consistency import hole_backgrounds
     from upsr.method.trust import far_offsets, radial_offsets
     from upsr.method.upsampling import upsample_nearest
 
@@ -283,6 +284,15 @@ def _checked_stack(
     if offsets is not None:
         bad |= far_offsets(offsets, edge_mm)
     stack = np.where(np.stack([upsample_nearest(b, r) for b in bad]), np.nan, stack)
+    if cfg.check_registration:
+        # a sample nearer than a hole of the reference allows abstains (fusion's hole_floors)
+        bg = upsample_nearest(hole_backgrounds(lowres[ref]), r)
+        vc = stack
+        if offsets is not None:
+            vc = stack - np.stack([upsample_nearest(o, r) for o in offsets])
+        with np.errstate(invalid="ignore"):
+            nearer = (bg > 0)[None] & (stack > 0) & (vc < bg[None] - np.float32(edge_mm))
+        stack = np.where(nearer, np.nan, stack)
     return stack.astype(np.float32), offsets
 
 
