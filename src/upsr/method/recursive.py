@@ -16,7 +16,8 @@ Per frame t (only frame t and the state of t − 1 are read):
    current grid into the previous one), with its spurious motion suppressed;
 2. the new measurement is y_t↑ = U y_t after mixed-pixel removal
    (:func:`~upsr.method.mixed.remove_mixed_pixels`), and its anchor and tolerance τ = k·σ +
-   relief are those of :func:`~upsr.method.trust.reference_anchor` (frame t is the reference);
+   relief are those of :func:`~upsr.method.trust.reference_anchor` (frame t is the reference;
+   σ(z) of the noise profile measured on the first frame where the noise grows with depth);
 3. registration: each output pixel p looks the state up at q = p + flow(q) (the flow read
    bilinearly on the flow grid, as the windowed fusion reads it); the state is never
    interpolated: of the (at most 4) state pixels around q the nearest is taken, or, when it
@@ -42,11 +43,15 @@ Per frame t (only frame t and the state of t − 1 are read):
    - otherwise (disagreement beyond what the noise allows: something moved, appeared, or the
      flow failed): the pixel restarts from the anchor, count 1;
    - no measurement (0, or a mixed pixel): the state is kept with its count halved, and
-     forgotten (0) once the count drops below 1; 0 stays 0 where nothing is known;
+     forgotten (0) once the count drops below 1, or at once where it lies more than the edge
+     threshold nearer than everything the frame measured around its hole (the projector
+     shadow beside a moving body: :func:`upsr.method.consistency.hole_backgrounds`); 0
+     stays 0 where nothing is known;
 
    so every pixel that frame t measured has depth in the output (the current frame anchors
    it), and a sample beyond τ never gets averaged in;
-6. the windowed engine's finishing steps (:mod:`upsr.method.finishing`: deblurring, speckle
+6. the windowed engine's finishing steps (:mod:`upsr.method.finishing`: deblurring, its
+   first step from the noise of every k-th row of the state, :data:`NOISE_SAMPLE_PX`; speckle
    removal, the speckle filter never erasing what frame t measured on a surface, frame t's
    removed pixels split between their neighbours, blocks following their surface's slope,
    optional hole filling) give the output; the state keeps the fused (not the deblurred)
