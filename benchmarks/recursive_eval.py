@@ -60,6 +60,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     p.add_argument("--flow-scale", type=int, default=None, help="flow grid scale s (default: auto)")
     p.add_argument("--iterations", type=int, default=None, help="deblur iterations")
     p.add_argument("--step-decay", type=float, default=None, help="deblur step decay")
+    p.add_argument("--estimator", default=None, help="fusion_estimator (default: auto)")
     p.add_argument("--json", type=Path, default=None)
     args = p.parse_args(argv)
     options: dict = {}
@@ -71,6 +72,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         options["deblur_iterations"] = args.iterations
     if args.step_decay is not None:
         options["deblur_step_decay"] = args.step_decay
+    if args.estimator is not None:
+        options["fusion_estimator"] = args.estimator
     rows = []
     for scene, size in ((scene, size) for scene in args.scenes for size in args.sizes):
         shape, r = SIZES[size]

@@ -115,6 +115,17 @@ def test_static_scene_with_laplace_noise_reaches_the_windowed_median():
     assert err_rec < 0.45 * 20.0  # far below one frame's noise
 
 
+def test_auto_estimator_of_the_recursive_mode_is_the_mean_of_the_trusted_samples():
+    """(The windowed mode takes the median for Laplacian noise; the recursive median is an
+    approximation that did worse than the mean of the trusted samples.)"""
+    _clean, video = _wall(6, 20.0, laplace=True, seed=4)
+    auto = upsr.super_resolve(video, 2, 9, mode="recursive", **RAW)
+    mean = upsr.super_resolve(video, 2, 9, mode="recursive", fusion_estimator="mean", **RAW)
+    median = upsr.super_resolve(video, 2, 9, mode="recursive", fusion_estimator="median", **RAW)
+    np.testing.assert_array_equal(auto, mean)
+    assert not np.array_equal(auto, median)
+
+
 def test_disagreement_restarts_the_pixel():
     video = np.full((8, 16, 16), 2000.0, np.float32)
     video[5:, :, :8] = 1500.0  # the left half jumps 500 mm nearer
