@@ -9,8 +9,10 @@ of UP-SR (edge threshold and spurious-motion margin, fixed from the first window
 Time-of-flight noise hardly depends on depth (p ≈ 0); the noise of structured-light and stereo
 cameras grows about as z² (the disparity noise and its quantisation, Nguyen et al. 2012: a
 Kinect's σ is 7 mm at 2 m and 16 mm at 3 m). One σ per video then trusts the misregistered
-samples of near surfaces and distrusts the samples of far ones; the trust tolerance
-(:func:`upsr.method.trust.reference_anchor`) follows σ(z) instead.
+samples of near surfaces, distrusts the samples of far ones and smooths every surface alike;
+the trust tolerance (:func:`upsr.method.trust.reference_anchor`), the significance of the
+radial offsets (:func:`upsr.method.trust.radial_offsets`) and each pixel's deblurring step
+(:func:`upsr.method.deblurring.deblur`) follow σ(z) instead.
 
 :func:`noise_shape` (beyond the paper): the excess kurtosis and the std of the temporal
 differences of static pixels, which choose the fusion's estimator (:func:`choose_estimator`:
