@@ -86,10 +86,14 @@ def test_realsense_live_sdk_playback(name: str) -> None:
     mod = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(mod)
     ref = mod.playback(DATA / name)
-    np.testing.assert_allclose(uio.read_video(DATA / name), ref["depth_mm"], atol=1e-3)
-    np.testing.assert_allclose(
-        uio.read_timestamps(DATA / name) / 1e6, ref["timestamps_ms"], atol=1e-3
-    )
+    ours, stamps_ms = uio.read_video(DATA / name), uio.read_timestamps(DATA / name) / 1e6
+    # the SDK's playback runs in real time until set_real_time(False) takes effect: on a busy
+    # machine it may drop a frame there, so its frames are matched to ours by timestamp
+    assert 1 <= len(ref["depth_mm"]) <= len(ours) and len(ours) == 3
+    for depth, stamp in zip(ref["depth_mm"], ref["timestamps_ms"], strict=True):
+        k = int(np.argmin(np.abs(stamps_ms - stamp)))
+        assert stamps_ms[k] == pytest.approx(stamp, abs=1e-3)
+        np.testing.assert_allclose(ours[k], depth, atol=1e-3)
 
 
 # ---------------------------------------------------------------------------------------------
