@@ -7,7 +7,10 @@ reader thread takes each frame from the SDK and hands it over through a queue of
 frame that arrives while the previous one is still being processed replaces it, and the one
 replaced is counted as dropped (never queued without bound); gaps in the SDK's frame numbers
 count as dropped too. ``--no-real-time`` plays a recording as fast as the processing allows
-(no frame dropped: deterministic, the same frames as ``upsr run --recursive``).
+(no frame dropped: deterministic, the same frames as ``upsr run --recursive``): the recording's
+depth sensor is opened directly, not through a pipeline, in non-real-time playback from the
+start, and its frame callback waits for the queue, so the playback waits for the processing
+(a pipeline starts in real time and, with a slow first frame, lost one).
 
 Each frame is super-resolved at once by the recursive engine
 (:class:`upsr.method.recursive.RecursiveUPSR`, latency 0 frames) and written with
@@ -135,27 +138,91 @@ class FrameSource:
         self._queue: queue.Queue[Any] = queue.Queue(maxsize=1)
         self._stop = threading.Event()
         self._error: BaseException | None = None
+        if recording is not None and not Path(recording).is_file():
+            raise InputError(f"{recording}: no such recording")
+        self._pipe: Any = None
+        self._sensor: Any = None
+        self._busy = threading.Lock()  # held while the sensor's callback hands a frame over
+        try:
+            if recording is not None and not self.real_time:
+                stream = self._open_sensor(recording)
+                target = self._wait_for_end
+            else:
+                stream = self._open_pipeline(recording)
+                target = self._read
+        except RuntimeError as e:
+            raise InputError(f"RealSense: {e}") from e
+        self.shape = (stream.height(), stream.width())
+        intr = stream.get_intrinsics()
+        self.intrinsics = (intr.fx, intr.fy, intr.ppx, intr.ppy)
+        self._thread = threading.Thread(target=target, name="upsr-live-reader", daemon=True)
+        self._thread.start()
+
+    def _open_pipeline(self, recording: Path | None) -> Any:
+        """A camera, or a recording in real time: a pipeline read by :meth:`_read`."""
+        rs = self._rs
         cfg = rs.config()
         if recording is not None:
-            if not Path(recording).is_file():
-                raise InputError(f"{recording}: no such recording")
             cfg.enable_device_from_file(str(recording), repeat_playback=False)
         cfg.enable_stream(rs.stream.depth)
         self._pipe = rs.pipeline()
-        try:
-            profile = self._pipe.start(cfg)
-        except RuntimeError as e:
-            raise InputError(f"RealSense: {e}") from e
+        profile = self._pipe.start(cfg)
         device = profile.get_device()
         self._playback = device.as_playback() if recording is not None else None
         if self._playback is not None:
             self._playback.set_real_time(self.real_time)
-        stream = profile.get_stream(rs.stream.depth).as_video_stream_profile()
-        self.shape = (stream.height(), stream.width())
-        intr = stream.get_intrinsics()
-        self.intrinsics = (intr.fx, intr.fy, intr.ppx, intr.ppy)
-        self._thread = threading.Thread(target=self._read, name="upsr-live-reader", daemon=True)
-        self._thread.start()
+        return profile.get_stream(rs.stream.depth).as_video_stream_profile()
+
+    def _open_sensor(self, recording: Path) -> Any:
+        """A recording as fast as it is read: its depth sensor, whose callback blocks."""
+        rs = self._rs
+        device = rs.context().load_device(str(recording))
+        self._playback = device.as_playback()
+        self._playback.set_real_time(False)  # before anything plays
+        for sensor in device.query_sensors():
+            for prof in sensor.get_stream_profiles():
+                if prof.stream_type() == rs.stream.depth:
+                    self._sensor = sensor
+                    sensor.open(prof)
+                    sensor.start(self._on_frame)
+                    return prof.as_video_stream_profile()
+        raise InputError(f"{recording}: no depth stream")
+
+    def _on_frame(self, frame: Any) -> None:
+        """The sensor's callback (the playback's thread): hand the frame over, waiting for
+        room in the queue (the playback waits with it)."""
+        import numpy as np
+
+        with self._busy:
+            if self._stop.is_set():
+                return
+            depth = frame.as_depth_frame()
+            mm = np.asanyarray(depth.get_data()).astype(np.float32)
+            mm *= np.float32(depth.get_units() * 1000.0)
+            self.received += 1
+            item = (mm, time.perf_counter())
+            while not self._stop.is_set():
+                try:
+                    self._queue.put(item, timeout=0.2)
+                    return
+                except queue.Full:
+                    continue
+
+    def _wait_for_end(self) -> None:
+        """Put the end marker once the playback has stopped and its last frame is handed
+        over."""
+        try:
+            while not self._stop.is_set() and not self._finished():
+                time.sleep(0.02)
+            seen = -1
+            while not self._stop.is_set():  # (no frame handed over for 0.1 s)
+                with self._busy:
+                    if self.received == seen:
+                        break
+                    seen = self.received
+                time.sleep(0.1)
+        finally:
+            self._put_end()
 
     def _finished(self) -> bool:
         pb = self._playback
@@ -234,7 +301,11 @@ class FrameSource:
                 break
         self._thread.join(timeout=5.0)
         try:
-            self._pipe.stop()
+            if self._pipe is not None:
+                self._pipe.stop()
+            if self._sensor is not None:
+                self._sensor.stop()
+                self._sensor.close()
         except RuntimeError:  # pragma: no cover
             pass
 
