@@ -40,8 +40,9 @@ def _two_planes(sigma_at, near=1500.0, far=3000.0, t=3, shape=(60, 80), seed=0):
     return (z + rng.normal(0.0, 1.0, (t, *shape)) * sigma_at(z)).astype(np.float32)
 
 
-def test_the_profile_finds_noise_that_grows_as_the_square_of_depth():
-    frames = _two_planes(lambda z: 3.0 * (z / 1000.0) ** 2)
+@pytest.mark.parametrize("shape", [(60, 80), (480, 640)])  # (every k-th row of the large one)
+def test_the_profile_finds_noise_that_grows_as_the_square_of_depth(shape):
+    frames = _two_planes(lambda z: 3.0 * (z / 1000.0) ** 2, shape=shape)
     sigma_1m, power = noise_profile(frames, 100.0)
     assert power == pytest.approx(2.0, abs=0.2)
     assert sigma_1m == pytest.approx(3.0, rel=0.2)
