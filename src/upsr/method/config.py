@@ -225,9 +225,10 @@ class UPSRConfig:
         τ = trust_k·σ + the local relief of the reference's surface of the reference's own
         robust depth there (the median of its 3×3 neighbours on its surface,
         :func:`upsr.method.trust.reference_anchor`; σ the larger of the per-video noise
-        estimate and the std of its temporal noise). Untrusted samples vote neither on the depth
-        nor on whether there is depth; where the reference measured depth the output is never
-        0 (thin fast parts never vanish). ``None``: every sample votes (eq. 28).
+        estimate and the std of its temporal noise, or σ(z) of ``trust_noise_profile``).
+        Untrusted samples vote neither on the depth nor on whether there is depth; where the
+        reference measured depth the output is never 0 (thin fast parts never vanish).
+        ``None``: every sample votes (eq. 28).
     trust_noise_mm : float or None
         σ of the trust tolerance (mm). ``None``: ``noise_mm`` where given, else the larger of
         the per-video noise estimate and the std of the temporal noise of static pixels of the
