@@ -188,19 +188,22 @@ class FrameSource:
                     return prof.as_video_stream_profile()
         raise InputError(f"{recording}: no depth stream")
 
+    def _item(self, depth: Any) -> tuple[Any, float]:
+        """(depth in mm, arrival time) of an SDK depth frame, counted as received."""
+        import numpy as np
+
+        mm = np.asanyarray(depth.get_data()).astype(np.float32)
+        mm *= np.float32(depth.get_units() * 1000.0)
+        self.received += 1
+        return mm, time.perf_counter()
+
     def _on_frame(self, frame: Any) -> None:
         """The sensor's callback (the playback's thread): hand the frame over, waiting for
         room in the queue (the playback waits with it)."""
-        import numpy as np
-
         with self._busy:
             if self._stop.is_set():
                 return
-            depth = frame.as_depth_frame()
-            mm = np.asanyarray(depth.get_data()).astype(np.float32)
-            mm *= np.float32(depth.get_units() * 1000.0)
-            self.received += 1
-            item = (mm, time.perf_counter())
+            item = self._item(frame.as_depth_frame())
             while not self._stop.is_set():
                 try:
                     self._queue.put(item, timeout=0.2)
@@ -229,8 +232,8 @@ class FrameSource:
         return pb is not None and pb.current_status() == self._rs.playback_status.stopped
 
     def _read(self) -> None:
-        import numpy as np
-
+        """The pipeline's frames (a camera, or a recording in real time) through the queue of
+        one: a newer frame replaces the waiting one, which counts as dropped."""
         last = None
         try:
             while not self._stop.is_set():
@@ -243,30 +246,19 @@ class FrameSource:
                 if not depth:
                     continue
                 number = depth.get_frame_number()
-                if last is not None and number > last + 1 and self.real_time:
+                if last is not None and number > last + 1:
                     self.dropped += number - last - 1  # the SDK dropped these
                 last = number
-                mm = np.asanyarray(depth.get_data()).astype(np.float32)
-                mm *= np.float32(depth.get_units() * 1000.0)
-                self.received += 1
-                item = (mm, time.perf_counter())
-                if self.real_time:
-                    try:
-                        self._queue.put_nowait(item)
-                    except queue.Full:
-                        try:  # the waiting frame is stale: the newest replaces it
-                            self._queue.get_nowait()
-                            self.dropped += 1
-                        except queue.Empty:
-                            pass
-                        self._queue.put_nowait(item)
-                else:
-                    while not self._stop.is_set():
-                        try:
-                            self._queue.put(item, timeout=0.2)
-                            break
-                        except queue.Full:
-                            continue
+                item = self._item(depth)
+                try:
+                    self._queue.put_nowait(item)
+                except queue.Full:
+                    try:  # the waiting frame is stale: the newest replaces it
+                        self._queue.get_nowait()
+                        self.dropped += 1
+                    except queue.Empty:
+                        pass
+                    self._queue.put_nowait(item)
         except BaseException as e:  # pragma: no cover - SDK errors
             self._error = e
         finally:
