@@ -145,7 +145,7 @@ def _follow_kernel(depth, anchor, sy, sx, scale, sigma, out):  # pragma: no cove
     for a in range(r):
         dd += d[a] * d[a]
     dd *= r  # sum over the block of d_x² (and of d_y²)
-    thr = 2.0 * sigma  # (noise-free data: every non-zero slope)
+    thr = SIGNIFICANCE * sigma  # (noise-free data: every non-zero slope)
     for i in nb.prange(h):
         for j in range(w):
             a0 = anchor[i, j]
