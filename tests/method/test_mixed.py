@@ -167,3 +167,41 @@ def test_the_split_of_a_mixed_pixel_keeps_its_footprints_mean():
     kept[2, 2] = 0.0
     out = split_mixed_pixels(np.repeat(np.repeat(kept, r, 0), r, 1), lone, kept, kept)
     assert (out == 2000.0).all()
+
+
+def test_the_first_pixel_of_a_steep_slope_beside_a_mixed_line_is_kept():
+    """A ToF column from the back wall over the line of mixed pixels in front of it onto a box
+    top seen at a grazing angle (the realistic ToF room): the slope's first pixel lies between
+    the mixed line and its own slope, not between two surfaces; only the line is mixed."""
+    col = np.array([4460, 4459, 4460, 3491, 2387, 2220, 2050, 1890, 1760], np.float32)
+    z = np.repeat(col[:, None], 8, axis=1)
+    out = remove_mixed_pixels(z, 100.0)
+    assert (out[3] == 0).all()
+    np.testing.assert_array_equal(np.delete(out, 3, axis=0), np.delete(z, 3, axis=0))
+
+
+def test_a_fused_block_that_misses_the_mixed_pixels_mean_is_split_afresh():
+    """Misregistered samples that filled a mixed pixel's block wholly with the far wall leave
+    its mean (2000 mm) far from what it measured: with keep_mean the block is split 8 : 8 as if
+    no frame had filled it; a fill that keeps the mean stays; without keep_mean (outliers of a
+    point-sampling sensor) nothing changes."""
+    from upsr.method.mixed import split_mixed_pixels
+
+    r = 4
+    measured = np.full((5, 7), 3000.0, np.float32)
+    measured[:, :3] = 1000.0
+    measured[:, 3] = 2000.0
+    cleaned = remove_mixed_pixels(measured, 100.0)
+    fused = np.repeat(np.repeat(measured, r, axis=0), r, axis=1)
+    fused[:, 3 * r : 4 * r] = 3000.0  # misregistered: the wall over the whole block
+    out = split_mixed_pixels(fused, measured, cleaned, cleaned, keep_mean=True)
+    block = out[:, 3 * r : 4 * r]
+    assert np.allclose(block.reshape(5, r, r).mean(axis=(1, 2)), 2000.0)
+    assert (block[:, : r // 2] == 1000.0).all() and (block[:, r // 2 :] == 3000.0).all()
+    np.testing.assert_array_equal(split_mixed_pixels(fused, measured, cleaned, cleaned), fused)
+    good = fused.copy()
+    good[:, 3 * r : 3 * r + r // 2] = 1000.0  # a fill that followed the edge
+    good[:, 3 * r + 1 : 3 * r + 2] = 1000.0 + 1.0  # (its own values, within the tolerance)
+    np.testing.assert_array_equal(
+        split_mixed_pixels(good, measured, cleaned, cleaned, keep_mean=True), good
+    )

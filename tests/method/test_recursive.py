@@ -56,6 +56,35 @@ def test_dispatch_and_latency_zero():
     assert engine.timings["flow"] > 0
 
 
+def test_process_finishes_each_frame_on_a_helper_thread_with_the_same_outputs():
+    """workers = 1: frame t is finished on the helper thread while frame t + 1 updates the
+    state; the outputs are push's (ToF footprints: mixed pixels removed and split)."""
+    import threading
+
+    from upsr.research.synth.realistic import degrade, make_realistic
+
+    video = make_realistic("deforming", (28, 32), scale=2, n_frames=6)
+    low = degrade(video, "tof", np.random.default_rng(0), sigma_mm=10.0)
+    serial = RecursiveUPSR(scale=2, n_frames=5, workers=0)
+    pushed = np.stack([serial.push(f) for f in low])
+    engine = RecursiveUPSR(scale=2, n_frames=5, workers=1)
+    assert engine.workers == 1
+    names = set()
+    finish = engine._finish
+
+    def spy(*args):
+        names.add(threading.current_thread().name)
+        return finish(*args)
+
+    engine._finish = spy
+    np.testing.assert_array_equal(np.stack(list(engine.process(low))), pushed)
+    assert threading.current_thread().name not in names and len(names) == 1
+    assert serial.workers == 0 and RecursiveUPSR(scale=2, workers=4).workers == 1
+    for bad in (-1, True, 1.5):
+        with pytest.raises(InputError, match="workers"):
+            RecursiveUPSR(scale=2, workers=bad)
+
+
 def test_bad_mode_and_input():
     with pytest.raises(InputError, match="mode"):
         upsr.UPSRConfig(mode="causal")

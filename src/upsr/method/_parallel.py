@@ -18,18 +18,20 @@ on two cores, so each kernel runs on its window's thread) and :func:`both` runs 
 
 from __future__ import annotations
 
+import contextlib
 import os
 import threading
-from collections.abc import Callable
+from collections.abc import Callable, Iterable, Iterator
 from concurrent.futures import ThreadPoolExecutor
 from typing import TypeVar
 
 import numba as nb
 
-__all__ = ["both", "kernel_threads", "window_pool"]
+__all__ = ["both", "kernel_threads", "numba_threads", "pipelined", "window_pool"]
 
 T = TypeVar("T")
 U = TypeVar("U")
+V = TypeVar("V")
 
 _THREAD_PREFIX = "upsr-helper"
 _LOCK = threading.Lock()
@@ -122,3 +124,39 @@ def window_pool(workers: int) -> ThreadPoolExecutor | None:
                 initargs=(kernel_threads(workers),),
             )
         return pool
+
+
+@contextlib.contextmanager
+def numba_threads(count: int) -> Iterator[None]:
+    """numba's parallel kernels launched from this thread use ``count`` threads, until the
+    end (as those of a :func:`window_pool` thread)."""
+    before = nb.get_num_threads()
+    nb.set_num_threads(count)
+    try:
+        yield
+    finally:
+        nb.set_num_threads(before)
+
+
+def pipelined(
+    first: Callable[[T], U], second: Callable[[U], V], items: Iterable[T], pool: ThreadPoolExecutor
+) -> Iterator[V]:
+    """``second(first(item))`` for each item, in order, ``second`` of item t on ``pool``
+    while ``first`` of item t + 1 runs here (a two-stage pipeline: ``first`` must carry
+    whatever state links the items, ``second`` must only read what ``first`` gave it).
+    The result of item t is yielded once item t + 1 has passed ``first``; an exception of
+    either stage is raised in order, after the pending item has finished."""
+    pending = None
+    try:
+        for item in items:
+            a = first(item)
+            if pending is not None:
+                done, pending = pending, None
+                yield done.result()
+            pending = pool.submit(second, a)
+        if pending is not None:
+            done, pending = pending, None
+            yield done.result()
+    finally:
+        if pending is not None:
+            pending.result()

@@ -74,6 +74,7 @@ from __future__ import annotations
 
 import contextlib
 import math
+import os
 import time
 from collections.abc import Iterable, Iterator
 from typing import Any
@@ -84,6 +85,7 @@ import numpy.typing as npt
 
 from upsr._numba import SAFE_FASTMATH
 from upsr.errors import InputError
+from upsr.method._parallel import kernel_threads, numba_threads, pipelined, window_pool
 from upsr.method.config import UPSRConfig
 from upsr.method.consistency import hole_backgrounds
 from upsr.method.finishing import finish_frame, finish_fused
@@ -450,8 +452,9 @@ class RecursiveUPSR:
     scale, n_frames, config, flow_backend, **options
         As :class:`~upsr.method.windowed.UPSR`.
     workers : int, optional
-        Accepted for the interface; the recursive engine works frame by frame (its kernels
-        use numba's threads).
+        0: :meth:`process` runs everything on the calling thread (numba's kernels on every
+        core); ≥ 1 (default on two cores or more): one helper thread finishes each frame while
+        the next one updates the state (same output; see :meth:`process`).
     """
 
     def __init__(
@@ -468,7 +471,11 @@ class RecursiveUPSR:
             config if config is not None else UPSRConfig.from_options(scale, n_frames, **options)
         )
         self._custom_flow = flow_backend
-        self.workers = 0
+        if workers is None:
+            workers = 1 if (os.cpu_count() or 1) >= 2 else 0
+        if isinstance(workers, bool) or not isinstance(workers, int) or workers < 0:
+            raise InputError(f"workers must be an integer >= 0, got {workers!r}")
+        self.workers = min(workers, 1)  # a two-stage pipeline: one helper
         #: Seconds per stage since the engine was made: "prefilter", "flow" (one flow per
         #: frame), "registration" (radial offsets of the registered state), "fusion" (mixed
         #: pixels, anchor, registration and update of the state), "deblur" (finishing).
@@ -533,6 +540,10 @@ class RecursiveUPSR:
 
     def push(self, frame: npt.ArrayLike) -> np.ndarray:
         """Add the next low-res frame (h, w) in mm; return its high-res frame (r·h, r·w)."""
+        return self._finish(*self._update(frame))
+
+    def _update(self, frame: npt.ArrayLike) -> tuple:
+        """:meth:`push` up to the new state; returns :meth:`_finish`'s (read-only) inputs."""
         t = self._count
         cfg = self.config
         r = cfg.scale
@@ -604,11 +615,18 @@ class RecursiveUPSR:
         self._depth, self._conf = fused, conf
         self._prev_pre, self._prev_guide = pre, guide
         self._count = t + 1
+        return fused, f, meas, anchor, noise
+
+    def _finish(
+        self, fused: np.ndarray, f: np.ndarray, meas: np.ndarray, anchor: np.ndarray, noise: float
+    ) -> np.ndarray:
+        """The output frame from the new state (the deblurring and the rules after it)."""
+        cfg = self.config
         with self._timed("deblur"):
             if self._remove_mixed:
                 # the mixed pixels the state did not fill: split between their neighbours
                 # (in the output only, the state holds measurements)
-                fused = split_mixed_pixels(fused, f, meas, anchor)
+                fused = split_mixed_pixels(fused, f, meas, anchor, keep_mean=True)
             return finish_frame(
                 finish_fused(
                     fused,
@@ -620,7 +638,7 @@ class RecursiveUPSR:
                 meas,
                 anchor,
                 cfg,
-                edge_mm=front.edge_mm,
+                edge_mm=self._front.edge_mm,  # type: ignore[union-attr]
                 noise_mm=noise,
                 measured=f,
             )
@@ -645,10 +663,17 @@ class RecursiveUPSR:
             self.reset()
 
     def process(self, frames: Iterable[npt.ArrayLike]) -> Iterator[np.ndarray]:
-        """Super-resolve a stream of frames; yields each frame's output as soon as it is
-        pushed."""
-        for frame in frames:
-            yield self.push(frame)
+        """Super-resolve a stream of frames; yields one output per frame, in order. With
+        ``workers``, frame t is finished on a helper thread while frame t + 1 updates the
+        state here (a core each), so its output comes once frame t + 1 has been read (a
+        recording); the outputs are :meth:`push`'s, which never waits for a later frame."""
+        pool = window_pool(self.workers)
+        if pool is None:
+            for frame in frames:
+                yield self.push(frame)
+        else:
+            with numba_threads(kernel_threads(1)):
+                yield from pipelined(self._update, lambda a: self._finish(*a), frames, pool)
         self.flush()
 
 

@@ -441,7 +441,9 @@ class UPSR:
             # the reference's mixed pixels and lone outliers (those it measured that abstained)
             # no frame filled: the depth of their neighbours
             source = lowres[ref] if anchor is None else anchor
-            fused = split_mixed_pixels(fused, measured[ref], lowres[ref], source)
+            fused = split_mixed_pixels(
+                fused, measured[ref], lowres[ref], source, keep_mean=stats.remove_mixed
+            )
         with self._timed("deblur"):
             return finish_frame(
                 finish_fused(fused, cfg, noise_profile=stats.trust_noise_profile),

@@ -670,7 +670,9 @@ def super_resolve_straightforward(frames: npt.ArrayLike, config: UPSRConfig) -> 
             fused = np.where(fallback, anchor_hr, fused)
         fused[~upsample_nearest((lowres > 0).any(axis=0), r)] = 0.0
         source = lowres[ref] if anchor is None else anchor
-        fused = split_mixed_pixels(fused, measured[ref], lowres[ref], source)
+        fused = split_mixed_pixels(
+            fused, measured[ref], lowres[ref], source, keep_mean=stats.remove_mixed
+        )
         res = remove_speckles(
             deblur_numpy(fused, cfg.deblur, scale=r, noise_profile=stats.trust_noise_profile),
             cfg.speckle_size_px,
