@@ -20,7 +20,8 @@ Four measurements, one table each, all written to ``--out/results.json``:
 * **Dense scenes** (issue #14): a room seen by a moving camera (every pixel measured) at ToF
   64×56 (r = 4), 320×240 and 640×480 (r = 2), and an animal in front of a wall at 256×148
   (r = 4), σ = 10 mm (:mod:`upsr.research.synth.realistic`); seconds per output frame of the
-  windowed and the recursive mode after warm-up, beside the straightforward path on the first
+  windowed and the recursive mode (frame by frame, and pipelined) after warm-up, beside the
+  straightforward path on the first
   N frames, with the accuracy of each.
 * **Memory**: ``upsr run`` on a 1000-frame 256×147 PNG folder (the Samba renders played back
   and forth) in a child process; its peak resident memory (``wait4`` rusage).
@@ -238,10 +239,26 @@ DENSE_CASES = (
 )
 
 
-def _stream(frames: np.ndarray, r: int, n: int, mode: str, warm: int) -> tuple[float, np.ndarray]:
-    """Seconds per output frame of the streaming engine after ``warm`` frames, and the output."""
+#: The rows of each dense case: the windowed mode (push), the recursive mode frame by frame
+#: (push: latency 0) and pipelined (process).
+PATHS = ("windowed", "recursive", "recursive_pipelined")
+
+
+def _stream(
+    frames: np.ndarray, r: int, n: int, mode: str, warm: int, *, pipelined: bool = False
+) -> tuple[float, np.ndarray]:
+    """Seconds per output frame of the streaming engine after ``warm`` frames, and the output:
+    frame by frame through ``push`` (the recursive mode's latency 0), or with ``pipelined``
+    through ``process`` (the recursive mode finishes frame t on a helper thread while frame
+    t + 1 updates the state: an output once the next frame has been read)."""
     engine = upsr.UPSR(r, n, mode=mode)
     outs: list[np.ndarray] = []
+    if pipelined:
+        stamps = []
+        for out in engine.process(frames):
+            outs.append(out)
+            stamps.append(time.perf_counter())
+        return (stamps[-1] - stamps[warm - 1]) / (len(outs) - warm), np.stack(outs)
     start = 0.0
     for k, frame in enumerate(frames):
         if k == warm:
@@ -272,19 +289,20 @@ def dense_benchmark(quick: bool, straightforward: bool) -> list[dict[str, Any]]:
         low = degrade(video, sensor, np.random.default_rng(0), sigma_mm=10.0)
         row: dict[str, Any] = {"case": label, "scene": name, "scale": r, "frames": total}
         row["measured_pct"] = 100.0 * float((low > 0).mean())
-        for mode in ("windowed", "recursive"):
+        for path in PATHS:
+            mode = path.split("_")[0]
             _stream(low[: n + 1], r, n, mode, n)  # compile for this shape
-            spf, out = _stream(low, r, n, mode, n)
-            row[mode] = {"s_per_frame": spf, "fps": 1.0 / spf}
-            row[mode]["accuracy"] = _accuracy(out, video.truth, r)
+            spf, out = _stream(low, r, n, mode, n, pipelined=path.endswith("pipelined"))
+            row[path] = {"s_per_frame": spf, "fps": 1.0 / spf}
+            row[path]["accuracy"] = _accuracy(out, video.truth, r)
         if straightforward and not (quick and shape[0] >= 480):
             start = time.perf_counter()
             slow = super_resolve_straightforward(low[:n], UPSRConfig(scale=r, n_frames=n))
             spf = (time.perf_counter() - start) / n
             row["straightforward"] = {"s_per_frame": spf, "fps": 1.0 / spf}
             row["straightforward"]["accuracy"] = _accuracy(slow, video.truth[:n], r)
-            for mode in ("windowed", "recursive"):
-                row[mode]["speedup"] = spf / row[mode]["s_per_frame"]
+            for path in PATHS:
+                row[path]["speedup"] = spf / row[path]["s_per_frame"]
         rows.append(row)
         print(f"  {label}: done", flush=True)
     return rows
@@ -297,7 +315,7 @@ def _print_dense(rows: list[dict[str, Any]]) -> None:
         f"{'edge %':>7} {'flying':>7}"
     )
     for row in rows:
-        for path in ("windowed", "recursive", "straightforward"):
+        for path in (*PATHS, "straightforward"):
             if path not in row:
                 continue
             m, acc = row[path], row[path]["accuracy"]

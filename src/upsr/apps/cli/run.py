@@ -101,7 +101,9 @@ WorkersOpt = Annotated[
         "--workers",
         min=0,
         help="Threads that finish windows side by side (same output) [default: 2 on a "
-        "machine with 2 or more cores; 0: one window at a time].",
+        "machine with 2 or more cores; 0: one window at a time]. With --recursive, 1 or "
+        "more: each frame is finished on a helper thread while the next one updates the "
+        "state (same output).",
     ),
 ]
 RunOverwriteOpt = Annotated[bool, typer.Option("--overwrite", help="Replace OUTPUT if it exists.")]
