@@ -205,3 +205,40 @@ def test_a_fused_block_that_misses_the_mixed_pixels_mean_is_split_afresh():
     np.testing.assert_array_equal(
         split_mixed_pixels(good, measured, cleaned, cleaned, keep_mean=True), good
     )
+
+
+def test_the_split_follows_the_slope_of_each_side_into_the_block():
+    """A mixed pixel between a flat wall (1000 mm) and a floor seen at a grazing angle that
+    nears it by 300 mm per pixel: the far half of the block continues the floor's slope
+    (2700 mm at the next pixel's centre, 300 mm less per pixel towards the block), the near
+    half stays on the flat wall."""
+    from upsr.method.mixed import split_mixed_pixels
+
+    r = 4
+    row = np.array([1000, 1000, 1000, 1850, 2700, 3000, 3300, 3600], np.float32)
+    measured = np.repeat(row[None], 5, axis=0)
+    cleaned = measured.copy()
+    cleaned[:, 3] = 0.0
+    fused = np.repeat(np.repeat(cleaned, r, axis=0), r, axis=1)
+    out = split_mixed_pixels(fused, measured, cleaned, cleaned, keep_mean=True)
+    block = out[2 * r : 3 * r, 3 * r : 4 * r]
+    assert (block[:, :2] == 1000.0).all()
+    # far pixels at x = 14, 15: 0.875 and 0.625 px from the next pixel's centre (x = 17.5)
+    np.testing.assert_allclose(block[:, 2:], [[2437.5, 2512.5]] * r)
+
+
+def test_a_fill_of_other_frames_mixes_is_split_afresh():
+    """Other frames' mixes that their own test missed fill the block with about what the
+    reference measured (its mean is kept) but lie between the surfaces: with keep_mean the
+    block is split, without it kept."""
+    from upsr.method.mixed import split_mixed_pixels
+
+    r = 4
+    measured = np.full((5, 7), 3000.0, np.float32)
+    measured[:, :3] = 1000.0
+    measured[:, 3] = 2000.0
+    cleaned = remove_mixed_pixels(measured, 100.0)
+    fused = np.repeat(np.repeat(measured, r, axis=0), r, axis=1)  # the mixes, 2000 mm
+    out = split_mixed_pixels(fused, measured, cleaned, cleaned, keep_mean=True)
+    assert set(np.unique(out[:, 3 * r : 4 * r])) == {1000.0, 3000.0}
+    np.testing.assert_array_equal(split_mixed_pixels(fused, measured, cleaned, cleaned), fused)
