@@ -1,5 +1,5 @@
-"""upsr.method._parallel: two tasks side by side (both), a two-stage pipeline (pipelined),
-same results as in sequence."""
+"""upsr.method._parallel: two tasks side by side, same results as in sequence; numba's
+threads per thread."""
 
 import multiprocessing
 import os
@@ -8,7 +8,7 @@ import threading
 import numpy as np
 import pytest
 
-from upsr.method._parallel import both, numba_threads, pipelined, window_pool
+from upsr.method._parallel import both, numba_threads
 
 
 def test_results_in_order_and_on_two_threads():
@@ -136,49 +136,6 @@ def test_window_pool_threads_run_numba_and_both_serially():
     if (os.cpu_count() or 1) <= 3:
         assert threads == 1  # two cores: each kernel on its window's thread
     assert order == ["a", name]  # nested: on the same thread, in sequence
-
-
-def test_pipelined_gives_each_items_results_in_order_second_stage_on_the_pool():
-    pool = window_pool(1)
-    if pool is None:
-        pytest.skip("numba's threading layer cannot be shared by threads")
-    where = []
-
-    def second(a):
-        where.append(threading.current_thread().name)
-        return a * 10
-
-    assert list(pipelined(lambda x: x + 1, second, range(5), pool)) == [10, 20, 30, 40, 50]
-    assert threading.current_thread().name not in where
-    assert list(pipelined(lambda x: x, second, [], pool)) == []
-
-
-def test_pipelined_raises_in_order_after_the_pending_item():
-    pool = window_pool(1)
-    if pool is None:
-        pytest.skip("numba's threading layer cannot be shared by threads")
-    done = []
-
-    def first(x):
-        if x == 2:
-            raise ValueError("first")
-        return x
-
-    def second(a):
-        done.append(a)
-        return a
-
-    it = pipelined(first, second, range(4), pool)
-    assert next(it) == 0
-    with pytest.raises(ValueError, match="first"):
-        next(it)
-    assert done == [0, 1]  # item 1 was finished before the error came out
-
-    def bad(a):
-        raise KeyError(a)
-
-    with pytest.raises(KeyError):
-        list(pipelined(lambda x: x, bad, range(3), pool))
 
 
 def test_numba_threads_sets_and_restores_this_threads_count():

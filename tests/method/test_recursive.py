@@ -79,7 +79,31 @@ def test_process_finishes_each_frame_on_a_helper_thread_with_the_same_outputs():
     engine._finish = spy
     np.testing.assert_array_equal(np.stack(list(engine.process(low))), pushed)
     assert threading.current_thread().name not in names and len(names) == 1
+    # push_async: the same outputs, `then` on the helper thread in frame order
+    got, where = [], set()
+
+    def then(out):
+        where.add(threading.current_thread().name)
+        got.append(out)
+
+    futures = [engine.push_async(f, then=then) for f in low]
+    engine.wait()
+    np.testing.assert_array_equal(np.stack([f.result() for f in futures]), pushed)
+    np.testing.assert_array_equal(np.stack(got), pushed)
+    assert threading.current_thread().name not in where
+    assert engine.flush() == []
+
+    def fail(out):
+        raise RuntimeError("writer failed")
+
+    engine.push_async(low[0], then=fail)
+    with pytest.raises(RuntimeError, match="writer failed"):
+        engine.wait()
+    engine.reset()
     assert serial.workers == 0 and RecursiveUPSR(scale=2, workers=4).workers == 1
+    # without workers push_async finishes here
+    done = serial.push_async(low[0])
+    assert done.done() and done.result().shape == pushed[0].shape
     for bad in (-1, True, 1.5):
         with pytest.raises(InputError, match="workers"):
             RecursiveUPSR(scale=2, workers=bad)

@@ -142,3 +142,21 @@ def test_cumulative_flows_are_the_chain_of_compositions():
         expected[j] = compose_flows(expected[j + 1], backward[j + 1])
     for j in range(n):
         np.testing.assert_array_equal(maps[j], expected[j])
+
+
+def test_flow_positions_read_the_flow_bilinearly_and_scale_it_to_the_output_grid():
+    from upsr.method.registration import flow_positions
+
+    flow = np.zeros((6, 8, 2), np.float32)
+    qx, qy = flow_positions(flow, (12, 16))
+    yy, xx = np.mgrid[0:12, 0:16]
+    np.testing.assert_array_equal(qx, xx)
+    np.testing.assert_array_equal(qy, yy)
+    flow[..., 0], flow[..., 1] = 1.0, -0.5  # flow-grid px; the output grid is 2x finer
+    qx, qy = flow_positions(flow, (12, 16))
+    np.testing.assert_allclose(qx, xx + 2.0)
+    np.testing.assert_allclose(qy, yy - 1.0)
+    flow[..., 0] = np.arange(8, dtype=np.float32)  # a ramp: read between the samples
+    qx, _ = flow_positions(flow, (12, 16))
+    # output column 5's centre is at flow-grid x = (5 + 0.5)/2 - 0.5 = 2.25
+    np.testing.assert_allclose(qx[:, 5], 5 + 2.0 * 2.25)

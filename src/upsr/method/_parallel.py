@@ -21,17 +21,16 @@ from __future__ import annotations
 import contextlib
 import os
 import threading
-from collections.abc import Callable, Iterable, Iterator
+from collections.abc import Callable, Iterator
 from concurrent.futures import ThreadPoolExecutor
 from typing import TypeVar
 
 import numba as nb
 
-__all__ = ["both", "kernel_threads", "numba_threads", "pipelined", "window_pool"]
+__all__ = ["both", "kernel_threads", "numba_threads", "window_pool"]
 
 T = TypeVar("T")
 U = TypeVar("U")
-V = TypeVar("V")
 
 _THREAD_PREFIX = "upsr-helper"
 _LOCK = threading.Lock()
@@ -136,27 +135,3 @@ def numba_threads(count: int) -> Iterator[None]:
         yield
     finally:
         nb.set_num_threads(before)
-
-
-def pipelined(
-    first: Callable[[T], U], second: Callable[[U], V], items: Iterable[T], pool: ThreadPoolExecutor
-) -> Iterator[V]:
-    """``second(first(item))`` for each item, in order, ``second`` of item t on ``pool``
-    while ``first`` of item t + 1 runs here (a two-stage pipeline: ``first`` must carry
-    whatever state links the items, ``second`` must only read what ``first`` gave it).
-    The result of item t is yielded once item t + 1 has passed ``first``; an exception of
-    either stage is raised in order, after the pending item has finished."""
-    pending = None
-    try:
-        for item in items:
-            a = first(item)
-            if pending is not None:
-                done, pending = pending, None
-                yield done.result()
-            pending = pool.submit(second, a)
-        if pending is not None:
-            done, pending = pending, None
-            yield done.result()
-    finally:
-        if pending is not None:
-            pending.result()

@@ -76,7 +76,8 @@ import contextlib
 import math
 import os
 import time
-from collections.abc import Iterable, Iterator
+from collections.abc import Callable, Iterable, Iterator
+from concurrent.futures import Future
 from typing import Any
 
 import numba as nb
@@ -85,7 +86,7 @@ import numpy.typing as npt
 
 from upsr._numba import SAFE_FASTMATH
 from upsr.errors import InputError
-from upsr.method._parallel import kernel_threads, numba_threads, pipelined, window_pool
+from upsr.method._parallel import kernel_threads, numba_threads, window_pool
 from upsr.method.config import UPSRConfig
 from upsr.method.consistency import hole_backgrounds
 from upsr.method.finishing import finish_frame, finish_fused
@@ -98,14 +99,14 @@ from upsr.method.mixed import (
 )
 from upsr.method.motion import FlowBackend, make_flow_backend
 from upsr.method.noise import noise_shape
-from upsr.method.registration import interpolation_tables
+from upsr.method.registration import flow_positions
 from upsr.method.trust import (
     _offset_kernel,
     _sigma_and_power,
     reference_anchor,
     significance,
 )
-from upsr.method.validation import as_depth_frame, as_depth_video
+from upsr.method.validation import as_depth_frame
 from upsr.method.windowed import STAGES, trust_profile
 
 __all__ = [
@@ -113,7 +114,6 @@ __all__ = [
     "STATE_NOISE_FACTOR",
     "RecursiveUPSR",
     "recursive_update",
-    "super_resolve_recursive",
 ]
 
 #: The radial offsets of the state use ``RADIAL_RADIUS_FACTOR × radial_radius_px``.
@@ -129,30 +129,6 @@ NOISE_SAMPLE_PX = 65536
 # ---------------------------------------------------------------------------------------------
 # compiled kernels
 # ---------------------------------------------------------------------------------------------
-@nb.njit(cache=True, nogil=True, parallel=True, fastmath=SAFE_FASTMATH, error_model="numpy")
-def _positions_kernel(flow, ratio, cols, fx, rows, fy, qx, qy):  # pragma: no cover - numba
-    """(qx, qy)[y, x]: the position (high-res px of the previous grid) that output pixel
-    (y, x) comes from: (x, y) + ratio · the flow read bilinearly at the pixel's centre on the
-    flow grid (the tables of :func:`upsr.method.registration.interpolation_tables`)."""
-    hh, ww = qx.shape
-    for y in nb.prange(hh):
-        r0 = rows[y, 0]
-        r1 = rows[y, 1]
-        wy = fy[y]
-        for x in range(ww):
-            c0 = cols[x, 0]
-            c1 = cols[x, 1]
-            wx = fx[x]
-            for c in range(2):
-                top = flow[r0, c0, c] + (flow[r0, c1, c] - flow[r0, c0, c]) * wx
-                bot = flow[r1, c0, c] + (flow[r1, c1, c] - flow[r1, c0, c]) * wx
-                v = top + (bot - top) * wy
-                if c == 0:
-                    qx[y, x] = x + v * ratio
-                else:
-                    qy[y, x] = y + v * ratio
-
-
 @nb.njit(cache=True, nogil=True, parallel=True, fastmath=SAFE_FASTMATH, error_model="numpy")
 def _registered_state_kernel(depth, qx, qy, scale, out):  # pragma: no cover - numba
     """out[i, j]: the state at low-res pixel (i, j)'s centre, moved by the flow: the mean of
@@ -395,10 +371,7 @@ def recursive_update(
     fl = np.ascontiguousarray(flow, np.float32)
     meas = np.ascontiguousarray(measurement, np.float32)
     h, w = meas.shape
-    (cols, fx), (rows, fy), ratio = interpolation_tables(d.shape, fl.shape[:2])
-    qx = np.empty(d.shape, np.float32)
-    qy = np.empty(d.shape, np.float32)
-    _positions_kernel(fl, ratio, cols, fx, rows, fy, qx, qy)
+    qx, qy = flow_positions(fl, d.shape)
     offsets = np.zeros((h, w), np.float32)
     sigma, power = _sigma_and_power(sigma_mm, noise_profile)
     if radial_radius_px and (d > 0).any():
@@ -656,45 +629,65 @@ class RecursiveUPSR:
             None of the pushed frames had any valid depth.
         """
         try:
+            self.wait()
             if self._count and self._depth is not None and not (self._depth > 0).any():
                 raise InputError("no valid depth in any frame (all pixels are 0 or NaN)")
             return []
         finally:
             self.reset()
 
+    def push_async(
+        self, frame: npt.ArrayLike, then: Callable[[np.ndarray], None] | None = None
+    ) -> Future:
+        """:meth:`push` with the frame's finishing on a helper thread (``workers`` ≥ 1).
+
+        The state is updated here, on one core; the deblurring and the rules after it run on
+        the helper, on the other, while the caller takes the next frame (whose update then
+        overlaps this one's finishing): the future's result is :meth:`push`'s output, and
+        ``then(output)`` runs on the helper first (in frame order, e.g. to write it). One
+        frame at a time is finished: a call waits for the previous frame's finishing after
+        its own update. Without workers everything runs here (a finished future).
+        """
+        pool = window_pool(self.workers)
+        with numba_threads(kernel_threads(1)) if pool is not None else contextlib.nullcontext():
+            args = self._update(frame)
+
+        def finish() -> np.ndarray:
+            out = self._finish(*args)
+            if then is not None:
+                then(out)
+            return out
+
+        if pool is None:
+            done: Future = Future()
+            done.set_result(finish())
+            return done
+        self.wait()
+        self._pending = pool.submit(finish)
+        return self._pending
+
+    def wait(self) -> None:
+        """Wait for the frame :meth:`push_async` is finishing, if any (its error is raised
+        here)."""
+        pending, self._pending = getattr(self, "_pending", None), None
+        if pending is not None:
+            pending.result()
+
     def process(self, frames: Iterable[npt.ArrayLike]) -> Iterator[np.ndarray]:
         """Super-resolve a stream of frames; yields one output per frame, in order. With
-        ``workers``, frame t is finished on a helper thread while frame t + 1 updates the
-        state here (a core each), so its output comes once frame t + 1 has been read (a
-        recording); the outputs are :meth:`push`'s, which never waits for a later frame."""
-        pool = window_pool(self.workers)
-        if pool is None:
+        ``workers``, through :meth:`push_async`: frame t is finished while frame t + 1
+        updates the state, so its output comes once frame t + 1 has been read (a
+        recording); without, through :meth:`push`, which never waits for a later frame."""
+        if window_pool(self.workers) is None:
             for frame in frames:
                 yield self.push(frame)
         else:
-            with numba_threads(kernel_threads(1)):
-                yield from pipelined(self._update, lambda a: self._finish(*a), frames, pool)
+            last = None
+            for frame in frames:
+                current = self.push_async(frame)
+                if last is not None:
+                    yield last.result()
+                last = current
+            if last is not None:
+                yield last.result()
         self.flush()
-
-
-def super_resolve_recursive(
-    frames: npt.ArrayLike,
-    config: UPSRConfig,
-    *,
-    progress: bool | None = None,
-) -> np.ndarray:
-    """:func:`upsr.super_resolve` in recursive mode: the outputs of :class:`RecursiveUPSR`
-    pushed the frames of a (T, h, w) video, as one (T, r·h, r·w) float32 array."""
-    video = as_depth_video(frames)
-    t_total, h, w = video.shape
-    r = config.scale
-    out = np.empty((t_total, h * r, w * r), np.float32)
-    engine = RecursiveUPSR(config=config)
-    results: Iterable[np.ndarray] = engine.process(video)
-    if progress:
-        from tqdm import tqdm
-
-        results = tqdm(results, total=t_total, unit="frame", desc="upsr", leave=False)
-    for t, frame in enumerate(results):
-        out[t] = frame
-    return out

@@ -24,6 +24,7 @@ import numba as nb
 import numpy as np
 import numpy.typing as npt
 
+from upsr._numba import SAFE_FASTMATH
 from upsr.method._parallel import both
 
 __all__ = [
@@ -31,6 +32,7 @@ __all__ = [
     "advance_positions",
     "compose_flows",
     "cumulative_flows",
+    "flow_positions",
     "flows_to_reference",
     "identity_grid",
     "interpolation_tables",
@@ -283,6 +285,57 @@ def interpolation_tables(
     cols = _interpolation_table(out_shape[1], flow_shape[1], ratio)
     rows = _interpolation_table(out_shape[0], flow_shape[0], ratio)
     return cols, rows, float(ratio)
+
+
+@nb.njit(cache=True, nogil=True, parallel=True, fastmath=SAFE_FASTMATH, error_model="numpy")
+def _positions_kernel(flow, ratio, cols, fx, rows, fy, qx, qy):  # pragma: no cover - numba
+    """(qx, qy)[y, x] = (x, y) + ratio · the flow read bilinearly at the pixel's centre on
+    the flow grid (the tables of :func:`interpolation_tables`)."""
+    hh, ww = qx.shape
+    for y in nb.prange(hh):
+        r0 = rows[y, 0]
+        r1 = rows[y, 1]
+        wy = fy[y]
+        for x in range(ww):
+            c0 = cols[x, 0]
+            c1 = cols[x, 1]
+            wx = fx[x]
+            for c in range(2):
+                top = flow[r0, c0, c] + (flow[r0, c1, c] - flow[r0, c0, c]) * wx
+                bot = flow[r1, c0, c] + (flow[r1, c1, c] - flow[r1, c0, c]) * wx
+                v = top + (bot - top) * wy
+                if c == 0:
+                    qx[y, x] = x + v * ratio
+                else:
+                    qy[y, x] = y + v * ratio
+
+
+def flow_positions(
+    flow: npt.ArrayLike, out_shape: tuple[int, int]
+) -> tuple[np.ndarray, np.ndarray]:
+    """Where each pixel of an output grid comes from, through a flow on a coarser grid.
+
+    Parameters
+    ----------
+    flow : array_like float32 (fh, fw, 2)
+        Backward flow (dx, dy) on the flow grid (flow-grid px), e.g. from the current frame
+        to the previous one.
+    out_shape : (H, W)
+        The output grid, whose pixel size is W / fw flow-grid px.
+
+    Returns
+    -------
+    (qx, qy) : ndarray float32 (H, W)
+        Position (output-grid px) of each output pixel (x, y) in the other frame: (x, y) +
+        (W / fw) · the flow read bilinearly at the pixel's centre (pixel centres aligned, as
+        ``cv2.resize``).
+    """
+    fl = np.ascontiguousarray(flow, np.float32)
+    (cols, fx), (rows, fy), ratio = interpolation_tables(tuple(out_shape), fl.shape[:2])
+    qx = np.empty(tuple(out_shape), np.float32)
+    qy = np.empty(tuple(out_shape), np.float32)
+    _positions_kernel(fl, ratio, cols, fx, rows, fy, qx, qy)
+    return qx, qy
 
 
 def weight_table(scale: int, sigma_px: float | None) -> tuple[np.ndarray, float]:

@@ -628,7 +628,9 @@ def super_resolve(
     progress : bool, optional
         Show a progress bar on stderr.
     workers : int, optional
-        Threads that finish windows side by side (see :class:`UPSR`); the output is the same.
+        Threads that finish windows side by side (see :class:`UPSR`), or in recursive mode
+        frames while the next one updates the state (see
+        :class:`~upsr.method.recursive.RecursiveUPSR`); the output is the same.
     **options
         Any :class:`~upsr.method.config.UPSRConfig` field, ``deblur_*`` for deblurring options.
 
@@ -643,13 +645,9 @@ def super_resolve(
         Bad data (shape, dtype, ±inf, negative depth, no valid depth) or parameters.
     """
     cfg = config if config is not None else UPSRConfig.from_options(scale, n_frames, **options)
-    if cfg.mode == "recursive":
-        from upsr.method.recursive import super_resolve_recursive
-
-        return super_resolve_recursive(frames, cfg, progress=progress)
     video = as_depth_video(frames)
     t_total, h, w = video.shape
-    if cfg.n_frames > t_total:
+    if cfg.mode == "windowed" and cfg.n_frames > t_total:
         raise InputError(
             f"N={cfg.n_frames} frames per window but the video has only {t_total} frame(s)"
         )

@@ -22,6 +22,7 @@ output) and the dropped frames; ``--preview`` rewrites a side-by-side PNG (input
 
 from __future__ import annotations
 
+import functools
 import queue
 import sys
 import threading
@@ -340,43 +341,53 @@ def live(
     out_fmt = fmt(output_format)
     io.check_output_path([] if recording is None else [recording], output, overwrite, fmt=out_fmt)
     source = FrameSource(recording, real_time=not no_real_time)
+    # each frame updates the state here, then is finished (deblurred, written, shown) on a
+    # helper thread while the next frame updates the state (RecursiveUPSR.push_async)
     engine = RecursiveUPSR(config=cfg)
     r = cfg.scale
-    done = 0
-    latency_ms = 0.0
     start = time.perf_counter()
-    last_status = 0.0
+    stats = {"done": 0, "latency_ms": 0.0, "last_status": 0.0}
+    submitted = 0
     try:
         with io.VideoWriter(
             output, fmt=out_fmt, depth_scale=depth_scale, overwrite=overwrite
         ) as writer:
-            for frame, arrived in source:
-                out = engine.push(frame)
+
+            def emit(frame: Any, arrived: float, out: Any) -> None:
                 writer.write(out)
-                done += 1
+                stats["done"] += 1
                 now = time.perf_counter()
-                latency_ms = 1000.0 * (now - arrived)
+                stats["latency_ms"] = 1000.0 * (now - arrived)
+                done = stats["done"]
                 if preview is not None and (done == 1 or done % preview_every == 0):
                     _write_preview(preview, frame, out, r, done)
-                if not quiet and now - last_status > 0.25:
-                    _status(done, now - start, latency_ms, source.dropped)
-                    last_status = now
-                if (max_frames is not None and done >= max_frames) or (
-                    seconds is not None and now - start >= seconds
-                ):
-                    break
-            if done == 0:
+                if not quiet and now - stats["last_status"] > 0.25:
+                    _status(done, now - start, stats["latency_ms"], source.dropped)
+                    stats["last_status"] = now
+
+            try:
+                for frame, arrived in source:
+                    engine.push_async(frame, then=functools.partial(emit, frame, arrived))
+                    submitted += 1
+                    if (max_frames is not None and submitted >= max_frames) or (
+                        seconds is not None and time.perf_counter() - start >= seconds
+                    ):
+                        break
+            finally:
+                engine.wait()  # the last frame is written before the writer closes
+            if stats["done"] == 0:
                 raise InputError("no depth frame came from the RealSense source")
     finally:
         source.close()
         if not quiet:
             sys.stderr.write("\n")
     elapsed = time.perf_counter() - start
+    done = stats["done"]
     h, w = source.shape
     rate = done / elapsed if elapsed > 0 else float("inf")
     typer.echo(
         f"upsr live: {done} frames {w}x{h} -> {w * r}x{h * r} (r={r}, recursive) in "
-        f"{elapsed:.1f} s ({rate:.1f} frames/s, last latency {latency_ms:.0f} ms, "
+        f"{elapsed:.1f} s ({rate:.1f} frames/s, last latency {stats['latency_ms']:.0f} ms, "
         f"{source.dropped} dropped) -> {output}"
     )
 
