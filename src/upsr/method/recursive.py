@@ -76,8 +76,7 @@ import contextlib
 import math
 import os
 import time
-from collections.abc import Callable, Iterable, Iterator
-from concurrent.futures import Future
+from collections.abc import Iterator
 from typing import Any
 
 import numba as nb
@@ -86,7 +85,6 @@ import numpy.typing as npt
 
 from upsr._numba import SAFE_FASTMATH
 from upsr.errors import InputError
-from upsr.method._parallel import kernel_threads, numba_threads, window_pool
 from upsr.method.config import UPSRConfig
 from upsr.method.consistency import hole_backgrounds
 from upsr.method.finishing import finish_frame, finish_fused
@@ -99,6 +97,7 @@ from upsr.method.mixed import (
 )
 from upsr.method.motion import FlowBackend, make_flow_backend
 from upsr.method.noise import noise_shape
+from upsr.method.pipeline import TwoStagePipeline
 from upsr.method.registration import flow_positions
 from upsr.method.trust import (
     _offset_kernel,
@@ -410,7 +409,7 @@ def recursive_update(
 # ---------------------------------------------------------------------------------------------
 # the engine
 # ---------------------------------------------------------------------------------------------
-class RecursiveUPSR:
+class RecursiveUPSR(TwoStagePipeline):
     """Recursive (causal) UP-SR: each pushed frame's high-res output comes back at once.
 
     Same interface as :class:`upsr.method.windowed.UPSR`: :meth:`push` returns the frame's
@@ -472,6 +471,7 @@ class RecursiveUPSR:
         # "auto": the mean of the trusted samples (see the module), whatever the noise
         self._estimator = "mean" if cfg.fusion_estimator == "auto" else cfg.fusion_estimator
         self._remove_mixed = cfg.remove_mixed is True
+        self._reset_pipeline()
 
     @property
     def frames_seen(self) -> int:
@@ -635,59 +635,3 @@ class RecursiveUPSR:
             return []
         finally:
             self.reset()
-
-    def push_async(
-        self, frame: npt.ArrayLike, then: Callable[[np.ndarray], None] | None = None
-    ) -> Future:
-        """:meth:`push` with the frame's finishing on a helper thread (``workers`` ≥ 1).
-
-        The state is updated here, on one core; the deblurring and the rules after it run on
-        the helper, on the other, while the caller takes the next frame (whose update then
-        overlaps this one's finishing): the future's result is :meth:`push`'s output, and
-        ``then(output)`` runs on the helper first (in frame order, e.g. to write it). One
-        frame at a time is finished: a call waits for the previous frame's finishing after
-        its own update. Without workers everything runs here (a finished future).
-        """
-        pool = window_pool(self.workers)
-        with numba_threads(kernel_threads(1)) if pool is not None else contextlib.nullcontext():
-            args = self._update(frame)
-
-        def finish() -> np.ndarray:
-            out = self._finish(*args)
-            if then is not None:
-                then(out)
-            return out
-
-        if pool is None:
-            done: Future = Future()
-            done.set_result(finish())
-            return done
-        self.wait()
-        self._pending = pool.submit(finish)
-        return self._pending
-
-    def wait(self) -> None:
-        """Wait for the frame :meth:`push_async` is finishing, if any (its error is raised
-        here)."""
-        pending, self._pending = getattr(self, "_pending", None), None
-        if pending is not None:
-            pending.result()
-
-    def process(self, frames: Iterable[npt.ArrayLike]) -> Iterator[np.ndarray]:
-        """Super-resolve a stream of frames; yields one output per frame, in order. With
-        ``workers``, through :meth:`push_async`: frame t is finished while frame t + 1
-        updates the state, so its output comes once frame t + 1 has been read (a
-        recording); without, through :meth:`push`, which never waits for a later frame."""
-        if window_pool(self.workers) is None:
-            for frame in frames:
-                yield self.push(frame)
-        else:
-            last = None
-            for frame in frames:
-                current = self.push_async(frame)
-                if last is not None:
-                    yield last.result()
-                last = current
-            if last is not None:
-                yield last.result()
-        self.flush()

@@ -1,0 +1,79 @@
+"""upsr.method.pipeline: the update on the caller's thread, the finishing on a helper thread,
+kept only where the two stages take about the same time."""
+
+import threading
+import time
+
+import numpy as np
+import pytest
+
+from upsr.method._parallel import window_pool
+from upsr.method.pipeline import PIPELINE_PROBE, TwoStagePipeline
+
+
+class _Engine(TwoStagePipeline):
+    """A state that sums the frames; update and finishing sleep the given seconds."""
+
+    def __init__(self, update_s, finish_s, workers=1):
+        self.update_s, self.finish_s, self.workers = update_s, finish_s, workers
+        self.reset()
+
+    def reset(self):
+        self._count = 0
+        self._total = 0.0
+        self._reset_pipeline()
+
+    def _update(self, frame):
+        time.sleep(self.update_s)
+        self._total += float(frame)
+        self._count += 1
+        return (self._total,)
+
+    def _finish(self, total):
+        time.sleep(self.finish_s)
+        return np.array([total, threading.current_thread().name], dtype=object)
+
+    def push(self, frame):
+        return self._finish(*self._update(frame))
+
+    def flush(self):
+        self.wait()
+        self.reset()
+        return []
+
+
+@pytest.fixture(autouse=True)
+def _needs_a_pool():
+    if window_pool(1) is None:
+        pytest.skip("numba's threading layer cannot be shared by threads")
+
+
+def test_outputs_in_order_and_finished_on_the_helper_while_balanced():
+    engine = _Engine(0.004, 0.004)
+    outs = list(engine.process(range(10)))
+    assert [float(o[0]) for o in outs] == [sum(range(k + 1)) for k in range(10)]
+    assert {o[1] for o in outs} != {threading.current_thread().name}
+    assert engine._pipelined is None  # (flush resets: measured anew for the next video)
+
+
+@pytest.mark.parametrize(
+    ("update_s", "finish_s", "kept"), [(0.01, 0.01, True), (0.001, 0.05, False)]
+)
+def test_the_pipeline_is_kept_only_for_stages_of_about_the_same_time(update_s, finish_s, kept):
+    engine = _Engine(update_s, finish_s)
+    futures = [engine.push_async(k) for k in range(3 + PIPELINE_PROBE)]
+    engine.wait()
+    assert engine._pipelined is kept
+    later = engine.push_async(100)
+    name = later.result()[1]
+    assert (name != threading.current_thread().name) is kept
+    assert float(later.result()[0]) == sum(range(3 + PIPELINE_PROBE)) + 100
+    assert all(f.done() for f in futures)
+
+
+def test_without_workers_everything_runs_here():
+    engine = _Engine(0.0, 0.0, workers=0)
+    future = engine.push_async(1.0)
+    assert future.done() and future.result()[1] == threading.current_thread().name
+    engine.flush()
+    assert [float(o[0]) for o in engine.process([1, 2])] == [1.0, 3.0]
