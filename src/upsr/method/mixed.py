@@ -58,7 +58,7 @@ ABSTAIN = -1.0
 #: share on each surface within 0.15), else the fused samples there were misregistered and the
 #: block is split afresh (:func:`split_mixed_pixels` ``keep_mean``; on the realistic ToF
 #: scenes, seeds 0–2: the deforming body's rmse 110–117 → 83–85 mm, the galloping animal's
-#: 107 → 84–86, nearest 100–108; 0.08 within 1 mm of it, 0 (always split) 1–3 mm worse).
+#: 107 → 84–87, nearest 100–108; 0.08 within 1 mm of it, 0 (always split) 1–3 mm worse).
 SPLIT_MEAN_TOLERANCE = 0.15
 #: ... and none of its pixels may lie farther than this share of that step from both surfaces:
 #: a fill made of other frames' mixes that their test missed keeps the mean but is mixed (on

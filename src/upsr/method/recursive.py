@@ -415,9 +415,11 @@ class RecursiveUPSR(TwoStagePipeline):
     Same interface as :class:`upsr.method.windowed.UPSR`: :meth:`push` returns the frame's
     output (latency 0 frames), :meth:`feed` a list of it, :meth:`flush` nothing more (it
     resets), :meth:`process` yields one output per input, :attr:`timings` the seconds per
-    stage. Memory: the state (two r·h × r·w float32 images) and the previous frame's
-    prefiltered and 8-bit guide images, whatever N. ``n_frames`` caps the state's count (how
-    many frames it summarises); see the module for the update rule.
+    stage; :meth:`push_async` and :meth:`wait` finish frames on a second thread
+    (:class:`~upsr.method.pipeline.TwoStagePipeline`). Memory: the state (two r·h × r·w
+    float32 images) and the previous frame's prefiltered and 8-bit guide images, whatever N.
+    ``n_frames`` caps the state's count (how many frames it summarises); see the module for
+    the update rule.
 
     Parameters
     ----------
