@@ -109,6 +109,15 @@ def test_process_finishes_each_frame_on_a_helper_thread_with_the_same_outputs():
             RecursiveUPSR(scale=2, workers=bad)
 
 
+def test_a_bad_frame_in_push_async_raises_here_and_the_frame_in_flight_still_finishes():
+    engine = RecursiveUPSR(scale=2, n_frames=5, workers=1)
+    first = engine.push_async(np.full((8, 8), 1000.0))
+    with pytest.raises(InputError, match="shape"):
+        engine.push_async(np.full((8, 9), 1000.0))
+    assert first.result().shape == (16, 16)
+    assert engine.flush() == [] and engine.frames_seen == 0
+
+
 def test_bad_mode_and_input():
     with pytest.raises(InputError, match="mode"):
         upsr.UPSRConfig(mode="causal")

@@ -342,6 +342,26 @@ def test_bad_input(
     assert listing(d) == before
 
 
+@pytest.mark.parametrize(
+    "case", ["plus_inf", "minus_inf", "negative", "negative_npz", "all_zero", "all_nan"]
+)
+def test_bad_frames_in_recursive_mode(
+    capsys: pytest.CaptureFixture[str], tmp_path: Path, case: str
+) -> None:
+    """A bad frame in the middle of a video, with each frame finished on a helper thread
+    while the next updates the state: the same one-line error, no output."""
+    make, match = BAD_INPUTS[case]
+    d = tmp_path / "work"
+    d.mkdir()
+    inp = make(d)
+    before = listing(d)
+    out = tmp_path / "out" / "result.npy"
+    rc, stdout, err = run_cli(capsys, "run", inp, "-o", out, "-r", 2, "--recursive", "--quiet")
+    assert_user_error(rc, stdout, err, match)
+    assert not (tmp_path / "out").exists()
+    assert listing(d) == before
+
+
 def test_empty_frame_in_the_middle_is_fine(
     capsys: pytest.CaptureFixture[str], tmp_path: Path
 ) -> None:
