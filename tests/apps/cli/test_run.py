@@ -321,25 +321,30 @@ if os.geteuid() != 0:  # root can read anything
     BAD_INPUTS["unreadable"] = (_unreadable, "cannot read")
 
 
-@pytest.mark.parametrize("quiet", [True, False], ids=["quiet", "bar"])
-@pytest.mark.parametrize("case", sorted(BAD_INPUTS))
-def test_bad_input(
-    capsys: pytest.CaptureFixture[str], tmp_path: Path, case: str, quiet: bool
+def _refused(
+    capsys: pytest.CaptureFixture[str], tmp_path: Path, case: str, *options: object
 ) -> None:
+    """``upsr run`` on the bad input ``case`` with ``options``: exit 2 with one line, no
+    output, the input folder untouched."""
     make, match = BAD_INPUTS[case]
     d = tmp_path / "work"
     d.mkdir()
     inp = make(d)
     before = listing(d)
     out = tmp_path / "out" / "result.npy"
-    rc, stdout, err = run_cli(
-        capsys, "run", inp, "-o", out, "-r", 2, "-n", 3, *(["--quiet"] if quiet else [])
-    )
-    if not quiet:  # the progress bar may have been drawn (and erased with \r) before the error
-        err = err.split("\r")[-1]
-    assert_user_error(rc, stdout, err, match)
+    rc, stdout, err = run_cli(capsys, "run", inp, "-o", out, "-r", 2, *options)
+    # the progress bar may have been drawn (and erased with \r) before the error
+    assert_user_error(rc, stdout, err.split("\r")[-1], match)
     assert not (tmp_path / "out").exists()
     assert listing(d) == before
+
+
+@pytest.mark.parametrize("quiet", [True, False], ids=["quiet", "bar"])
+@pytest.mark.parametrize("case", sorted(BAD_INPUTS))
+def test_bad_input(
+    capsys: pytest.CaptureFixture[str], tmp_path: Path, case: str, quiet: bool
+) -> None:
+    _refused(capsys, tmp_path, case, "-n", 3, *(["--quiet"] if quiet else []))
 
 
 @pytest.mark.parametrize(
@@ -350,16 +355,7 @@ def test_bad_frames_in_recursive_mode(
 ) -> None:
     """A bad frame in the middle of a video, with each frame finished on a helper thread
     while the next updates the state: the same one-line error, no output."""
-    make, match = BAD_INPUTS[case]
-    d = tmp_path / "work"
-    d.mkdir()
-    inp = make(d)
-    before = listing(d)
-    out = tmp_path / "out" / "result.npy"
-    rc, stdout, err = run_cli(capsys, "run", inp, "-o", out, "-r", 2, "--recursive", "--quiet")
-    assert_user_error(rc, stdout, err, match)
-    assert not (tmp_path / "out").exists()
-    assert listing(d) == before
+    _refused(capsys, tmp_path, case, "--recursive", "--quiet")
 
 
 def test_empty_frame_in_the_middle_is_fine(
