@@ -27,7 +27,9 @@ from typing import TypeVar
 
 import numba as nb
 
-__all__ = ["both", "kernel_threads", "numba_threads", "window_pool"]
+from upsr.errors import InputError
+
+__all__ = ["both", "kernel_threads", "numba_threads", "resolve_workers", "window_pool"]
 
 T = TypeVar("T")
 U = TypeVar("U")
@@ -77,6 +79,22 @@ def _touch(n):  # pragma: no cover - numba
     for i in nb.prange(n):
         total += i
     return total
+
+
+def resolve_workers(workers: int | None, default: int) -> int:
+    """An engine's ``workers`` checked (an integer ≥ 0); None: ``default`` on a machine with
+    two cores or more, else 0.
+
+    Raises
+    ------
+    InputError
+        Not an integer ≥ 0.
+    """
+    if workers is None:
+        return default if (os.cpu_count() or 1) >= 2 else 0
+    if isinstance(workers, bool) or not isinstance(workers, int) or workers < 0:
+        raise InputError(f"workers must be an integer >= 0, got {workers!r}")
+    return workers
 
 
 def kernel_threads(workers: int) -> int:

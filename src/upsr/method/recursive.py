@@ -75,7 +75,6 @@ from __future__ import annotations
 
 import contextlib
 import math
-import os
 import time
 from collections.abc import Iterator
 from typing import Any
@@ -86,6 +85,7 @@ import numpy.typing as npt
 
 from upsr._numba import SAFE_FASTMATH
 from upsr.errors import InputError
+from upsr.method._parallel import resolve_workers
 from upsr.method.config import UPSRConfig
 from upsr.method.consistency import hole_backgrounds
 from upsr.method.finishing import finish_frame, finish_fused
@@ -478,11 +478,8 @@ class RecursiveUPSR(TwoStagePipeline):
             config if config is not None else UPSRConfig.from_options(scale, n_frames, **options)
         )
         self._custom_flow = flow_backend
-        if workers is None:
-            workers = 1 if (os.cpu_count() or 1) >= 2 else 0
-        if isinstance(workers, bool) or not isinstance(workers, int) or workers < 0:
-            raise InputError(f"workers must be an integer >= 0, got {workers!r}")
-        self.workers = min(workers, 1)  # a two-stage pipeline: one helper
+        # a two-stage pipeline: one helper
+        self.workers = min(resolve_workers(workers, 1), 1)
         #: Seconds per stage since the engine was made: "prefilter", "flow" (one flow per
         #: frame), "registration" (radial offsets of the registered state), "fusion" (mixed
         #: pixels, anchor, registration and update of the state), "deblur" (finishing).

@@ -29,7 +29,6 @@ from __future__ import annotations
 
 import contextlib
 import dataclasses
-import os
 import threading
 import time
 from collections.abc import Iterable, Iterator
@@ -40,7 +39,7 @@ import numpy as np
 import numpy.typing as npt
 
 from upsr.errors import InputError
-from upsr.method._parallel import window_pool
+from upsr.method._parallel import resolve_workers, window_pool
 from upsr.method.config import UPSRConfig
 from upsr.method.consistency import misregistered, registered_samples
 from upsr.method.finishing import finish_frame, finish_fused
@@ -234,10 +233,7 @@ class UPSR:
         )
         if self.config.mode != "windowed":
             raise InputError(f"UPSR is the windowed engine, not mode={self.config.mode!r}")
-        if workers is None:
-            workers = 2 if (os.cpu_count() or 1) >= 2 else 0
-        if isinstance(workers, bool) or not isinstance(workers, int) or workers < 0:
-            raise InputError(f"workers must be an integer >= 0, got {workers!r}")
+        workers = resolve_workers(workers, 2)
         self._custom_flow = flow_backend
         self._timing_lock = threading.Lock()
         self._pending: dict[int, Future[np.ndarray]] = {}

@@ -13,7 +13,9 @@ start, and its frame callback waits for the queue, so the playback waits for the
 (a pipeline starts in real time and, with a slow first frame, lost one).
 
 Each frame is super-resolved at once by the recursive engine
-(:class:`upsr.method.recursive.RecursiveUPSR`, latency 0 frames) and written with
+(:class:`upsr.method.recursive.RecursiveUPSR`, latency 0 frames: its state is updated on this
+thread, then the frame is finished on a helper thread while the next one arrives,
+:meth:`~upsr.method.pipeline.TwoStagePipeline.push_async`) and written, in order, with
 :class:`upsr.io.video.VideoWriter` (any output format of ``upsr run``). A status line on stderr
 shows the frames processed, the rate, the latency (time from the frame's arrival to its
 output) and the dropped frames; ``--preview`` rewrites a side-by-side PNG (input | output,
