@@ -117,6 +117,28 @@ def test_remove_mixed_can_mark_pixels_to_abstain():
     assert (out[:, :, 3] == ABSTAIN).all() and ABSTAIN < 0
 
 
+@pytest.mark.parametrize("slant", [0.15, 0.2, 0.3])
+@pytest.mark.parametrize("offset_px", [0.0, 0.3, 0.5])
+def test_a_slanted_thin_leg_is_mixed_along_its_columns(slant, offset_px):
+    """A leg 1.5 px wide that crosses the pixel grid at a slant (ToF footprints of r = 4): along
+    a column its share of each footprint grows row by row, a ramp of mixed pixels that steps
+    like a slope seen at a grazing angle. Across it lie the wall and the leg's next column,
+    which do not step the same way: every pixel more than edge_mm from both the leg and the
+    wall is mixed (before: 1-8 of them kept at these slants)."""
+    r, n = 4, 24
+    yy, xx = np.mgrid[0 : n * r, 0 : n * r] + 0.5
+    truth = np.full(yy.shape, WALL)
+    truth[: 5 * r] = 1800.0  # the body the leg grows from
+    centre = 8 * r + offset_px * r + slant * (yy - 5 * r)
+    truth[(np.abs(xx - centre) < 0.75 * r) & (yy > 5 * r) & (yy < 20 * r)] = 2000.0
+    low = truth.reshape(n, r, n, r).mean(axis=(1, 3)).astype(np.float32)
+    out = remove_mixed_pixels(low, 100.0)
+    mixed = (low - 2000.0 > 100.0) & (WALL - low > 100.0)
+    mixed[:6] = False  # the body's own edge
+    assert mixed.sum() >= 8
+    assert (out[mixed] == 0).all()
+
+
 def test_a_steep_slope_from_another_surface_is_kept_a_short_ramp_is_not():
     from upsr.method.mixed import remove_mixed_pixels
 

