@@ -140,6 +140,25 @@ def test_hole_backgrounds_are_the_farthest_measured_neighbour_of_each_hole():
     assert not hole_backgrounds(np.zeros((3, 3), np.float32)).any()
 
 
+def test_the_middle_of_a_wide_shadow_takes_the_farthest_depth_of_its_rim():
+    """A projector shadow several pixels wide: the wall on its far side lies within reach
+    through the hole, for every pixel of it (before: the 8 neighbours only, so its middle had
+    no limit and the pixels beside the body took the body: the Kinect animal's and body's
+    rmse above nearest's)."""
+    from upsr.method.consistency import hole_backgrounds
+
+    z = np.full((5, 12), WALL, np.float32)
+    z[:, :3] = BODY
+    z[:, 3:9] = 0.0  # a shadow 6 px wide between the body and the wall
+    bg = hole_backgrounds(z)
+    assert (bg[:, 3:9] == WALL).all() and not bg[:, :3].any() and not bg[:, 9:].any()
+    near = hole_backgrounds(z, reach_px=1)  # only the 8 neighbours: the middle unlimited
+    assert (near[:, 3] == BODY).all() and (near[:, 8] == WALL).all() and not near[:, 4:8].any()
+    z[:, 9:] = 0.0  # nothing measured beyond: the body is all there is around the hole
+    far = hole_backgrounds(z)
+    assert (far[:, 3:11] == BODY).all() and not far[:, 11].any()  # 8 px from the body at most
+
+
 def test_a_sample_nearer_than_a_hole_of_the_reference_allows_abstains():
     ref = np.full((4, 6), WALL, np.float32)
     ref[:, :2] = BODY

@@ -30,6 +30,7 @@ import numpy as np
 import numpy.typing as npt
 
 __all__ = [
+    "HOLE_REACH_PX",
     "MISMATCH_FRACTION",
     "MISMATCH_MIN_COUNT",
     "hole_backgrounds",
@@ -37,6 +38,11 @@ __all__ = [
     "misregistered",
     "registered_samples",
 ]
+
+#: How far (low-res px, through the hole) :func:`hole_backgrounds` looks for the depth around a
+#: hole: a projector shadow is several pixels wide (f·b·(1/z_near − 1/z_far): 7 px at 640×480
+#: for a body at 2 m before a wall at 3 m), and its middle has no measured neighbour.
+HOLE_REACH_PX = 8
 
 #: Fewest mismatching interior pixels in a neighbourhood that make a frame untrusted there.
 MISMATCH_MIN_COUNT = 2
@@ -241,20 +247,39 @@ def misregistered(
     return out
 
 
-def hole_backgrounds(reference: npt.ArrayLike) -> np.ndarray:
+def hole_backgrounds(reference: npt.ArrayLike, reach_px: int = HOLE_REACH_PX) -> np.ndarray:
     """At each pixel the reference did not measure (0 or NaN, not a removed pixel's negative
-    marker), the farthest depth among its 8 neighbours; 0 elsewhere and where no neighbour
-    has depth.
+    marker), the farthest depth measured within ``reach_px`` of it through the hole (its 8
+    neighbours with ``reach_px`` = 1; across a projector shadow several pixels wide, the
+    background on its far side); 0 elsewhere and where none is in reach.
+
+    Taking the farthest depth in reach for every pixel of the hole, those beside the body
+    included, was measured against the 8 neighbours' for the pixels that have some (on the
+    realistic Kinect scenes, seeds 0–2: the animal's rmse 71.9 / 71.2 / 72.4 against 73.4 /
+    73.1 / 73.6 mm, the deforming body's 63.8 / 65.5 / 64.3 against 67.1 / 68.1 / 67.2; a
+    silhouette beside a background with no return loses a little: Samba and the synthetic
+    scenes, edge accuracy 0.1–0.3 points lower, missing depth up to 0.09 points higher).
 
     Parameters
     ----------
     reference : array_like (h, w)
         Low-res frame (mm; 0/NaN: no measurement; negative: a measurement that abstains).
+    reach_px : int
+        Steps (8-connected, low-res px) through the hole: :data:`HOLE_REACH_PX`.
 
     Returns
     -------
     ndarray float32 (h, w)
     """
     z = np.nan_to_num(np.asarray(reference, np.float32), nan=0.0)
-    far = cv2.dilate(np.maximum(z, 0.0), np.ones((3, 3), np.uint8), borderType=cv2.BORDER_CONSTANT)
-    return np.where(z == 0, far, np.float32(0.0)).astype(np.float32)
+    hole = z == 0
+    measured = np.maximum(z, np.float32(0.0))
+    kernel = np.ones((3, 3), np.uint8)
+    far = np.zeros_like(measured)
+    for _ in range(max(int(reach_px), 1)):
+        grown = cv2.dilate(np.maximum(measured, far), kernel, borderType=cv2.BORDER_CONSTANT)
+        grown = np.where(hole, grown, np.float32(0.0))
+        if np.array_equal(grown, far):
+            break
+        far = grown
+    return far.astype(np.float32)
