@@ -261,11 +261,12 @@ def test_camera_moving_towards_a_wall_is_unbiased():
     assert (lag - video.truth)[3:][both[3:]].mean() > 5.0
     # σ = 30: around the point the camera walks towards the flow is zero, and the state's
     # offsets there are kept from STATE_SIGNIFICANCE standard errors, not the 4 of frames that
-    # did not move (measured 3.5 mm; 6.8 with 4)
+    # did not move, and where the 5×5 neighbourhood is too noisy for them, from the wide one
+    # (measured −1.6 mm; +3.5 without the wide one, 6.8 with 4 standard errors)
     low = degrade(video, "laplace", np.random.default_rng(0), sigma_mm=30.0)
     out = upsr.super_resolve(low, 2, 9, mode="recursive")
     both = (out > 0) & (video.truth > 0)
-    assert abs((out - video.truth)[3:][both[3:]].mean()) < 5.0
+    assert abs((out - video.truth)[3:][both[3:]].mean()) < 2.5
 
 
 @pytest.mark.slow
