@@ -103,10 +103,9 @@ from upsr.method.noise import noise_shape
 from upsr.method.pipeline import TwoStagePipeline
 from upsr.method.registration import flow_positions
 from upsr.method.trust import (
-    COARSE_RADIUS_FACTOR,
-    OFFSET_SIGNIFICANCE,
     _offset_kernel,
     _sigma_and_power,
+    _with_wide_offsets,
     reference_anchor,
     significance,
 )
@@ -400,19 +399,16 @@ def recursive_update(
         # the state is far less noisy than a frame: the significance test of
         # trust.radial_offsets (made for the difference of two noisy samples) with the std of
         # the difference of a sample and a state of about N samples, ≈ 0.75 σ
-        args = (reg, meas, anchor, -1, float(edge_mm), STATE_NOISE_FACTOR * sigma, power)
         # (-1: no frame of reg is the reference)
-        signif, along = _state_significance(fl, reg, meas, sigma_mm, edge_mm, int(radial_radius_px))
-        _offset_kernel(*args, signif, int(radial_radius_px), off)
-        offsets = off[0]
+        args = (reg, meas, anchor, -1, float(edge_mm), STATE_NOISE_FACTOR * sigma, power)
+        radius = int(radial_radius_px)
+        signif, along = _state_significance(fl, reg, meas, sigma_mm, edge_mm, radius)
+        _offset_kernel(*args, signif, radius, off)
         if along:
             # the state as a whole moved along the viewing ray (a camera walking): where the
-            # offset is not significant, that of trust.radial_offsets' wide neighbourhood
-            wide = np.empty_like(off)
-            f = COARSE_RADIUS_FACTOR
-            strict = np.full_like(signif, OFFSET_SIGNIFICANCE)
-            _offset_kernel(*args, strict, f * int(radial_radius_px), wide, 2 * f, 2, False)
-            offsets = np.where(offsets != 0, offsets, wide[0])
+            # offset is not significant, that of the wide neighbourhood
+            off = _with_wide_offsets(off, args, radius)
+        offsets = off[0]
     if holes is None:
         holes = hole_backgrounds(meas)
     out_d = np.empty_like(d)

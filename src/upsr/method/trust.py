@@ -553,16 +553,21 @@ def radial_offsets(
     args = (reg, lr[ref], anc, int(ref), float(edge_mm), sigma, power, signif)
     out = np.empty((n, h, w), np.float32)
     _offset_kernel(*args, int(radius_px), out)
-    # where the neighbourhood is too small for the offset to be significant (a camera moving
-    # 10 mm per frame under 30 mm of noise), the same on a neighbourhood f× as wide
-    wide = np.empty_like(out)
+    return _with_wide_offsets(out, args[:-1], int(radius_px))
+
+
+def _with_wide_offsets(offsets: np.ndarray, args: tuple, radius_px: int) -> np.ndarray:
+    """``offsets`` (N, h, w) of ``_offset_kernel(*args, signif, radius_px, offsets)``, and
+    where they are 0 (not significant: a camera moving 10 mm per frame under 30 mm of noise)
+    the same on a neighbourhood :data:`COARSE_RADIUS_FACTOR` times as wide: on every 2nd
+    pixel of it, on a grid of 2f px, none off the grid's surface (the cost of the first), from
+    :data:`OFFSET_SIGNIFICANCE` standard errors everywhere (its error is so small that the
+    differences of a camera's motion across it would be taken for an offset)."""
+    wide = np.empty_like(offsets)
     f = COARSE_RADIUS_FACTOR
-    # (on every 2nd pixel of that neighbourhood, on a grid of 2f px, none off the grid's
-    # surface: the cost of the first; 4 standard errors everywhere: its error is so small that
-    # the differences of a camera's motion across it would be taken for an offset)
-    strict = np.full_like(signif, OFFSET_SIGNIFICANCE)
-    _offset_kernel(*args[:-1], strict, f * int(radius_px), wide, 2 * f, 2, False)
-    return np.where(out != 0, out, wide)
+    strict = np.full(offsets.shape, OFFSET_SIGNIFICANCE, np.float32)
+    _offset_kernel(*args, strict, f * int(radius_px), wide, 2 * f, 2, False)
+    return np.where(offsets != 0, offsets, wide)
 
 
 def significance(maps: npt.ArrayLike, lowres_shape: tuple[int, int]) -> np.ndarray:
