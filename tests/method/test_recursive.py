@@ -292,3 +292,21 @@ def test_accuracy_near_the_windowed_mode_on_realistic_scenes(name):
     assert rec["flying_pixels"] <= win["flying_pixels"] + 0.005
     assert rec["missing"] <= win["missing"] + 0.01
     assert rec["invented"] <= win["invented"] + 0.01
+
+
+def test_a_hole_at_the_edge_of_a_body_that_arrived_keeps_no_wall_on_the_body_side():
+    """A body moves into view while the frame has a hole along its edge (a Kinect shadow or
+    dropout): the state there holds the wall it saw before. The half of the hole's block on
+    the body's side is left empty (the body may reach into it; before: the wall, 1 m off),
+    the far half keeps the wall (the shadow's background)."""
+    wall, body, r = 3000.0, 1800.0, 2
+    frames = np.full((4, 12, 16), wall, np.float32)
+    for t in range(4):
+        edge = 3 + 2 * t  # the body's edge column, 2 px per frame
+        frames[t, :, :edge] = body
+        frames[t, :, edge] = 0.0  # the hole along it
+    out = upsr.super_resolve(frames, r, 4, mode="recursive", workers=0, deblur=False)
+    j = 3 + 2 * 3  # the last frame's hole column
+    block = out[3, 4 * r : 8 * r, j * r : (j + 1) * r]
+    assert not (np.abs(block[:, 0] - wall) < 100).any()  # the body's side: never the wall
+    assert (np.abs(block[:, 1] - wall) < 100).all()  # the far side: the wall it saw

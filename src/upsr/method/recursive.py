@@ -51,8 +51,11 @@ Per frame t (only frame t and the state of t − 1 are read):
    - no measurement (0, or a mixed pixel): the state is kept with its count halved, and
      forgotten (0) once the count drops below 1, or at once where it lies more than the edge
      threshold nearer than everything the frame measured around its hole (the projector
-     shadow beside a moving body: :func:`upsr.method.consistency.hole_backgrounds`); 0
-     stays 0 where nothing is known;
+     shadow beside a moving body: :func:`upsr.method.consistency.hole_backgrounds`), or,
+     on the half of the block towards a neighbour that measured a surface more than the
+     edge threshold nearer than the state (a body that moved into the hole, where the state
+     has the wall it saw before: the README's recursive section has the figures); 0 stays
+     0 where nothing is known;
 
    so every pixel that frame t measured has depth in the output (the current frame anchors
    it), and a sample beyond τ never gets averaged in;
@@ -225,6 +228,21 @@ def _centre_agrees(depth, qx, qy, i, j, scale, off, a, tl):  # pragma: no cover 
     return False
 
 
+@nb.njit(cache=True, nogil=True, inline="always", fastmath=SAFE_FASTMATH, error_model="numpy")
+def _nearer_beside(meas, i, j, di, dj, limit):  # pragma: no cover - numba
+    """Some low-res neighbour of block (i, j) on the side (di, dj) of its centre (the
+    output pixel's quadrant) measured a depth nearer than ``limit``: a surface that may
+    reach into this part of the block (a body that moved into a hole of the frame)."""
+    h, w = meas.shape
+    for ni, nj in ((i + di, j), (i, j + dj), (i + di, j + dj)):
+        if (ni == i and nj == j) or ni < 0 or ni >= h or nj < 0 or nj >= w:
+            continue
+        u = meas[ni, nj]
+        if u > 0 and u < limit:
+            return True
+    return False
+
+
 @nb.njit(cache=True, nogil=True, parallel=True, fastmath=SAFE_FASTMATH, error_model="numpy")
 def _update_kernel(
     depth,
@@ -279,7 +297,11 @@ def _update_kernel(
                     s, n = _same_surface(depth, count, qx, qy, x0, y0, c0, edge)
                     n *= 0.5
                     bg = holes[i, j]
-                    if n >= 1.0 and not (bg > 0 and s - off < bg - edge):
+                    if (
+                        n >= 1.0
+                        and not (bg > 0 and s - off < bg - edge)
+                        and not _nearer_beside(meas, i, j, di, dj, s - off - edge)
+                    ):
                         out_d[y, x] = s - off
                         out_n[y, x] = n
                         continue
