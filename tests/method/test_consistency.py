@@ -201,3 +201,32 @@ def test_the_projector_shadow_of_a_moving_body_never_takes_the_body(mode):
         # moves a pixel by a few mm)
         wrong = holes & (out[t] > 0) & (out[t] < bg - 120.0)
         assert not wrong.any(), (t, int(wrong.sum()))
+
+
+def test_stale_fills_beside_a_nearer_surface_are_emptied_on_its_side_only():
+    """A hole of the reference along a body's edge, filled with the wall other frames saw
+    there before the body moved in: the half of the hole's block towards the body is emptied
+    (it may be body), the far half keeps the wall; a fill showing the body stays, removed
+    pixels (negative markers) are not holes, and nothing is filled that was not."""
+    from upsr.method.consistency import clear_stale_fills
+
+    r = 2
+    ref = np.full((4, 6), WALL, np.float32)
+    ref[:, :2] = BODY
+    ref[:, 2] = 0.0  # the hole beside the body
+    fused = np.full((4 * r, 6 * r), WALL, np.float32)
+    fused[:, : 2 * r] = BODY
+    out = clear_stale_fills(fused, ref, r, 100.0)
+    assert (out[:, 2 * r] == 0).all()  # the body's side of the hole's block
+    assert (out[:, 2 * r + 1] == WALL).all()  # its far side: the shadow's background
+    np.testing.assert_array_equal(out[:, : 2 * r], fused[:, : 2 * r])
+    np.testing.assert_array_equal(out[:, 3 * r :], fused[:, 3 * r :])
+    fused[:, 2 * r : 3 * r] = BODY + 20.0  # other frames showed the body there
+    np.testing.assert_array_equal(clear_stale_fills(fused, ref, r, 100.0), fused)
+    ref[:, 2] = -1.0  # a removed (mixed) pixel: not a hole, left to the split
+    fused[:, 2 * r : 3 * r] = WALL
+    np.testing.assert_array_equal(clear_stale_fills(fused, ref, r, 100.0), fused)
+    odd = clear_stale_fills(
+        np.full((12, 18), WALL, np.float32), np.where(ref == -1, 0, ref), 3, 100.0
+    )
+    assert (odd[:, 6] == 0).all() and (odd[:, 7:9] == WALL).all()  # r = 3: the centre column

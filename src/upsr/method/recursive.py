@@ -92,7 +92,7 @@ from upsr._numba import SAFE_FASTMATH
 from upsr.errors import InputError
 from upsr.method._parallel import resolve_workers
 from upsr.method.config import UPSRConfig
-from upsr.method.consistency import hole_backgrounds
+from upsr.method.consistency import _nearer_beside, hole_backgrounds
 from upsr.method.finishing import finish_frame, finish_fused
 from upsr.method.frontend import MotionFrontEnd
 from upsr.method.mixed import (
@@ -225,21 +225,6 @@ def _centre_agrees(depth, qx, qy, i, j, scale, off, a, tl):  # pragma: no cover 
     if 0 <= xn < ww and 0 <= yn < hh:
         v = depth[yn, xn]
         return v > 0 and abs(v - off - a) <= tl
-    return False
-
-
-@nb.njit(cache=True, nogil=True, inline="always", fastmath=SAFE_FASTMATH, error_model="numpy")
-def _nearer_beside(meas, i, j, di, dj, limit):  # pragma: no cover - numba
-    """Some low-res neighbour of block (i, j) on the side (di, dj) of its centre (the
-    output pixel's quadrant) measured a depth nearer than ``limit``: a surface that may
-    reach into this part of the block (a body that moved into a hole of the frame)."""
-    h, w = meas.shape
-    for ni, nj in ((i + di, j), (i, j + dj), (i + di, j + dj)):
-        if (ni == i and nj == j) or ni < 0 or ni >= h or nj < 0 or nj >= w:
-            continue
-        u = meas[ni, nj]
-        if u > 0 and u < limit:
-            return True
     return False
 
 

@@ -41,7 +41,7 @@ import numpy.typing as npt
 from upsr.errors import InputError
 from upsr.method._parallel import resolve_workers, window_pool
 from upsr.method.config import UPSRConfig
-from upsr.method.consistency import misregistered, registered_samples
+from upsr.method.consistency import clear_stale_fills, misregistered, registered_samples
 from upsr.method.finishing import finish_frame, finish_fused
 from upsr.method.frontend import MotionFrontEnd
 from upsr.method.fusion import register_and_fuse, splat_points
@@ -434,6 +434,8 @@ class UPSR:
                 estimator=stats.estimator,
                 hole_floors=cfg.check_registration,
             )
+            if cfg.check_registration:
+                fused = clear_stale_fills(fused, lowres[ref], r, self._front.edge_mm)
             # the reference's mixed pixels and lone outliers (those it measured that abstained)
             # no frame filled: the depth of their neighbours
             source = lowres[ref] if anchor is None else anchor

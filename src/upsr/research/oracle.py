@@ -23,6 +23,7 @@ import numpy as np
 import numpy.typing as npt
 
 from upsr.method.config import DeblurConfig, UPSRConfig
+from upsr.method.consistency import clear_stale_fills
 from upsr.method.noise import noise_at_depth
 from upsr.method.outliers import remove_speckles
 from upsr.method.smoothing import smooth_surfaces
@@ -655,20 +656,17 @@ def super_resolve_straightforward(frames: npt.ArrayLike, config: UPSRConfig) -> 
                 stack, anchor, tol, offsets, cfg, edge_mm
             )
         fuse = functools.partial(
-            temporal_median_numpy,
-            stack,
-            ref,
-            weights=weights,
-            guide=guide,
-            min_valid_fraction=cfg.min_valid_fraction,
-            use_mean=use_mean,
-        )
+            temporal_median_numpy, stack, ref, weights=weights, guide=guide,
+            min_valid_fraction=cfg.min_valid_fraction, use_mean=use_mean,
+        )  # fmt: skip
         fused = fuse(edge_mm=edge_mm)
         if fallback is not None:
             # the reference measured depth: its own surface's samples alone, or the anchor
             fused = np.where(only_own, fuse(edge_mm=np.inf), fused)
             fused = np.where(fallback, anchor_hr, fused)
         fused[~upsample_nearest((lowres > 0).any(axis=0), r)] = 0.0
+        if cfg.check_registration:  # holes beside a nearer surface
+            fused = clear_stale_fills(fused, lowres[ref], r, edge_mm)
         source = lowres[ref] if anchor is None else anchor
         fused = split_mixed_pixels(
             fused, measured[ref], lowres[ref], source, keep_mean=stats.remove_mixed
