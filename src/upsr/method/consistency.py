@@ -304,23 +304,27 @@ def _nearer_beside(meas, i, j, di, dj, limit):  # pragma: no cover - numba
     return False
 
 
+@nb.njit(cache=True, nogil=True, inline="always")
+def _block_side(y, scale):  # pragma: no cover - numba
+    """The low-res index of high-res index ``y`` and the side (−1, 0 or 1) of its block's
+    centre it lies on (0: the centre row or column of an odd block)."""
+    i = y // scale
+    s = y - i * scale
+    half = scale // 2
+    return i, (0 if (scale % 2 == 1 and s == half) else (-1 if s < half else 1))
+
+
 @nb.njit(cache=True, nogil=True, parallel=True)
 def _stale_kernel(fused, ref, scale, edge, out):  # pragma: no cover - numba
     hh, ww = fused.shape
-    half = scale // 2
-    odd = scale % 2 == 1
     for y in nb.prange(hh):
-        i = y // scale
-        sy = y - i * scale
-        di = 0 if (odd and sy == half) else (-1 if sy < half else 1)
+        i, di = _block_side(y, scale)
         for x in range(ww):
             v = fused[y, x]
             out[y, x] = v
-            j = x // scale
+            j, dj = _block_side(x, scale)
             if ref[i, j] != 0.0 or not v > 0:
                 continue
-            sx = x - j * scale
-            dj = 0 if (odd and sx == half) else (-1 if sx < half else 1)
             if _nearer_beside(ref, i, j, di, dj, v - edge):
                 out[y, x] = 0.0
 

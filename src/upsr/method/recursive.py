@@ -92,7 +92,7 @@ from upsr._numba import SAFE_FASTMATH
 from upsr.errors import InputError
 from upsr.method._parallel import resolve_workers
 from upsr.method.config import UPSRConfig
-from upsr.method.consistency import _nearer_beside, hole_backgrounds
+from upsr.method.consistency import _block_side, _nearer_beside, hole_backgrounds
 from upsr.method.finishing import finish_frame, finish_fused
 from upsr.method.frontend import MotionFrontEnd
 from upsr.method.mixed import (
@@ -249,16 +249,10 @@ def _update_kernel(
 ):  # pragma: no cover - numba
     hh, ww = out_d.shape
     h, w = meas.shape
-    half = scale // 2
-    odd = scale % 2 == 1
     for y in nb.prange(hh):
-        i = y // scale
-        sy = y - i * scale
-        di = 0 if (odd and sy == half) else (-1 if sy < half else 1)
+        i, di = _block_side(y, scale)
         for x in range(ww):
-            j = x // scale
-            sx = x - j * scale
-            dj = 0 if (odd and sx == half) else (-1 if sx < half else 1)
+            j, dj = _block_side(x, scale)
             m = meas[i, j]
             a = anchor[i, j]
             tl = tol[i, j]
