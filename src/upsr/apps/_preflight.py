@@ -57,9 +57,9 @@ def max_workers() -> int:
 
 def engine_workers(workers: int | None) -> int:
     """The threads :class:`upsr.method.windowed.UPSR` uses for ``workers`` (None: its default)."""
-    if workers is None:
-        return 2 if (os.cpu_count() or 1) >= 2 else 0
-    return int(workers)
+    from upsr.method._parallel import WINDOWED_WORKERS, resolve_workers
+
+    return resolve_workers(workers, WINDOWED_WORKERS)
 
 
 def check_run_resources(

@@ -29,7 +29,14 @@ import numba as nb
 
 from upsr.errors import InputError
 
-__all__ = ["both", "kernel_threads", "numba_threads", "resolve_workers", "window_pool"]
+__all__ = [
+    "WINDOWED_WORKERS",
+    "both",
+    "kernel_threads",
+    "numba_threads",
+    "resolve_workers",
+    "window_pool",
+]
 
 T = TypeVar("T")
 U = TypeVar("U")
@@ -79,6 +86,10 @@ def _touch(n):  # pragma: no cover - numba
     for i in nb.prange(n):
         total += i
     return total
+
+
+#: Window threads of the windowed engine by default (on two cores or more).
+WINDOWED_WORKERS = 2
 
 
 def resolve_workers(workers: int | None, default: int) -> int:

@@ -39,7 +39,7 @@ import numpy as np
 import numpy.typing as npt
 
 from upsr.errors import InputError
-from upsr.method._parallel import resolve_workers, window_pool
+from upsr.method._parallel import WINDOWED_WORKERS, resolve_workers, window_pool
 from upsr.method.config import UPSRConfig
 from upsr.method.consistency import clear_stale_fills, misregistered, registered_samples
 from upsr.method.finishing import finish_frame, finish_fused
@@ -233,7 +233,7 @@ class UPSR:
         )
         if self.config.mode != "windowed":
             raise InputError(f"UPSR is the windowed engine, not mode={self.config.mode!r}")
-        workers = resolve_workers(workers, 2)
+        workers = resolve_workers(workers, WINDOWED_WORKERS)
         self._custom_flow = flow_backend
         self._timing_lock = threading.Lock()
         self._pending: dict[int, Future[np.ndarray]] = {}
