@@ -10,6 +10,7 @@ cumulative registration   eq. 18–21              :mod:`upsr.method.registratio
 registration check        —                      :mod:`upsr.method.consistency`
 mixed (flying) pixels     —                      :mod:`upsr.method.mixed`
 sample trust              —                      :mod:`upsr.method.trust`
+state memory per pixel    —                      :mod:`upsr.method.memory`
 temporal median           eq. 26–28              :mod:`upsr.method.fusion`
 L1 + BTV deblurring       eq. 29–30              :mod:`upsr.method.deblurring`
 noise estimate            —                      :mod:`upsr.method.noise`
@@ -32,6 +33,7 @@ __getattr__, __dir__, __all__ = attach(
         "deblurring",
         "frontend",
         "fusion",
+        "memory",
         "mixed",
         "motion",
         "noise",

@@ -34,7 +34,10 @@ Per frame t (only frame t and the state of t − 1 are read):
    - no state there (0, or outside the previous frame) and a measurement: start from the
      anchor, which counts as 2 samples (it is the median of up to 9 samples of the surface);
    - a state within τ of the anchor: update it with the measurement m and
-     count ← min(count + 1, N): the mean ``d += (m − d)/count`` (``fusion_estimator`` "mean":
+     count ← min(count + 1, n*), where n* ≤ N is the pixel's cap of
+     :func:`~upsr.method.memory.state_caps` (a slope's state gains the registration error
+     times the slope every frame: on steep slopes the current frame weighs more, without
+     noise it is the estimate): the mean ``d += (m − d)/count`` (``fusion_estimator`` "mean":
      with count < N exactly the running mean of the registered samples; also for "auto":
      the trust test has cut the noise's tails, and on the dense scenes of
      ``benchmarks/recursive_eval.py`` at σ = 10 and 30 mm the mean gave a lower surface rmse
@@ -95,6 +98,7 @@ from upsr.method.config import UPSRConfig
 from upsr.method.consistency import _block_side, _nearer_beside, hole_backgrounds
 from upsr.method.finishing import finish_frame, finish_fused
 from upsr.method.frontend import MotionFrontEnd
+from upsr.method.memory import state_caps
 from upsr.method.mixed import (
     footprint_share,
     has_mixed_pixels,
@@ -319,13 +323,13 @@ def _update_kernel(
                                 break
             if c0 > 0:
                 s, n = _same_surface(depth, count, qx, qy, x0, y0, c0, thr)
-                n = min(n + 1.0, cap)
+                n = min(n + 1.0, cap[i, j])
                 out_d[y, x] = _step(s - off, m, n, use_mean, sigma)
                 out_n[y, x] = n
             elif a > 0:
                 # restart: the anchor (a median of up to 9 samples of the surface) counts 2
                 out_d[y, x] = a
-                out_n[y, x] = min(2.0, cap)
+                out_n[y, x] = min(2.0, cap[i, j])
             else:
                 out_d[y, x] = m
                 out_n[y, x] = 1.0
@@ -340,7 +344,7 @@ def recursive_update(
     tolerance: np.ndarray,
     *,
     scale: int,
-    cap: float,
+    cap: float | np.ndarray,
     estimator: str = "mean",
     sigma_mm: float = 0.0,
     edge_mm: float = 100.0,
@@ -364,8 +368,9 @@ def recursive_update(
         everywhere trusts every state sample.
     scale : int
         SR factor r.
-    cap : float
-        Largest count (the state summarises at most about this many frames).
+    cap : float or ndarray float32 (h, w)
+        Largest count (the state summarises at most about this many frames), or per low-res
+        pixel (:func:`~upsr.method.memory.state_caps`).
     estimator : {"mean", "median"}
     sigma_mm : float
         Noise std (mm): the step of the recursive median and the radial significance test.
@@ -412,12 +417,13 @@ def recursive_update(
         offsets = off[0]
     if holes is None:
         holes = hole_backgrounds(meas)
+    caps = np.ascontiguousarray(np.broadcast_to(np.asarray(cap, np.float32), (h, w)))
     out_d = np.empty_like(d)
     out_n = np.empty_like(c)
     _update_kernel(
         d, c, qx, qy, meas,
         np.ascontiguousarray(anchor, np.float32), np.ascontiguousarray(tolerance, np.float32),
-        offsets, int(scale), float(cap), estimator == "mean", float(sigma_mm), float(edge_mm),
+        offsets, int(scale), caps, estimator == "mean", float(sigma_mm), float(edge_mm),
         np.ascontiguousarray(holes, np.float32), out_d, out_n,
     )  # fmt: skip
     return out_d, out_n
@@ -612,7 +618,9 @@ class RecursiveUPSR(TwoStagePipeline):
                 anchor,
                 tol,
                 scale=r,
-                cap=float(cfg.n_frames),
+                cap=state_caps(
+                    anchor, tol, float(cfg.n_frames), noise, k or 0.0, noise_profile=self._profile
+                ),
                 estimator=self._estimator,
                 sigma_mm=noise,
                 edge_mm=front.edge_mm,
