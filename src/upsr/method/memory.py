@@ -76,6 +76,16 @@ def state_caps(
     Returns
     -------
     ndarray float32 (h, w) in [1, cap].
+
+    Examples
+    --------
+    A wall beside a box side seen at a grazing angle (400 mm per pixel), σ = 10 mm:
+
+    >>> from upsr.method.trust import reference_anchor
+    >>> z = np.tile(np.r_[[3000.0] * 4, 1000.0 + 400.0 * np.arange(4)], (5, 1))
+    >>> anchor, tol = reference_anchor(z, 10.0, 3.0, 1000.0)
+    >>> state_caps(anchor, tol, 9.0, 10.0, 3.0)[2].astype(float).round(2).tolist()
+    [9.0, 9.0, 9.0, 9.0, 1.05, 1.01, 1.01, 1.05]
     """
     if not (registration_px > 0 and k > 0):
         return np.full(anchor.shape, np.float32(cap))
