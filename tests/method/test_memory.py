@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 import upsr
-from upsr.method.memory import REGISTRATION_ERROR_PX, state_caps
+from upsr.method.memory import REGISTRATION_ERROR_PX, level_to_reference, state_caps
 from upsr.method.recursive import recursive_update
 from upsr.method.trust import reference_anchor
 
@@ -102,3 +102,69 @@ def test_a_slope_seen_by_a_moving_camera_does_not_lag(sigma, most_mm):
     nearest = np.repeat(np.repeat(low, r, axis=1), r, axis=2)
     assert rms < most_mm
     assert rms < 0.5 * float(np.sqrt(((nearest - truth)[3:, 4:-4, 4:-4] ** 2).mean()))
+
+
+def _level(fused, reference, anchor_z=None, *, n=9, sigma=0.0, k=3.0, r=2, edge=100.0):
+    anchor, tol = reference_anchor(reference if anchor_z is None else anchor_z, sigma, k, edge)
+    cfg = upsr.UPSRConfig(scale=r, n_frames=n, trust_k=k)
+    return level_to_reference(fused, reference, anchor, tol, cfg, sigma_mm=sigma, edge_mm=edge)
+
+
+def test_a_steep_blocks_level_becomes_the_references_and_its_shape_stays():
+    """Noise-free, 60 mm per low-res pixel: every block's mean moves onto the reference's
+    sample (a fusion whose other frames were misregistered: +20 mm), the detail inside the
+    block (the other frames' sub-pixel samples) is kept."""
+    reference = _ramp(60.0, shape=(6, 8))
+    detail = np.tile(np.array([[-15.0, 15.0], [-15.0, 15.0]], np.float32), (6, 8))
+    fused = np.repeat(np.repeat(reference, 2, axis=0), 2, axis=1) + 20.0 + detail
+    out = _level(fused, reference)
+    blocks = out.reshape(6, 2, 8, 2).mean(axis=(1, 3))
+    np.testing.assert_allclose(blocks, reference, atol=1e-3)
+    np.testing.assert_allclose(out - np.repeat(np.repeat(blocks, 2, 0), 2, 1), detail, atol=1e-3)
+
+
+def test_flat_blocks_edges_holes_and_unmeasured_pixels_keep_the_fusions_level():
+    reference = _ramp(0.0, shape=(6, 8))
+    fused = np.repeat(np.repeat(reference, 2, axis=0), 2, axis=1) + 5.0
+    np.testing.assert_array_equal(_level(fused, reference, sigma=3.0), fused)  # flat: cap N
+    steep = _ramp(60.0, shape=(6, 8))
+    up = np.repeat(np.repeat(steep, 2, axis=0), 2, axis=1) + 20.0
+    across = up.copy()
+    across[4:6, 4:6] = [[500.0, 500.0], [up[4, 4], up[4, 4]]]  # a block across a depth edge
+    across[8, 8] = 0.0  # a block with a hole
+    measured = steep.copy()
+    measured[0, 0] = 0.0  # no measurement
+    measured[0, 1] = -1.0  # a removed (mixed) pixel
+    out = _level(across, measured, anchor_z=steep)
+    for i, j in ((2, 2), (4, 4), (0, 0), (0, 1)):
+        np.testing.assert_array_equal(out[2 * i : 2 * i + 2, 2 * j : 2 * j + 2],
+                                      across[2 * i : 2 * i + 2, 2 * j : 2 * j + 2])  # fmt: skip
+    assert out[8, 8] == 0.0  # 0 stays 0
+    assert abs(out[2:4, 6:8].mean() - steep[1, 3]) < 1e-3  # a full block on the slope moves
+
+
+def test_no_trust_test_or_a_single_frame_moves_nothing():
+    reference = _ramp(60.0, shape=(6, 8))
+    fused = np.repeat(np.repeat(reference, 2, axis=0), 2, axis=1) + 20.0
+    anchor, tol = reference_anchor(reference, 0.0, 3.0, 100.0)
+    for cfg in (
+        upsr.UPSRConfig(scale=2, n_frames=9, trust_k=None),
+        upsr.UPSRConfig(scale=2, n_frames=1),
+    ):
+        out = level_to_reference(fused, reference, anchor, tol, cfg, sigma_mm=0.0, edge_mm=100.0)
+        np.testing.assert_array_equal(out, fused)
+
+
+def test_a_camera_walking_towards_box_sides_without_noise_is_not_worse_than_its_input():
+    """The realistic approaching camera, noise-free: the box sides at grazing angles whose
+    fused level the zoomed frames moved (surface rmse 10.1 mm against nearest's 9.4 without
+    the rule) take the reference's level."""
+    from upsr.research.metrics import evaluate
+    from upsr.research.synth.realistic import degrade, make_realistic
+
+    video = make_realistic("toward_wall", (56, 64), scale=4, n_frames=9)
+    low = degrade(video, "laplace", np.random.default_rng(0), sigma_mm=0.0)
+    out = upsr.super_resolve(low, 4, 9, workers=0)
+    nearest = np.repeat(np.repeat(low, 4, axis=1), 4, axis=2)
+    ours = evaluate(out, video.truth, 4)["surface_rmse"]
+    assert ours < evaluate(nearest, video.truth, 4)["surface_rmse"]

@@ -171,8 +171,10 @@ def test_radial_motion_is_compensated():
     # what is left is the noise of the offset estimates, no bias
     bias = np.mean(out - truth_up, axis=(1, 2))
     assert np.abs(bias).max() < 2.0
+    # without it, the worst frame's bias is several times larger (the blocks of this slope,
+    # steep for σ = 3, take part of their level from the reference: memory.level_to_reference)
     trust_only = upsr.super_resolve(video, 2, 9, radial_compensation=False, **kw)
-    assert np.abs(np.mean(trust_only - truth_up, axis=(1, 2))).max() > 3.0
+    assert np.abs(np.mean(trust_only - truth_up, axis=(1, 2))).max() > 3.0 * np.abs(bias).max()
     plain = upsr.super_resolve(video, 2, 9, radial_compensation=False, trust_k=None, **kw)
     assert np.abs(np.mean(plain - truth_up, axis=(1, 2))).max() > 20.0
 

@@ -1,5 +1,6 @@
 """What follows the fusion of one output frame (windowed and recursive modes alike).
 
+:func:`settle_fused`: the windowed mode's rules between a window's fusion and its deblurring;
 :func:`finish_fused`: UP-SR's own last steps (the deblurring of eq. 29–30 and the removal of
 isolated outliers); :func:`finish_frame`: the rules beyond the paper that keep the output
 honest afterwards (what the reference measured is never erased, removed input pixels are
@@ -12,13 +13,65 @@ from __future__ import annotations
 import numpy as np
 
 from upsr.method.config import UPSRConfig
+from upsr.method.consistency import clear_stale_fills
 from upsr.method.deblurring import deblur
+from upsr.method.memory import level_to_reference
 from upsr.method.mixed import split_mixed_pixels
 from upsr.method.outliers import remove_speckles
 from upsr.method.slopes import follow_slopes
 from upsr.method.trust import fill_holes, reference_anchor, surface_support
 
-__all__ = ["finish_frame", "finish_fused"]
+__all__ = ["finish_frame", "finish_fused", "settle_fused"]
+
+
+def settle_fused(
+    fused: np.ndarray,
+    reference: np.ndarray,
+    measured: np.ndarray,
+    anchor: np.ndarray | None,
+    tolerance: np.ndarray | None,
+    cfg: UPSRConfig,
+    *,
+    sigma_mm: float,
+    edge_mm: float,
+    noise_profile: tuple[float, float] | None = None,
+    keep_mean: bool = False,
+) -> np.ndarray:
+    """The rules between a window's fusion and its deblurring (the engine and the
+    straightforward path alike): with ``cfg.check_registration`` no fill of a hole behind a
+    nearer surface (:func:`upsr.method.consistency.clear_stale_fills`); with an anchor, the
+    level of blocks on slopes steep for the noise from the reference
+    (:func:`upsr.method.memory.level_to_reference`); the reference's removed pixels (mixed,
+    lone outliers) that no frame filled, split between their neighbours
+    (:func:`upsr.method.mixed.split_mixed_pixels`, ``keep_mean`` for a footprint sensor).
+
+    Parameters
+    ----------
+    fused : ndarray float32 (r·h, r·w)
+    reference, measured : ndarray float32 (h, w)
+        The reference as fused (removed pixels marked) and as measured (mm).
+    anchor, tolerance : ndarray float32 (h, w) or None
+        :func:`upsr.method.trust.reference_anchor` of the reference (None: trust off).
+    cfg : UPSRConfig
+    sigma_mm, edge_mm : float
+        The trust test's noise std and the edge threshold (mm).
+    noise_profile : (float, float), optional
+        (σ₁, p) of :func:`upsr.method.noise.noise_profile`.
+    keep_mean : bool
+
+    Returns
+    -------
+    ndarray float32 (r·h, r·w)
+    """
+    if cfg.check_registration:
+        fused = clear_stale_fills(fused, reference, cfg.scale, edge_mm)
+    if anchor is not None and tolerance is not None:
+        fused = level_to_reference(
+            fused, reference, anchor, tolerance, cfg, sigma_mm=sigma_mm, edge_mm=edge_mm,
+            noise_profile=noise_profile,
+        )  # fmt: skip
+    source = reference if anchor is None else anchor
+    return split_mixed_pixels(fused, measured, reference, source, keep_mean=keep_mean)
 
 
 def finish_fused(

@@ -5,7 +5,9 @@ does not: a registration error of ε low-res pixels moves a sample of a slope of
 pixel by ε·g in depth, and the recursive state, carried from frame to frame, gathers such an
 error every frame. :func:`state_caps` gives each low-res pixel the count at which the gain of
 one more frame stops outweighing that error (the steady state of a scalar Kalman filter whose
-process noise is (ε·g)²).
+process noise is (ε·g)²). :func:`level_to_reference` applies the same weights to a window's
+fused blocks: their shape comes from all the frames, their level, where the slope is steep
+for the noise, from the reference's own measurement.
 
 References
 ----------
@@ -15,11 +17,13 @@ Basic Engineering* 82(1), 35–45.
 
 from __future__ import annotations
 
+import numba as nb
 import numpy as np
 
+from upsr.method.config import UPSRConfig
 from upsr.method.trust import TOLERANCE_FLOOR_MM, _sigma_and_power
 
-__all__ = ["REGISTRATION_ERROR_PX", "RELIEF_NOISE_FACTOR", "state_caps"]
+__all__ = ["REGISTRATION_ERROR_PX", "RELIEF_NOISE_FACTOR", "level_to_reference", "state_caps"]
 
 #: ε of :func:`state_caps`: the registration error (low-res px) that the state of a slope
 #: accumulates every frame. Measured (``benchmarks/realistic_eval.py --quick --no-oracle``,
@@ -98,3 +102,95 @@ def state_caps(
     ratio = np.divide(sigma * sigma, q, out=np.full(q.shape, np.inf, np.float32), where=q > 0)
     n = 0.5 * (1.0 + np.sqrt(1.0 + 4.0 * ratio))
     return np.clip(n, 1.0, cap).astype(np.float32)
+
+
+@nb.njit(cache=True, nogil=True, parallel=True)
+def _level_kernel(fused, reference, weight, scale, edge, out):  # pragma: no cover - numba
+    h, w = reference.shape
+    n_px = scale * scale
+    for i in nb.prange(h):
+        for j in range(w):
+            wt = weight[i, j]
+            m = reference[i, j]
+            if not (wt > 0 and m > 0):
+                continue
+            total = 0.0
+            lo = np.inf
+            hi = -np.inf
+            full = True
+            for y in range(i * scale, (i + 1) * scale):
+                for x in range(j * scale, (j + 1) * scale):
+                    v = fused[y, x]
+                    full = full and v > 0
+                    total += v
+                    lo = min(lo, v)
+                    hi = max(hi, v)
+            if not full or hi - lo > edge:
+                continue
+            shift = wt * (m - total / n_px)
+            for y in range(i * scale, (i + 1) * scale):
+                for x in range(j * scale, (j + 1) * scale):
+                    out[y, x] = max(fused[y, x] + shift, 1e-3)
+
+
+def level_to_reference(
+    fused: np.ndarray,
+    reference: np.ndarray,
+    anchor: np.ndarray,
+    tolerance: np.ndarray,
+    cfg: UPSRConfig,
+    *,
+    sigma_mm: float,
+    edge_mm: float,
+    noise_profile: tuple[float, float] | None = None,
+) -> np.ndarray:
+    """A window's fused blocks moved towards the reference's own measurement where the other
+    frames cannot be trusted to carry their level.
+
+    The fused block of low-res pixel (i, j) is the registered samples of N frames; on a slope
+    steep for the noise their registration errors move its level (a box side seen at a
+    grazing angle by a camera walking towards it: ramps of 80–400 mm per pixel whose other
+    frames' samples come from the zoomed neighbourhood). Each block whose r×r pixels all have
+    depth and lie on one surface (a span of at most ``edge_mm``) is shifted by
+    w·(m − its mean), m the reference's sample, w = (1/n* − 1/N) / (1 − 1/N) with n* the
+    pixel's cap (:func:`state_caps`): 0 on a flat surface (the fusion's level is kept), 1
+    where n* = 1 (the level is the reference's; without noise, on every slope). The block's
+    shape, the sub-pixel detail of the other frames, is kept; a block across a depth edge is
+    left alone (no flying pixels).
+
+    Parameters
+    ----------
+    fused : ndarray float32 (r·h, r·w)
+        The fused frame (mm, 0 = none).
+    reference : ndarray float32 (h, w)
+        The reference frame as fused (mm; 0, negative or NaN: no measurement).
+    anchor, tolerance : ndarray float32 (h, w)
+        :func:`~upsr.method.trust.reference_anchor` of the reference with ``cfg.trust_k``.
+    cfg : UPSRConfig
+        N (``n_frames``), r (``scale``) and k (``trust_k``; None: nothing moves).
+    sigma_mm : float
+        Noise std (mm) of the trust test.
+    edge_mm : float
+        Depth step that separates two surfaces.
+    noise_profile : (float, float), optional
+        (σ₁, p) of :func:`upsr.method.noise.noise_profile`, as in :func:`state_caps`.
+
+    Returns
+    -------
+    ndarray float32 (r·h, r·w): a new frame; 0 stays 0.
+    """
+    out = np.array(fused, dtype=np.float32, copy=True)
+    n = float(cfg.n_frames)
+    if not (n > 1 and cfg.trust_k is not None):
+        return out
+    caps = state_caps(anchor, tolerance, n, sigma_mm, cfg.trust_k, noise_profile=noise_profile)
+    weight = (1.0 / caps - 1.0 / n) / (1.0 - 1.0 / n)
+    _level_kernel(
+        np.ascontiguousarray(fused, np.float32),
+        np.ascontiguousarray(reference, np.float32),
+        np.clip(weight, 0.0, 1.0).astype(np.float32),
+        int(cfg.scale),
+        float(edge_mm),
+        out,
+    )
+    return out

@@ -41,8 +41,8 @@ import numpy.typing as npt
 from upsr.errors import InputError
 from upsr.method._parallel import WINDOWED_WORKERS, resolve_workers, window_pool
 from upsr.method.config import UPSRConfig
-from upsr.method.consistency import clear_stale_fills, misregistered, registered_samples
-from upsr.method.finishing import finish_frame, finish_fused
+from upsr.method.consistency import misregistered, registered_samples
+from upsr.method.finishing import finish_frame, finish_fused, settle_fused
 from upsr.method.frontend import MotionFrontEnd
 from upsr.method.fusion import register_and_fuse, splat_points
 from upsr.method.mixed import (
@@ -50,7 +50,6 @@ from upsr.method.mixed import (
     footprint_share,
     has_mixed_pixels,
     remove_mixed_pixels,
-    split_mixed_pixels,
 )
 from upsr.method.motion import FlowBackend, flow_backend_is_thread_safe, make_flow_backend
 from upsr.method.noise import choose_estimator, noise_profile, noise_shape
@@ -434,14 +433,13 @@ class UPSR:
                 estimator=stats.estimator,
                 hole_floors=cfg.check_registration,
             )
-            if cfg.check_registration:
-                fused = clear_stale_fills(fused, lowres[ref], r, self._front.edge_mm)
-            # the reference's mixed pixels and lone outliers (those it measured that abstained)
-            # no frame filled: the depth of their neighbours
-            source = lowres[ref] if anchor is None else anchor
-            fused = split_mixed_pixels(
-                fused, measured[ref], lowres[ref], source, keep_mean=stats.remove_mixed
-            )
+            # holes behind a nearer surface, the level of blocks on steep slopes, the
+            # reference's mixed pixels and lone outliers no frame filled
+            fused = settle_fused(
+                fused, lowres[ref], measured[ref], anchor, tolerance, cfg, sigma_mm=noise,
+                edge_mm=self._front.edge_mm, noise_profile=stats.trust_noise_profile,
+                keep_mean=stats.remove_mixed,
+            )  # fmt: skip
         with self._timed("deblur"):
             return finish_frame(
                 finish_fused(fused, cfg, noise_profile=stats.trust_noise_profile),

@@ -23,7 +23,6 @@ import numpy as np
 import numpy.typing as npt
 
 from upsr.method.config import DeblurConfig, UPSRConfig
-from upsr.method.consistency import clear_stale_fills
 from upsr.method.noise import noise_at_depth
 from upsr.method.outliers import remove_speckles
 from upsr.method.smoothing import smooth_surfaces
@@ -589,10 +588,9 @@ def super_resolve_straightforward(frames: npt.ArrayLike, config: UPSRConfig) -> 
     -------
     ndarray float32 (T, r·h, r·w)
     """
-    from upsr.method.finishing import finish_frame
+    from upsr.method.finishing import finish_frame, settle_fused
     from upsr.method.frontend import MotionFrontEnd
     from upsr.method.fusion import splat_nearest
-    from upsr.method.mixed import split_mixed_pixels
     from upsr.method.motion import make_flow_backend
     from upsr.method.registration import (
         cumulative_flows,
@@ -665,12 +663,11 @@ def super_resolve_straightforward(frames: npt.ArrayLike, config: UPSRConfig) -> 
             fused = np.where(only_own, fuse(edge_mm=np.inf), fused)
             fused = np.where(fallback, anchor_hr, fused)
         fused[~upsample_nearest((lowres > 0).any(axis=0), r)] = 0.0
-        if cfg.check_registration:  # holes beside a nearer surface
-            fused = clear_stale_fills(fused, lowres[ref], r, edge_mm)
-        source = lowres[ref] if anchor is None else anchor
-        fused = split_mixed_pixels(
-            fused, measured[ref], lowres[ref], source, keep_mean=stats.remove_mixed
-        )
+        fused = settle_fused(
+            fused, lowres[ref], measured[ref], anchor, tol, cfg, sigma_mm=trust_mm,
+            edge_mm=edge_mm, noise_profile=stats.trust_noise_profile,
+            keep_mean=stats.remove_mixed,
+        )  # fmt: skip
         res = remove_speckles(
             deblur_numpy(fused, cfg.deblur, scale=r, noise_profile=stats.trust_noise_profile),
             cfg.speckle_size_px,
