@@ -58,6 +58,7 @@ def settle_fused(
     noise_profile : (float, float), optional
         (σ₁, p) of :func:`upsr.method.noise.noise_profile`.
     keep_mean : bool
+        A split block keeps the footprint's mean the reference measured (a ToF sensor).
 
     Returns
     -------

@@ -179,14 +179,15 @@ def level_to_reference(
     -------
     ndarray float32 (r·h, r·w): a new frame; 0 stays 0.
     """
-    out = np.array(fused, dtype=np.float32, copy=True)
+    src = np.ascontiguousarray(fused, np.float32)
+    out = src.copy()
     n = float(cfg.n_frames)
     if not (n > 1 and cfg.trust_k is not None):
         return out
     caps = state_caps(anchor, tolerance, n, sigma_mm, cfg.trust_k, noise_profile=noise_profile)
     weight = (1.0 / caps - 1.0 / n) / (1.0 - 1.0 / n)
     _level_kernel(
-        np.ascontiguousarray(fused, np.float32),
+        src,
         np.ascontiguousarray(reference, np.float32),
         np.clip(weight, 0.0, 1.0).astype(np.float32),
         int(cfg.scale),
