@@ -153,6 +153,37 @@ def test_a_steep_slope_from_another_surface_is_kept_a_short_ramp_is_not():
     assert (out[3:5] == 0).all() and (out[:3] == 4500).all() and (out[5:] == 1500).all()
 
 
+def test_a_slope_that_tapers_into_a_flat_surface_is_kept():
+    """A box side seen at a grazing angle, two ToF pixels wide between the wall and the box
+    front (the realistic approaching camera): its second pixel steps like the first, whose
+    step from the wall stays within the edge threshold; a footprint across a depth edge
+    mixes one pixel per column, so this is a slope, not a mix. The same pixel between a
+    flat run and a run that steps beyond the threshold stays mixed."""
+    col = np.array([2400, 2400, 2400, 2321, 2172, 2046, 2046, 2046], np.float32)
+    face = np.repeat(col[:, None], 6, axis=1)
+    np.testing.assert_array_equal(remove_mixed_pixels(face, 100.0), face)
+    # a ToF footprint of a high-res face 8 px wide between the two flat surfaces (where the
+    # face begins 2 px into a block instead, its first pixel is within 12 mm of the wall and
+    # the second is taken for a mix: that footprint cannot tell the two apart)
+    from upsr.research.synth.degradation import tof_footprint
+
+    r = 4
+    y = np.arange(12 * r, dtype=np.float32)
+    hr_col = np.clip(2400.0 - 45.0 * (y - 3 * r), 2046.0, 2400.0)
+    z = tof_footprint(np.repeat(hr_col[:, None], 6 * r, axis=1), r)
+    between = (z[:, 0] < 2390) & (z[:, 0] > 2056)
+    assert between.sum() == 2  # the face: two pixels between the surfaces
+    np.testing.assert_array_equal(remove_mixed_pixels(z, 100.0), z)
+    # a mixed pixel whose steps agree with the next one, which exceeds the threshold (the
+    # realistic room: a wall, the mixed line, a mixed ramp onto the floor)
+    col = np.array([4430, 4430, 4430, 3553, 3093, 2840, 2840, 2840], np.float32)
+    z = np.repeat(col[:, None], 6, axis=1)
+    out = remove_mixed_pixels(z, 100.0)
+    assert (out[3] == 0).all()
+    np.testing.assert_array_equal(out[:3], z[:3])
+    np.testing.assert_array_equal(out[5:], z[5:])
+
+
 def test_a_line_of_mixed_pixels_beside_a_steep_surface_is_mixed():
     """A ToF row along the edge between a flat wall and a box top seen at a grazing angle: the
     step from the line into the box top (-519 mm) is 2.4 times the next one (-217), which a

@@ -209,10 +209,14 @@ def _on_slope(z, i, j, edge):  # pragma: no cover - numba
     whose steps between neighbours can exceed the edge threshold (a floor seen at a grazing
     angle): its two neighbours step through depth evenly with it, and so do the steps beyond
     both of them, or, on one side, the next two steps, all beyond the edge threshold (a steep
-    slope that begins at another surface); and across that direction the pixel has a
-    neighbour on its own surface (the slope's row). A mixed pixel sits between two flat
-    runs, ends a ramp of at most two mixed pixels across a ToF edge, or belongs to a line of
-    them along the edge (even along the line, between two surfaces across it)."""
+    slope that begins at another surface), or, along a row or column, the step beyond one of
+    them agrees with the pixel's step to it and stays within the edge threshold (a slope
+    that tapers into a flat surface: a box side seen at a grazing angle, two pixels wide; a
+    footprint straddles a depth edge in one pixel per row or column); and across that
+    direction the pixel has a neighbour on its own surface (the slope's row). A mixed pixel
+    sits between two flat runs, ends a ramp of at most two mixed pixels across a ToF edge,
+    or belongs to a line of them along the edge (even along the line, between two surfaces
+    across it)."""
     h, w = z.shape
     v = z[i, j]
     for di, dj in ((0, 1), (1, 0), (1, 1), (1, -1)):
@@ -231,7 +235,18 @@ def _on_slope(z, i, j, edge):  # pragma: no cover - numba
         if not (0 <= ic < h and 0 <= jc < w and 0 <= ie < h and 0 <= je < w):
             continue
         c, e = z[ic, jc], z[ie, je]
-        if c > 0 and e > 0 and _steps_agree(a - c, v - a) and _steps_agree(b - v, e - b):
+        if not (c > 0 and e > 0):
+            continue
+        if _steps_agree(a - c, v - a) and _steps_agree(b - v, e - b):
+            return True
+        # or, along a row or column, the slope tapers into a flat surface on one side: the
+        # step beyond one neighbour agrees with the pixel's step to it and stays within the
+        # edge threshold (a face seen at a grazing angle, two pixels wide between a wall and
+        # a box front); a footprint straddles a depth edge in one pixel per row or column
+        if (di == 0 or dj == 0) and (
+            (abs(a - c) <= edge and _steps_agree(a - c, v - a))
+            or (abs(e - b) <= edge and _steps_agree(e - b, b - v))
+        ):
             return True
     return False
 
