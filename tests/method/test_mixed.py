@@ -295,3 +295,29 @@ def test_a_fill_of_other_frames_mixes_is_split_afresh():
     out = split_mixed_pixels(fused, measured, cleaned, cleaned, keep_mean=True)
     assert set(np.unique(out[:, 3 * r : 4 * r])) == {1000.0, 3000.0}
     np.testing.assert_array_equal(split_mixed_pixels(fused, measured, cleaned, cleaned), fused)
+
+
+def test_a_fill_beyond_the_edge_threshold_from_both_surfaces_is_split_afresh():
+    """A leg 1150 mm in front of the wall, its ToF pixel a quarter on the leg: the fusion put
+    the leg's column 275 mm behind the leg (within a quarter of the step, beyond the edge
+    threshold). With the threshold that column lies between the surfaces and the block is
+    split afresh (the leg's column takes the leg's depth); without it the fill stays."""
+    from upsr.method.mixed import split_mixed_pixels
+
+    r = 4
+    leg, wall = 1850.0, 3000.0
+    measured = np.full((5, 7), wall, np.float32)
+    measured[:, 4:] = leg
+    measured[:, 3] = 0.25 * leg + 0.75 * wall
+    cleaned = remove_mixed_pixels(measured, 100.0)
+    assert (cleaned[:, 3] == 0).all()
+    fused = np.repeat(np.repeat(cleaned, r, axis=0), r, axis=1)
+    fused[:, 3 * r : 4 * r - 1] = wall
+    fused[:, 4 * r - 1] = leg + 275.0  # the block's mean stays within the tolerance
+    args = (fused, measured, cleaned, cleaned)
+    kept = split_mixed_pixels(*args, keep_mean=True)
+    np.testing.assert_array_equal(kept, fused)
+    out = split_mixed_pixels(*args, keep_mean=True, edge_mm=100.0)
+    block = out[:, 3 * r : 4 * r]
+    assert set(np.unique(block)) == {leg, wall}
+    assert (block[:, -1] == leg).all() and (block[:, :-1] == wall).all()

@@ -72,7 +72,9 @@ def settle_fused(
             noise_profile=noise_profile,
         )  # fmt: skip
     source = reference if anchor is None else anchor
-    return split_mixed_pixels(fused, measured, reference, source, keep_mean=keep_mean)
+    return split_mixed_pixels(
+        fused, measured, reference, source, keep_mean=keep_mean, edge_mm=edge_mm
+    )
 
 
 def finish_fused(

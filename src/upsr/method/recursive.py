@@ -647,7 +647,9 @@ class RecursiveUPSR(TwoStagePipeline):
             if self._remove_mixed:
                 # the mixed pixels the state did not fill: split between their neighbours
                 # (in the output only, the state holds measurements)
-                fused = split_mixed_pixels(fused, f, meas, anchor, keep_mean=True)
+                fused = split_mixed_pixels(
+                    fused, f, meas, anchor, keep_mean=True, edge_mm=self._front.edge_mm
+                )
             return finish_frame(
                 finish_fused(
                     fused,
