@@ -168,3 +168,31 @@ def test_a_camera_walking_towards_box_sides_without_noise_is_not_worse_than_its_
     nearest = np.repeat(np.repeat(low, 4, axis=1), 4, axis=2)
     ours = evaluate(out, video.truth, 4)["surface_rmse"]
     assert ours < evaluate(nearest, video.truth, 4)["surface_rmse"]
+
+
+def test_frames_beyond_a_moving_slopes_reach_abstain():
+    """A steep slope (cap n* ≈ 1) that moved: the frames more than REACH_MIN_FRAMES from the
+    reference (an off-centre window at the end of a clip) abstain there; the same slope
+    static, a flat surface that moved (n* = N), or no trust test: none abstains."""
+    from upsr.method.config import UPSRConfig
+    from upsr.method.memory import REACH_MIN_FRAMES, beyond_reach
+    from upsr.method.trust import reference_anchor
+
+    n, h, w = 9, 6, 8
+    cfg = UPSRConfig(scale=2, n_frames=n)
+    steep = np.tile(1000.0 + 400.0 * np.arange(w, dtype=np.float32), (h, 1))
+    flat = np.full((h, w), 2000.0, np.float32)
+    moved = np.zeros((n, h, w, 2), np.float32)
+    moved[..., 0] = 2.0  # 2 flow px = 1 low-res px at grid scale 2
+    ref = n - 1
+    kw = dict(grid_scale=2.0, sigma_mm=10.0)
+    anchor, tol = reference_anchor(steep, 10.0, 3.0, 1000.0)
+    out = beyond_reach(moved, anchor, tol, cfg, ref, **kw)
+    distance = np.abs(np.arange(n) - ref)
+    assert out[distance > REACH_MIN_FRAMES].all()
+    assert not out[distance <= REACH_MIN_FRAMES].any()
+    assert not beyond_reach(np.zeros_like(moved), anchor, tol, cfg, ref, **kw).any()
+    a_flat, t_flat = reference_anchor(flat, 10.0, 3.0, 1000.0)
+    assert not beyond_reach(moved, a_flat, t_flat, cfg, ref, **kw).any()
+    off = UPSRConfig(scale=2, n_frames=n, trust_k=None)
+    assert not beyond_reach(moved, anchor, tol, off, ref, **kw).any()

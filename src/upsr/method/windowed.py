@@ -45,6 +45,7 @@ from upsr.method.consistency import misregistered, registered_samples
 from upsr.method.finishing import finish_frame, finish_fused, settle_fused
 from upsr.method.frontend import MotionFrontEnd
 from upsr.method.fusion import register_and_fuse, splat_points
+from upsr.method.memory import beyond_reach
 from upsr.method.mixed import (
     ABSTAIN,
     footprint_share,
@@ -405,6 +406,12 @@ class UPSR:
                     # truncated: those samples abstain rather than bias the output
                     far = far_offsets(offsets, self._front.edge_mm)
                     untrusted = far if untrusted is None else untrusted | far
+            if anchor is not None and tolerance is not None:
+                far = beyond_reach(
+                    maps, anchor, tolerance, cfg, ref, grid_scale=self._s, sigma_mm=noise,
+                    noise_profile=stats.trust_noise_profile,
+                )  # fmt: skip
+                untrusted = far if untrusted is None else untrusted | far
             guide = None
             if cfg.splat_radius_px and cfg.n_frames > 1:
                 # where each sample lands in the reference (upsr.method.registration.

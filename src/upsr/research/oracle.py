@@ -262,11 +262,15 @@ def _checked_stack(
     noise_mm: float,
     anchor: np.ndarray | None,
     profile: tuple[float, float] | None = None,
+    tol: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray | None]:
     """The radial offsets of the window (or None) and the registered stack with the samples of
     frames misregistered around a pixel, or with a radial offset too large to trust there, or
-    nearer than a hole of the reference allows, abstaining (NaN, like samples outside)."""
+    beyond the reach of a pixel that moved (:func:`upsr.method.memory.beyond_reach`, flow
+    grid = output grid), or nearer than a hole of the reference allows, abstaining (NaN, like
+    samples outside)."""
     from upsr.method.consistency import hole_backgrounds
+    from upsr.method.memory import beyond_reach
     from upsr.method.trust import far_offsets, radial_offsets
     from upsr.method.upsampling import upsample_nearest
 
@@ -283,6 +287,10 @@ def _checked_stack(
         bad = misregistered_numpy(reg, lowres[ref], ref, edge_mm=edge_mm, offsets=offsets)
     if offsets is not None:
         bad |= far_offsets(offsets, edge_mm)
+    if anchor is not None and tol is not None:
+        bad |= beyond_reach(
+            maps, anchor, tol, cfg, ref, grid_scale=r, sigma_mm=noise_mm, noise_profile=profile
+        )
     stack = np.where(np.stack([upsample_nearest(b, r) for b in bad]), np.nan, stack)
     if cfg.check_registration:
         # a sample nearer than a hole of the reference allows abstains (fusion's hole_floors)
@@ -646,7 +654,7 @@ def super_resolve_straightforward(frames: npt.ArrayLike, config: UPSRConfig) -> 
             back = flows_to_reference(ref, bwd, fwd, (h * r, w * r))
             guide = splat_nearest(lowres, np.stack(back), r, cfg.splat_radius_px)
         stack, offsets = _checked_stack(
-            stack, lowres, maps, ref, cfg, edge_mm, trust_mm, anchor, stats.trust_noise_profile
+            stack, lowres, maps, ref, cfg, edge_mm, trust_mm, anchor, stats.trust_noise_profile, tol
         )
         fallback = only_own = None
         if anchor is not None:
