@@ -107,7 +107,8 @@ def test_a_slope_seen_by_a_moving_camera_does_not_lag(sigma, most_mm):
 def _level(fused, reference, anchor_z=None, *, n=9, sigma=0.0, k=3.0, r=2, edge=100.0):
     anchor, tol = reference_anchor(reference if anchor_z is None else anchor_z, sigma, k, edge)
     cfg = upsr.UPSRConfig(scale=r, n_frames=n, trust_k=k)
-    return level_to_reference(fused, reference, anchor, tol, cfg, sigma_mm=sigma, edge_mm=edge)
+    caps = state_caps(anchor, tol, float(n), sigma, k)
+    return level_to_reference(fused, reference, caps, cfg, edge_mm=edge)
 
 
 def test_a_steep_blocks_level_becomes_the_references_and_its_shape_stays():
@@ -151,7 +152,8 @@ def test_no_trust_test_or_a_single_frame_moves_nothing():
         upsr.UPSRConfig(scale=2, n_frames=9, trust_k=None),
         upsr.UPSRConfig(scale=2, n_frames=1),
     ):
-        out = level_to_reference(fused, reference, anchor, tol, cfg, sigma_mm=0.0, edge_mm=100.0)
+        caps = state_caps(anchor, tol, float(cfg.n_frames), 0.0, 3.0)
+        out = level_to_reference(fused, reference, caps, cfg, edge_mm=100.0)
         np.testing.assert_array_equal(out, fused)
 
 
@@ -174,25 +176,24 @@ def test_frames_beyond_a_moving_slopes_reach_abstain():
     """A steep slope (cap n* ≈ 1) that moved: the frames more than REACH_MIN_FRAMES from the
     reference (an off-centre window at the end of a clip) abstain there; the same slope
     static, a flat surface that moved (n* = N), or no trust test: none abstains."""
-    from upsr.method.config import UPSRConfig
     from upsr.method.memory import REACH_MIN_FRAMES, beyond_reach
     from upsr.method.trust import reference_anchor
 
     n, h, w = 9, 6, 8
-    cfg = UPSRConfig(scale=2, n_frames=n)
     steep = np.tile(1000.0 + 400.0 * np.arange(w, dtype=np.float32), (h, 1))
     flat = np.full((h, w), 2000.0, np.float32)
     moved = np.zeros((n, h, w, 2), np.float32)
     moved[..., 0] = 2.0  # 2 flow px = 1 low-res px at grid scale 2
     ref = n - 1
-    kw = dict(grid_scale=2.0, sigma_mm=10.0)
     anchor, tol = reference_anchor(steep, 10.0, 3.0, 1000.0)
-    out = beyond_reach(moved, anchor, tol, cfg, ref, **kw)
+    caps = state_caps(anchor, tol, float(n), 10.0, 3.0)
+    out = beyond_reach(moved, caps, ref, grid_scale=2.0)
     distance = np.abs(np.arange(n) - ref)
     assert out[distance > REACH_MIN_FRAMES].all()
     assert not out[distance <= REACH_MIN_FRAMES].any()
-    assert not beyond_reach(np.zeros_like(moved), anchor, tol, cfg, ref, **kw).any()
+    assert not beyond_reach(np.zeros_like(moved), caps, ref, grid_scale=2.0).any()
     a_flat, t_flat = reference_anchor(flat, 10.0, 3.0, 1000.0)
-    assert not beyond_reach(moved, a_flat, t_flat, cfg, ref, **kw).any()
-    off = UPSRConfig(scale=2, n_frames=n, trust_k=None)
-    assert not beyond_reach(moved, anchor, tol, off, ref, **kw).any()
+    flat_caps = state_caps(a_flat, t_flat, float(n), 10.0, 3.0)
+    assert not beyond_reach(moved, flat_caps, ref, grid_scale=2.0).any()
+    no_test = state_caps(anchor, tol, float(n), 10.0, 0.0)  # k = 0: no trust test
+    assert not beyond_reach(moved, no_test, ref, grid_scale=2.0).any()

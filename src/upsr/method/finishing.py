@@ -29,12 +29,10 @@ def settle_fused(
     reference: np.ndarray,
     measured: np.ndarray,
     anchor: np.ndarray | None,
-    tolerance: np.ndarray | None,
+    caps: np.ndarray | None,
     cfg: UPSRConfig,
     *,
-    sigma_mm: float,
     edge_mm: float,
-    noise_profile: tuple[float, float] | None = None,
     keep_mean: bool = False,
 ) -> np.ndarray:
     """The rules between a window's fusion and its deblurring (the engine and the
@@ -50,13 +48,12 @@ def settle_fused(
     fused : ndarray float32 (r·h, r·w)
     reference, measured : ndarray float32 (h, w)
         The reference as fused (removed pixels marked) and as measured (mm).
-    anchor, tolerance : ndarray float32 (h, w) or None
-        :func:`upsr.method.trust.reference_anchor` of the reference (None: trust off).
+    anchor, caps : ndarray float32 (h, w) or None
+        :func:`upsr.method.trust.reference_anchor` of the reference and the
+        :func:`upsr.method.memory.state_caps` of it (None: trust off).
     cfg : UPSRConfig
-    sigma_mm, edge_mm : float
-        The trust test's noise std and the edge threshold (mm).
-    noise_profile : (float, float), optional
-        (σ₁, p) of :func:`upsr.method.noise.noise_profile`.
+    edge_mm : float
+        The edge threshold (mm).
     keep_mean : bool
         A split block keeps the footprint's mean the reference measured (a ToF sensor).
 
@@ -66,11 +63,8 @@ def settle_fused(
     """
     if cfg.check_registration:
         fused = clear_stale_fills(fused, reference, cfg.scale, edge_mm)
-    if anchor is not None and tolerance is not None:
-        fused = level_to_reference(
-            fused, reference, anchor, tolerance, cfg, sigma_mm=sigma_mm, edge_mm=edge_mm,
-            noise_profile=noise_profile,
-        )  # fmt: skip
+    if caps is not None:
+        fused = level_to_reference(fused, reference, caps, cfg, edge_mm=edge_mm)
     source = reference if anchor is None else anchor
     return split_mixed_pixels(
         fused, measured, reference, source, keep_mean=keep_mean, edge_mm=edge_mm

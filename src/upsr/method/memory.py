@@ -150,13 +150,10 @@ def _level_kernel(fused, reference, weight, scale, edge, out):  # pragma: no cov
 def level_to_reference(
     fused: np.ndarray,
     reference: np.ndarray,
-    anchor: np.ndarray,
-    tolerance: np.ndarray,
+    caps: np.ndarray,
     cfg: UPSRConfig,
     *,
-    sigma_mm: float,
     edge_mm: float,
-    noise_profile: tuple[float, float] | None = None,
 ) -> np.ndarray:
     """A window's fused blocks moved towards the reference's own measurement where the other
     frames cannot be trusted to carry their level.
@@ -178,16 +175,12 @@ def level_to_reference(
         The fused frame (mm, 0 = none).
     reference : ndarray float32 (h, w)
         The reference frame as fused (mm; 0, negative or NaN: no measurement).
-    anchor, tolerance : ndarray float32 (h, w)
-        :func:`~upsr.method.trust.reference_anchor` of the reference with ``cfg.trust_k``.
+    caps : ndarray float32 (h, w)
+        :func:`state_caps` of the reference's anchor and tolerance with ``cfg.trust_k``.
     cfg : UPSRConfig
         N (``n_frames``), r (``scale``) and k (``trust_k``; None: nothing moves).
-    sigma_mm : float
-        Noise std (mm) of the trust test.
     edge_mm : float
         Depth step that separates two surfaces.
-    noise_profile : (float, float), optional
-        (σ₁, p) of :func:`upsr.method.noise.noise_profile`, as in :func:`state_caps`.
 
     Returns
     -------
@@ -198,7 +191,6 @@ def level_to_reference(
     n = float(cfg.n_frames)
     if not (n > 1 and cfg.trust_k is not None):
         return out
-    caps = state_caps(anchor, tolerance, n, sigma_mm, cfg.trust_k, noise_profile=noise_profile)
     weight = (1.0 / caps - 1.0 / n) / (1.0 - 1.0 / n)
     _level_kernel(
         src,
@@ -211,17 +203,7 @@ def level_to_reference(
     return out
 
 
-def beyond_reach(
-    maps: np.ndarray,
-    anchor: np.ndarray,
-    tolerance: np.ndarray,
-    cfg: UPSRConfig,
-    ref: int,
-    *,
-    grid_scale: float,
-    sigma_mm: float,
-    noise_profile: tuple[float, float] | None = None,
-) -> np.ndarray:
+def beyond_reach(maps: np.ndarray, caps: np.ndarray, ref: int, *, grid_scale: float) -> np.ndarray:
     """The samples of a window farther in time than its pixel's estimate may reach.
 
     A pixel whose cap n* (:func:`state_caps`) is below N summarises about n* frames before
@@ -238,36 +220,27 @@ def beyond_reach(
 
     Parameters
     ----------
-    maps : ndarray (N, s·h, s·w, 2)
+    maps : array_like (N, s·h, s·w, 2)
         Motion from the reference to each frame on the flow grid (flow px).
-    anchor, tolerance : ndarray float32 (h, w)
-        :func:`~upsr.method.trust.reference_anchor` of the reference with ``cfg.trust_k``.
-    cfg : UPSRConfig
-        N (``n_frames``) and k (``trust_k``; None: nothing abstains).
+    caps : ndarray float32 (h, w)
+        :func:`state_caps` of the reference's anchor and tolerance, with cap N.
     ref : int
         Index of the reference in the window.
     grid_scale : float
         s, flow-grid pixels per low-res pixel.
-    sigma_mm : float
-        Noise std (mm) of the trust test.
-    noise_profile : (float, float), optional
-        (σ₁, p), as in :func:`state_caps`.
 
     Returns
     -------
     ndarray bool (N, h, w): True where frame k's sample registered to reference pixel (i, j)
     abstains.
     """
-    n = int(cfg.n_frames)
-    out = np.zeros((n, *anchor.shape), bool)
-    if n <= 2 * REACH_MIN_FRAMES + 1 or cfg.trust_k is None:
+    n = len(maps)
+    out = np.zeros((n, *caps.shape), bool)
+    if n <= 2 * REACH_MIN_FRAMES + 1:
         return out
-    caps = state_caps(
-        anchor, tolerance, float(n), sigma_mm, cfg.trust_k, noise_profile=noise_profile
-    )
     reach = np.maximum(np.floor((caps - 1.0) / 2.0), REACH_MIN_FRAMES)
     reach[caps >= n] = np.inf
-    at = maps_at_centres(maps, anchor.shape) / float(grid_scale)
+    at = maps_at_centres(maps, caps.shape) / float(grid_scale)
     moved = np.hypot(at[..., 0], at[..., 1]) > MOVED_PX
     far = np.abs(np.arange(n) - int(ref))[:, None, None] > reach[None]
     np.logical_and(moved, far, out=out)

@@ -45,7 +45,7 @@ from upsr.method.consistency import misregistered, registered_samples
 from upsr.method.finishing import finish_frame, finish_fused, settle_fused
 from upsr.method.frontend import MotionFrontEnd
 from upsr.method.fusion import register_and_fuse, splat_points
-from upsr.method.memory import beyond_reach
+from upsr.method.memory import beyond_reach, state_caps
 from upsr.method.mixed import (
     ABSTAIN,
     footprint_share,
@@ -371,7 +371,7 @@ class UPSR:
                 # mixed (flying) input pixels abstain: the other frames fill them
                 lowres = remove_mixed_pixels(measured, self._front.edge_mm, marker=ABSTAIN)
             noise = stats.trust_noise_mm  # (cfg.trust_noise_mm where given)
-            anchor = tolerance = None
+            anchor = tolerance = caps = None
             if cfg.trust_k is not None:
                 anchor, tolerance = reference_anchor(
                     lowres[ref],
@@ -380,6 +380,11 @@ class UPSR:
                     self._front.edge_mm,
                     noise_profile=stats.trust_noise_profile,
                 )
+                # how many frames each pixel's estimate may draw on (the reach, the level)
+                caps = state_caps(
+                    anchor, tolerance, float(cfg.n_frames), noise, cfg.trust_k,
+                    noise_profile=stats.trust_noise_profile,
+                )  # fmt: skip
                 lowres = abstain_lone_outliers(lowres, ref, anchor)
             offsets = untrusted = None
             if cfg.n_frames > 1 and (cfg.radial_compensation or cfg.check_registration):
@@ -406,11 +411,8 @@ class UPSR:
                     # truncated: those samples abstain rather than bias the output
                     far = far_offsets(offsets, self._front.edge_mm)
                     untrusted = far if untrusted is None else untrusted | far
-            if anchor is not None and tolerance is not None:
-                far = beyond_reach(
-                    maps, anchor, tolerance, cfg, ref, grid_scale=self._s, sigma_mm=noise,
-                    noise_profile=stats.trust_noise_profile,
-                )  # fmt: skip
+            if caps is not None:
+                far = beyond_reach(maps, caps, ref, grid_scale=self._s)
                 untrusted = far if untrusted is None else untrusted | far
             guide = None
             if cfg.splat_radius_px and cfg.n_frames > 1:
@@ -443,9 +445,8 @@ class UPSR:
             # holes behind a nearer surface, the level of blocks on steep slopes, the
             # reference's mixed pixels and lone outliers no frame filled
             fused = settle_fused(
-                fused, lowres[ref], measured[ref], anchor, tolerance, cfg, sigma_mm=noise,
-                edge_mm=self._front.edge_mm, noise_profile=stats.trust_noise_profile,
-                keep_mean=stats.remove_mixed,
+                fused, lowres[ref], measured[ref], anchor, caps, cfg,
+                edge_mm=self._front.edge_mm, keep_mean=stats.remove_mixed,
             )  # fmt: skip
         with self._timed("deblur"):
             return finish_frame(

@@ -262,7 +262,7 @@ def _checked_stack(
     noise_mm: float,
     anchor: np.ndarray | None,
     profile: tuple[float, float] | None = None,
-    tol: np.ndarray | None = None,
+    caps: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray | None]:
     """The radial offsets of the window (or None) and the registered stack with the samples of
     frames misregistered around a pixel, or with a radial offset too large to trust there, or
@@ -287,10 +287,8 @@ def _checked_stack(
         bad = misregistered_numpy(reg, lowres[ref], ref, edge_mm=edge_mm, offsets=offsets)
     if offsets is not None:
         bad |= far_offsets(offsets, edge_mm)
-    if anchor is not None and tol is not None:
-        bad |= beyond_reach(
-            maps, anchor, tol, cfg, ref, grid_scale=r, sigma_mm=noise_mm, noise_profile=profile
-        )
+    if caps is not None:
+        bad |= beyond_reach(maps, caps, ref, grid_scale=r)
     stack = np.where(np.stack([upsample_nearest(b, r) for b in bad]), np.nan, stack)
     if cfg.check_registration:
         # a sample nearer than a hole of the reference allows abstains (fusion's hole_floors)
@@ -599,6 +597,7 @@ def super_resolve_straightforward(frames: npt.ArrayLike, config: UPSRConfig) -> 
     from upsr.method.finishing import finish_frame, settle_fused
     from upsr.method.frontend import MotionFrontEnd
     from upsr.method.fusion import splat_nearest
+    from upsr.method.memory import state_caps
     from upsr.method.motion import make_flow_backend
     from upsr.method.registration import (
         cumulative_flows,
@@ -633,6 +632,9 @@ def super_resolve_straightforward(frames: npt.ArrayLike, config: UPSRConfig) -> 
         lowres, anchor, tol = _abstaining(
             measured, ref, stats.remove_mixed, cfg, edge_mm, trust_mm, stats.trust_noise_profile
         )
+        caps = None if anchor is None else state_caps(
+            anchor, tol, float(n), trust_mm, cfg.trust_k, noise_profile=stats.trust_noise_profile
+        )  # fmt: skip
         up = [upsample_nearest(f, r) for f in lowres]
         pre = [front.prefilter(video[k]) for k in range(s, s + n)]
         guides = [front.guide(p) for p in pre]
@@ -654,8 +656,9 @@ def super_resolve_straightforward(frames: npt.ArrayLike, config: UPSRConfig) -> 
             back = flows_to_reference(ref, bwd, fwd, (h * r, w * r))
             guide = splat_nearest(lowres, np.stack(back), r, cfg.splat_radius_px)
         stack, offsets = _checked_stack(
-            stack, lowres, maps, ref, cfg, edge_mm, trust_mm, anchor, stats.trust_noise_profile, tol
-        )
+            stack, lowres, maps, ref, cfg, edge_mm, trust_mm, anchor, stats.trust_noise_profile,
+            caps,
+        )  # fmt: skip
         fallback = only_own = None
         if anchor is not None:
             stack, anchor_hr, fallback, only_own = _trusted_stack(
@@ -672,8 +675,7 @@ def super_resolve_straightforward(frames: npt.ArrayLike, config: UPSRConfig) -> 
             fused = np.where(fallback, anchor_hr, fused)
         fused[~upsample_nearest((lowres > 0).any(axis=0), r)] = 0.0
         fused = settle_fused(
-            fused, lowres[ref], measured[ref], anchor, tol, cfg, sigma_mm=trust_mm,
-            edge_mm=edge_mm, noise_profile=stats.trust_noise_profile,
+            fused, lowres[ref], measured[ref], anchor, caps, cfg, edge_mm=edge_mm,
             keep_mean=stats.remove_mixed,
         )  # fmt: skip
         res = remove_speckles(
