@@ -205,6 +205,22 @@ def test_disagreement_restarts_the_pixel():
     assert (count[:, 18:] == 7).all()
 
 
+def test_a_moving_slopes_state_summarises_fewer_frames():
+    """A slope of 20 mm per px under σ = 10 mm noise (caps n* of about 5): moving one px per
+    frame, its state summarises about half as many frames as when it stands still
+    (memory.moving_caps)."""
+    _ys, xs = np.mgrid[0:24, 0:48].astype(np.float32)
+    counts = []
+    for move in (0, 1):
+        rng = np.random.default_rng(0)
+        engine = RecursiveUPSR(scale=2, n_frames=9, noise_mm=10.0, **RAW)
+        for t in range(10):
+            engine.push((2000 + 20.0 * (xs + move * t) + rng.normal(0, 10, xs.shape)).astype("f4"))
+        counts.append(float(np.median(engine.state[1][8:-8, 8:-30])))
+    assert counts[0] >= 5.0
+    assert counts[1] <= 0.6 * counts[0]
+
+
 def test_zero_stays_zero_and_measured_pixels_have_depth():
     rng = np.random.default_rng(0)
     video = (2000 + rng.normal(0, 10, (10, 16, 20))).astype(np.float32)

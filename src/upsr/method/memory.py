@@ -32,6 +32,7 @@ __all__ = [
     "RELIEF_NOISE_FACTOR",
     "beyond_reach",
     "level_to_reference",
+    "moving_caps",
     "state_caps",
 ]
 
@@ -238,10 +239,54 @@ def beyond_reach(maps: np.ndarray, caps: np.ndarray, ref: int, *, grid_scale: fl
     out = np.zeros((n, *caps.shape), bool)
     if n <= 2 * REACH_MIN_FRAMES + 1:
         return out
-    reach = np.maximum(np.floor((caps - 1.0) / 2.0), REACH_MIN_FRAMES)
-    reach[caps >= n] = np.inf
-    at = maps_at_centres(maps, caps.shape) / float(grid_scale)
-    moved = np.hypot(at[..., 0], at[..., 1]) > MOVED_PX
-    far = np.abs(np.arange(n) - int(ref))[:, None, None] > reach[None]
-    np.logical_and(moved, far, out=out)
+    far = np.abs(np.arange(n) - int(ref))[:, None, None] > _reach(caps, n)[None]
+    np.logical_and(_moved(maps, caps.shape, grid_scale), far, out=out)
     return out
+
+
+def moving_caps(
+    caps: np.ndarray, flow: np.ndarray, n_frames: int, *, grid_scale: float
+) -> np.ndarray:
+    """The recursive mode's :func:`state_caps` where the pixel moved since the last frame.
+
+    The recursive counterpart of :func:`beyond_reach`: where a pixel whose cap n* is below
+    N moved (its motion to the previous frame beyond :data:`MOVED_PX`), its state summarises
+    at most max(:data:`REACH_MIN_FRAMES`, ⌊(n* − 1)/2⌋) frames: a moving slope's state
+    carried over many frames gathers the registration error of each (realistic scenes, seeds
+    0–2, ``benchmarks/realistic_eval.py --quick --no-oracle``, recursive rows: the Kinect
+    deforming body's moving surface rmse 2.74 / 2.76 / 2.74 → 2.62 / 2.68 / 2.63 mm, the
+    rooms under Laplace σ = 30 and Gaussian σ = 20 noise −2 to −3 %, the galloping animal at
+    Laplace σ = 30 +2 to +5 %; edges, flying and missing pixels unchanged). A reach of one
+    more frame (the state's count counts the current frame) gained a third as much.
+
+    Parameters
+    ----------
+    caps : ndarray float32 (h, w)
+        :func:`state_caps` of the current frame's anchor and tolerance, with cap N.
+    flow : ndarray float32 (s·h, s·w, 2)
+        Motion from the current frame to the previous one on the flow grid (flow px).
+    n_frames : int
+        N, the largest cap.
+    grid_scale : float
+        s, flow-grid pixels per low-res pixel.
+
+    Returns
+    -------
+    ndarray float32 (h, w): ``caps``, lowered where the pixel moved.
+    """
+    moved = _moved(flow[None], caps.shape, grid_scale)[0]
+    reach = np.minimum(caps, _reach(caps, n_frames))
+    return np.where(moved, reach, caps).astype(np.float32)
+
+
+def _reach(caps: np.ndarray, n_frames: int) -> np.ndarray:
+    """max(:data:`REACH_MIN_FRAMES`, ⌊(n* − 1)/2⌋) frames where n* < N, ∞ elsewhere."""
+    reach = np.maximum(np.floor((caps - 1.0) / 2.0), REACH_MIN_FRAMES)
+    reach[caps >= n_frames] = np.inf
+    return reach
+
+
+def _moved(maps: np.ndarray, shape: tuple[int, int], grid_scale: float) -> np.ndarray:
+    """Where each map moves the low-res pixel centre by more than :data:`MOVED_PX`."""
+    at = maps_at_centres(maps, shape) / float(grid_scale)
+    return at[..., 0] ** 2 + at[..., 1] ** 2 > MOVED_PX**2

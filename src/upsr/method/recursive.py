@@ -33,18 +33,18 @@ Per frame t (only frame t and the state of t − 1 are read):
 
    - no state there (0, or outside the previous frame) and a measurement: start from the
      anchor, which counts as 2 samples (it is the median of up to 9 samples of the surface);
-   - a state within τ of the anchor: update it with the measurement m and
-     count ← min(count + 1, n*), where n* ≤ N is the pixel's cap of
-     :func:`~upsr.method.memory.state_caps` (a slope's state gains the registration error
-     times the slope every frame: on steep slopes the current frame weighs more, without
-     noise it is the estimate): the mean ``d += (m − d)/count`` (``fusion_estimator`` "mean":
-     with count < N exactly the running mean of the registered samples; also for "auto":
-     the trust test has cut the noise's tails, and on the dense scenes of
-     ``benchmarks/recursive_eval.py`` at σ = 10 and 30 mm the mean gave a lower surface rmse
-     than the recursive median in 10 of 12 cases, by up to 9 %, Laplacian noise included),
-     or the recursive median ``d += sign(m − d)·min(|m − d|, √2·σ/count)`` ("median": the
-     stochastic approximation of the median, whose step √2σ/n = 1/(n·f(median)) for
-     Laplacian noise of std σ reaches the variance σ²/(2n) of the sample median);
+   - a state within τ of the anchor: update it with the measurement m and count ← min(count + 1,
+     n*), where n* ≤ N is the pixel's cap of :func:`~upsr.method.memory.state_caps` (a slope's state
+     gains the registration error times the slope every frame: on steep slopes the current frame
+     weighs more, without noise it is the estimate), about halved where the pixel moved since the
+     last frame (:func:`~upsr.method.memory.moving_caps`): the mean ``d += (m − d)/count``
+     (``fusion_estimator`` "mean": with count < N exactly the running mean of the registered
+     samples; also for "auto": the trust test has cut the noise's tails, and on the dense scenes of
+     ``benchmarks/recursive_eval.py`` at σ = 10 and 30 mm the mean gave a lower surface rmse than
+     the recursive median in 10 of 12 cases, by up to 9 %, Laplacian noise included), or the
+     recursive median ``d += sign(m − d)·min(|m − d|, √2·σ/count)`` ("median": the stochastic
+     approximation of the median, whose step √2σ/n = 1/(n·f(median)) for Laplacian noise of std σ
+     reaches the variance σ²/(2n) of the sample median);
    - a state beyond τ of the anchor, but within τ of the anchor of the low-res neighbour on
      the pixel's half of the block, where the state has the block's surface at the block's
      centre (the other surface at a depth edge inside the block, not a part newly seen there):
@@ -98,7 +98,7 @@ from upsr.method.config import UPSRConfig
 from upsr.method.consistency import _block_side, _nearer_beside, hole_backgrounds
 from upsr.method.finishing import finish_frame, finish_fused
 from upsr.method.frontend import MotionFrontEnd
-from upsr.method.memory import state_caps
+from upsr.method.memory import moving_caps, state_caps
 from upsr.method.mixed import (
     footprint_share,
     has_mixed_pixels,
@@ -610,6 +610,12 @@ class RecursiveUPSR(TwoStagePipeline):
                 conf = np.zeros_like(depth)
             else:
                 depth, conf = self._depth, self._conf
+            caps = state_caps(
+                anchor, tol, float(cfg.n_frames), noise, k or 0.0, noise_profile=self._profile
+            )
+            if self._depth is not None and k:
+                # (a moving slope's state: fewer frames)
+                caps = moving_caps(caps, flow, cfg.n_frames, grid_scale=flow.shape[1] / f.shape[1])
             fused, conf = recursive_update(
                 depth,
                 conf,  # type: ignore[arg-type]
@@ -618,9 +624,7 @@ class RecursiveUPSR(TwoStagePipeline):
                 anchor,
                 tol,
                 scale=r,
-                cap=state_caps(
-                    anchor, tol, float(cfg.n_frames), noise, k or 0.0, noise_profile=self._profile
-                ),
+                cap=caps,
                 estimator=self._estimator,
                 sigma_mm=noise,
                 edge_mm=front.edge_mm,
