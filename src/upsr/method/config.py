@@ -215,6 +215,11 @@ class UPSRConfig:
         backward-registered samples of a pixel come from several surfaces, the surface of the
         nearest forward-registered sample within this radius (high-res px) wins
         (:func:`upsr.method.fusion.splat_points`). ``None``: vote only.
+    edge_votes : bool
+        Fusion at depth edges (beyond the paper): near the reference's depth edges, each
+        pixel's surface from the bilinear votes of the four low-res samples around every
+        frame's registered position, not only the nearest one (sub-pixel edges instead of the
+        r×r block grid; :mod:`upsr.method.edges`). Depth is never interpolated.
     speckle_px : int or None
         Beyond the paper: after the deblurring, connected regions of at most this many
         high-res px that no neighbour joins within ``edge_mm`` (isolated noise outliers that
@@ -309,6 +314,7 @@ class UPSRConfig:
     zero_motion_tolerance: float | None = 1.1
     refine: bool = True
     splat_radius_px: float | None = 1.0
+    edge_votes: bool = True
     speckle_px: int | None = None
     min_valid_fraction: float = 0.5
     edge_mm: float = 100.0
@@ -407,7 +413,13 @@ class UPSRConfig:
             or (_is_str(self.remove_mixed) and self.remove_mixed == "auto"),
             f"remove_mixed must be True, False or 'auto', not {_show(self.remove_mixed)}",
         )
-        for name in ("radial_compensation", "check_registration", "follow_slopes", "fill_holes"):
+        for name in (
+            "radial_compensation",
+            "check_registration",
+            "follow_slopes",
+            "fill_holes",
+            "edge_votes",
+        ):
             _check(isinstance(getattr(self, name), bool), f"{name} must be True or False")
         object.__setattr__(self, "scale", int(self.scale))
         object.__setattr__(self, "n_frames", int(self.n_frames))

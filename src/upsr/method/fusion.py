@@ -26,6 +26,7 @@ import numpy.typing as npt
 
 from upsr._numba import SAFE_FASTMATH
 from upsr.method.consistency import hole_backgrounds
+from upsr.method.edges import edge_band, vote_surface
 from upsr.method.registration import interpolation_tables, weight_table
 from upsr.method.sorting import _centre_sorted, _network, _sort_columns, sorting_network
 from upsr.method.splat import splat_nearest, splat_points
@@ -191,6 +192,7 @@ def _register_fuse_kernel(
     hole_floor,
     min_trusted,
     use_mean,
+    band,
     out,
 ):  # pragma: no cover - numba
     n = lowres.shape[0]
@@ -283,6 +285,8 @@ def _register_fuse_kernel(
         vyk = np.empty(grid_w, np.float32)
         vals = np.empty(n, np.float32)
         wts = np.empty(n, np.float32)
+        vals_4 = np.empty(4 * n, np.float32)
+        wts_4 = np.empty(4 * n, np.float32)
         for k in range(n):
             if k == still:
                 # a frame that does not move (the reference): the sample of each pixel is
@@ -455,6 +459,15 @@ def _register_fuse_kernel(
                 network,
                 use_mean,
             )
+        # near a depth edge: the surface of the bilinear votes (edges.vote_surface)
+        band_row = band[li]
+        for q in range(m_on):
+            if band_row[on_low[q]]:
+                j = on[q]
+                out[i, j] = vote_surface(
+                    lowres, offsets[:, li, on_low[q]], raw[:, q], px[:, q], py[:, q], scale,
+                    edge_mm, on_floor[q], out[i, j], vals_4, wts_4,
+                )  # fmt: skip
 
 
 def temporal_median(
@@ -568,6 +581,7 @@ def register_and_fuse(
     alternatives: tuple[npt.ArrayLike, ...] | None = None,
     untrusted: npt.ArrayLike | None = None,
     hole_floors: bool = False,
+    edge_votes: bool = False,
 ) -> np.ndarray:
     """Registration (eq. 20) and invalid-aware median fusion (eq. 28) in one compiled pass.
 
@@ -625,6 +639,10 @@ def register_and_fuse(
     hole_floors : bool
         Where the reference has no depth, samples over ``edge_mm`` nearer than the farthest
         depth around it (:func:`upsr.method.consistency.hole_backgrounds`) abstain.
+    edge_votes : bool
+        Near the reference's depth edges (:func:`upsr.method.edges.edge_band`), the surface
+        of each pixel from the bilinear votes of the four samples around every frame's
+        registered position (:func:`upsr.method.edges.vote_surface`: sub-pixel edges).
 
     Returns
     -------
@@ -650,20 +668,10 @@ def register_and_fuse(
     still = ref if not mp[ref].any() else -1  # the reference's map is zero: a shortcut
     trust = (anchor, tolerance, offsets, alternatives, untrusted, lr, edge_mm)
     anc, tol, offs, alts, bad, nearest = _trust_inputs(*trust, ref if hole_floors else None)
+    band = edge_band(lr[ref], edge_mm) if edge_votes else np.zeros((h, w), np.bool_)
     out = np.empty((hh, ww), np.float32)
     _register_fuse_kernel(
-        *geometry,
-        *votes,
-        *rules,
-        still,
-        anc,
-        tol,
-        offs,
-        *alts,
-        bad,
-        nearest,
-        max(int(min_trusted), 1),
-        estimator == "mean",
-        out,
-    )
+        *geometry, *votes, *rules, still, anc, tol, offs, *alts, bad, nearest,
+        max(int(min_trusted), 1), estimator == "mean", band, out,
+    )  # fmt: skip
     return out

@@ -438,6 +438,7 @@ class UPSR:
                 tolerance=tolerance,
                 offsets=offsets,
                 untrusted=untrusted,
+                edge_votes=cfg.edge_votes,
                 min_trusted=cfg.min_trusted_samples,
                 estimator=stats.estimator,
                 hole_floors=cfg.check_registration,
