@@ -27,6 +27,8 @@ import numpy as np
 import numpy.typing as npt
 from scipy import ndimage
 
+from upsr.method.sorting import _heaviest_run
+
 __all__ = ["SURFACE_GAP", "edge_band", "vote_surface"]
 
 #: :func:`vote_surface` moves a pixel to the winning surface only if the fusion's value lies
@@ -117,21 +119,7 @@ def vote_surface(lowres, offsets, raw, px, py, scale, edge_mm, floor, fused, val
         return fused
     # the surfaces (runs of the sorted samples without a gap beyond edge_mm; "no depth",
     # +inf, a run of its own) and their weights
-    best = -1.0
-    b_lo = 0
-    b_hi = 0
-    lo = 0
-    acc = wts[0]
-    for p in range(1, m + 1):
-        if p == m or vals[p] - vals[p - 1] > edge_mm:
-            if acc > best:
-                best = acc
-                b_lo = lo
-                b_hi = p
-            lo = p
-            acc = 0.0
-        if p < m:
-            acc += wts[p]
+    b_lo, b_hi, best = _heaviest_run(vals, wts, m, edge_mm, 0.0, 0.0, np.nan)
     if not (fused > 0) or vals[b_lo] == inf:
         return fused  # never depth where the fusion left none, never a hole where it had depth
     gap = SURFACE_GAP * edge_mm

@@ -28,7 +28,13 @@ from upsr._numba import SAFE_FASTMATH
 from upsr.method.consistency import hole_backgrounds
 from upsr.method.edges import edge_band, vote_surface
 from upsr.method.registration import interpolation_tables, weight_table
-from upsr.method.sorting import _centre_sorted, _network, _sort_columns, sorting_network
+from upsr.method.sorting import (
+    _centre_sorted,
+    _heaviest_run,
+    _network,
+    _sort_columns,
+    sorting_network,
+)
 from upsr.method.splat import splat_nearest, splat_points
 from upsr.method.trust import surface_alternatives, trust_arrays
 
@@ -93,25 +99,8 @@ def _fuse_pixel(
     # samples from several surfaces (a depth edge): the surface with the largest vote
     # weight wins (a tie: the reference's surface); the surface of the guide (the nearest
     # forward-registered sample) gets a bonus; its median is the output
-    best_lo = 0
-    best_hi = 0
-    best_w = -np.inf
-    lo = 0
-    acc = wts[0]
-    for p in range(1, nv + 1):
-        if p == nv or vals[p] - vals[p - 1] > edge_mm:
-            has_ref = vals[lo] <= ref_value <= vals[p - 1]
-            if g > 0 and vals[lo] - edge_mm <= g <= vals[p - 1] + edge_mm:
-                acc += guide_bonus * w_valid
-            if acc > best_w or (acc == best_w and has_ref):
-                best_w = acc
-                best_lo = lo
-                best_hi = p
-            lo = p
-            acc = 0.0
-        if p < nv:
-            acc += wts[p]
-    return _centre_sorted(vals, best_lo, best_hi, use_mean)
+    lo, hi, _ = _heaviest_run(vals, wts, nv, edge_mm, g, guide_bonus * w_valid, ref_value)
+    return _centre_sorted(vals, lo, hi, use_mean)
 
 
 @nb.njit(cache=True, nogil=True, parallel=True)

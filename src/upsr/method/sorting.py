@@ -84,3 +84,30 @@ def _sort_columns(a, network):  # pragma: no cover - numba
 @functools.lru_cache(maxsize=16)
 def _network(n: int) -> np.ndarray:
     return sorting_network(n)
+
+
+@nb.njit(cache=True, nogil=True, inline="always")
+def _heaviest_run(vals, wts, m, edge_mm, g, bonus, ref_value):  # pragma: no cover - numba
+    """The surface with the largest vote among the sorted vals[:m]: (lo, hi, weight) of the
+    run vals[lo:hi] of consecutive values at most ``edge_mm`` apart whose weights ``wts``
+    (plus ``bonus`` where the run holds the guide ``g`` ± ``edge_mm``, g > 0) add up most;
+    of equal ones the first, or the one holding ``ref_value``."""
+    best_lo = 0
+    best_hi = 0
+    best_w = -np.inf
+    lo = 0
+    acc = wts[0]
+    for p in range(1, m + 1):
+        if p == m or vals[p] - vals[p - 1] > edge_mm:
+            has_ref = vals[lo] <= ref_value <= vals[p - 1]
+            if g > 0 and vals[lo] - edge_mm <= g <= vals[p - 1] + edge_mm:
+                acc += bonus
+            if acc > best_w or (acc == best_w and has_ref):
+                best_w = acc
+                best_lo = lo
+                best_hi = p
+            lo = p
+            acc = 0.0
+        if p < m:
+            acc += wts[p]
+    return best_lo, best_hi, best_w
