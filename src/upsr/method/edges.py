@@ -43,9 +43,11 @@ def edge_band(reference: npt.ArrayLike, edge_mm: float) -> np.ndarray:
     """The low-res pixels where :func:`vote_surface` may change the fusion's decision.
 
     The pixels whose 3×3 neighbourhood in the reference spans a depth edge (depths more than
-    ``edge_mm`` apart, or depth and no depth), and their 8-neighbours (the four samples
-    around a registered position lie within a pixel of the position the motion brings the
-    pixel to, on the same scene edge as the reference's where the registration holds).
+    ``edge_mm`` apart), and their 8-neighbours (the four samples around a registered
+    position lie within a pixel of the position the motion brings the pixel to, on the same
+    scene edge as the reference's where the registration holds). Not the edges between
+    depth and no depth alone: the votes never add nor remove depth, so with one surface
+    they change nothing (Samba's dancer before no background: 8 ms of fusion per frame).
 
     Parameters
     ----------
@@ -65,8 +67,7 @@ def edge_band(reference: npt.ArrayLike, edge_mm: float) -> np.ndarray:
     hi = ndimage.maximum_filter(z, size=3, mode="nearest")
     lo = ndimage.minimum_filter(np.where(valid, z, far), size=3, mode="nearest")
     span = (hi > 0) & (hi - lo > edge_mm)
-    holes = ndimage.maximum_filter(valid, size=3) != ndimage.minimum_filter(valid, size=3)
-    return ndimage.binary_dilation(span | holes, np.ones((3, 3), bool))
+    return ndimage.binary_dilation(span, np.ones((3, 3), bool))
 
 
 @nb.njit(cache=True, nogil=True, inline="always")

@@ -94,9 +94,10 @@ def edge_votes_numpy(
     lo = np.where(win, s, np.inf).min(axis=0)
     hi = np.where(win, s, -np.inf).max(axis=0)
     f = fused[ys, xs]
-    change = (count > 0) & (last - s[0] > edge_mm) & (f > 0) & (lo < _NO_DEPTH)
     gap = SURFACE_GAP * edge_mm
-    change &= ~((lo - gap <= f) & (f <= hi + gap))
+    with np.errstate(invalid="ignore"):  # (no sample: inf − inf)
+        change = (count > 0) & (last - s[0] > edge_mm) & (f > 0) & (lo < _NO_DEPTH)
+        change &= ~((lo - gap <= f) & (f <= hi + gap))
     # the weighted median of the winning surface
     cum = np.cumsum(np.where(win, wt, 0.0), axis=0)
     half = 0.5 * weight[best, cols]
