@@ -24,8 +24,8 @@ def test_the_band_lies_along_depth_edges_only():
     z = np.full((12, 16), BG, np.float32)
     z[:, :6] = FG
     band = edge_band(z, 100.0)
-    assert band[:, 4:8].all()  # the edge between columns 5 and 6, and a pixel beyond
-    assert not band[:, :4].any() and not band[:, 8:].any()
+    assert band[:, 5:7].all()  # the pixels whose 3×3 neighbourhood spans the edge (5 | 6)
+    assert not band[:, :5].any() and not band[:, 7:].any()
     assert not edge_band(np.full((12, 16), BG, np.float32), 100.0).any()
     z = np.full((12, 16), BG, np.float32)
     z[5, 7] = 0.0  # a hole, depth beside no depth: one surface, nothing to vote on

@@ -43,11 +43,12 @@ def edge_band(reference: npt.ArrayLike, edge_mm: float) -> np.ndarray:
     """The low-res pixels where :func:`vote_surface` may change the fusion's decision.
 
     The pixels whose 3×3 neighbourhood in the reference spans a depth edge (depths more than
-    ``edge_mm`` apart), and their 8-neighbours (the four samples around a registered
-    position lie within a pixel of the position the motion brings the pixel to, on the same
-    scene edge as the reference's where the registration holds). Not the edges between
-    depth and no depth alone: the votes never add nor remove depth, so with one surface
-    they change nothing (Samba's dancer before no background: 8 ms of fusion per frame).
+    ``edge_mm`` apart): the four samples around a pixel's position in the reference lie in
+    it (and in another frame, where the registration holds, on the same scene edge; adding
+    their 8-neighbours changed the realistic scenes' rmse by at most 1 % and cost 3 ms more
+    per ToF frame, the band then covering 46 % of the pixels instead of 21 %). Not the edges
+    between depth and no depth alone: the votes never add nor remove depth, so with one
+    surface they change nothing.
 
     Parameters
     ----------
@@ -66,8 +67,7 @@ def edge_band(reference: npt.ArrayLike, edge_mm: float) -> np.ndarray:
     far = np.float32(np.finfo(np.float32).max)
     hi = ndimage.maximum_filter(z, size=3, mode="nearest")
     lo = ndimage.minimum_filter(np.where(valid, z, far), size=3, mode="nearest")
-    span = (hi > 0) & (hi - lo > edge_mm)
-    return ndimage.binary_dilation(span, np.ones((3, 3), bool))
+    return (hi > 0) & (hi - lo > edge_mm)
 
 
 @nb.njit(cache=True, nogil=True, inline="always")
@@ -82,10 +82,14 @@ def vote_surface(lowres, offsets, raw, px, py, scale, edge_mm, floor, fused, val
     hole of the reference beside an edge; −inf: none); ``fused`` the fusion's value;
     ``vals``, ``wts`` scratch of 4N. Returns ``fused`` unless it has depth and another
     surface wins."""
+    if not (fused > 0):
+        return fused  # never depth where the fusion left none
     n, h, w = lowres.shape
     inv_r = 1.0 / scale
     inf = np.float32(np.inf)
+    gap = SURFACE_GAP * edge_mm
     m = 0
+    far = False  # some depth sample more than the gap from the fusion's value
     for k in range(n):
         if raw[k] != raw[k]:
             continue
@@ -104,26 +108,33 @@ def vote_surface(lowres, offsets, raw, px, py, scale, edge_mm, floor, fused, val
                 z = lowres[k, ii, jj]
                 if wt <= 0.0 or z < 0:
                     continue
-                # insertion into the sorted list (at most 4N samples)
                 val = z - offsets[k] if z > 0 else inf
                 if val < floor:
                     continue
-                p = m
-                while p > 0 and vals[p - 1] > val:
-                    vals[p] = vals[p - 1]
-                    wts[p] = wts[p - 1]
-                    p -= 1
-                vals[p] = val
-                wts[p] = wt
+                far |= (z > 0) & (abs(val - fused) > gap)
+                vals[m] = val
+                wts[m] = wt
                 m += 1
-    if m == 0 or vals[m - 1] - vals[0] <= edge_mm:
+    if not far:
+        # every depth sample within the gap of the fusion's value: so is the winning
+        # surface, or "no depth" wins; either way the fusion's value stays (most pixels of
+        # the band, which only the few beside an edge leave)
         return fused
+    for p in range(1, m):  # insertion sort (stable; at most 4N samples)
+        val = vals[p]
+        wt = wts[p]
+        q = p
+        while q > 0 and vals[q - 1] > val:
+            vals[q] = vals[q - 1]
+            wts[q] = wts[q - 1]
+            q -= 1
+        vals[q] = val
+        wts[q] = wt
     # the surfaces (runs of the sorted samples without a gap beyond edge_mm; "no depth",
     # +inf, a run of its own) and their weights
     b_lo, b_hi, best = _heaviest_run(vals, wts, m, edge_mm, 0.0, 0.0, np.nan)
-    if not (fused > 0) or vals[b_lo] == inf:
-        return fused  # never depth where the fusion left none, never a hole where it had depth
-    gap = SURFACE_GAP * edge_mm
+    if vals[b_lo] == inf:
+        return fused  # never a hole where the fusion had depth
     if vals[b_lo] - gap <= fused <= vals[b_hi - 1] + gap:
         return fused  # on the winning surface, or on a slope beside it
     half = 0.5 * best
