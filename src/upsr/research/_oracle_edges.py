@@ -3,6 +3,8 @@
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+
 import numpy as np
 
 from upsr.method.config import UPSRConfig
@@ -15,7 +17,7 @@ _NO_DEPTH = np.float32(1e30)
 
 def edge_votes_numpy(
     lowres: np.ndarray,
-    maps: np.ndarray,
+    maps: Sequence[np.ndarray],
     offsets: np.ndarray | None,
     stack: np.ndarray,
     fused: np.ndarray,
@@ -23,14 +25,15 @@ def edge_votes_numpy(
     config: UPSRConfig,
     edge_mm: float,
 ) -> np.ndarray:
-    """The fused frame with the surface of each pixel of ``band`` from the bilinear votes of
-    the four samples around every frame's registered position (see :mod:`upsr.method.edges`).
+    """The fused frame with the surface of each pixel near the reference's depth edges
+    (:func:`upsr.method.edges.edge_band`) from the bilinear votes of the four samples around
+    every frame's registered position (see :mod:`upsr.method.edges`).
 
     Parameters
     ----------
     lowres : ndarray (N, h, w)
         The window's frames (mm; < 0: a removed sample, which abstains).
-    maps : ndarray (N, r·h, r·w, 2)
+    maps : sequence of N ndarray (r·h, r·w, 2)
         Motion from the reference to each frame on the output grid (output px).
     offsets : ndarray (N, h, w) or None
         Radial offsets subtracted from frame k's samples at each reference pixel.
@@ -39,7 +42,7 @@ def edge_votes_numpy(
     fused : ndarray (r·h, r·w)
         The fusion's output.
     ref : int
-        Index of the reference (:func:`upsr.method.edges.edge_band` of it: the pixels voted).
+        Index of the reference.
     config : UPSRConfig
         ``scale``; ``edge_votes`` (False: ``fused`` as it is); ``check_registration``
         (samples over ``edge_mm`` nearer than the farthest depth around a hole of the
@@ -51,19 +54,21 @@ def edge_votes_numpy(
     -------
     ndarray float32 (r·h, r·w)
     """
+    if not config.edge_votes:
+        return fused
     n, h, w = lowres.shape
     r = config.scale
     band = edge_band(lowres[ref], edge_mm)
     ys, xs = np.nonzero(np.repeat(np.repeat(band, r, axis=0), r, axis=1))
-    if ys.size == 0 or not config.edge_votes:
+    if ys.size == 0:
         return fused
     holes = hole_backgrounds(lowres[ref]) if config.check_registration else np.zeros((h, w))
     bg = holes[ys // r, xs // r]
     floor = np.where(bg > 0, bg - np.float32(edge_mm), -np.inf)
     vals, wts = [], []
     for k in range(n):
-        u = (ys + maps[k, ys, xs, 1] + 0.5) / r - 0.5
-        v = (xs + maps[k, ys, xs, 0] + 0.5) / r - 0.5
+        u = (ys + maps[k][ys, xs, 1] + 0.5) / r - 0.5
+        v = (xs + maps[k][ys, xs, 0] + 0.5) / r - 0.5
         i0, j0 = np.floor(u).astype(np.int64), np.floor(v).astype(np.int64)
         fy, fx = u - i0, v - j0
         off = 0.0 if offsets is None else offsets[k, ys // r, xs // r]

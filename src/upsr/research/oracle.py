@@ -675,7 +675,7 @@ def super_resolve_straightforward(frames: npt.ArrayLike, config: UPSRConfig) -> 
             fused = np.where(only_own, fuse(edge_mm=np.inf), fused)
             fused = np.where(fallback, anchor_hr, fused)
         fused[~upsample_nearest((lowres > 0).any(axis=0), r)] = 0.0
-        fused = edge_votes_numpy(lowres, np.stack(maps), offsets, stack, fused, ref, cfg, edge_mm)
+        fused = edge_votes_numpy(lowres, maps, offsets, stack, fused, ref, cfg, edge_mm)
         fused = settle_fused(
             fused, lowres[ref], measured[ref], anchor, caps, cfg, edge_mm=edge_mm,
             keep_mean=stats.remove_mixed,
