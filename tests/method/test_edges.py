@@ -43,7 +43,7 @@ def test_one_frame_places_a_curved_edge_better_than_the_block_grid():
     wrong = lambda est: int((est != truth).sum())  # noqa: E731
     assert wrong(voted) < 0.9 * wrong(nearest)
     assert set(np.unique(voted)) <= {FG, BG}
-    np.testing.assert_array_equal(register_and_fuse(low[None], maps, r, 0), nearest)
+    np.testing.assert_array_equal(nearest, np.repeat(np.repeat(low, r, axis=0), r, axis=1))
 
 
 def test_a_slope_stepping_beyond_the_threshold_is_no_second_surface():
@@ -62,6 +62,10 @@ def test_a_slope_stepping_beyond_the_threshold_is_no_second_surface():
     assert vote([1000.0, 1000.0, 2000.0], 1000.0) == 2000.0
     assert vote([1000.0, 1150.0, 1300.0], 1150.0) == 1150.0
     assert SURFACE_GAP * edge > 150.0
+    # "no depth" outweighs the wall there: the fusion's depth stays (never emptied), and
+    # where the fusion left no depth the wall's weight adds none
+    assert vote([1000.0, 2000.0, 0.0], 1000.0) == 1000.0
+    assert vote([0.0, 0.0, 2000.0], 0.0) == 0.0
 
 
 def test_votes_never_add_depth_nor_remove_it():
@@ -69,10 +73,12 @@ def test_votes_never_add_depth_nor_remove_it():
     depth, whatever the votes around it."""
     r = 4
     _truth, low = _disc((12, 12), r, centre=(23.5, 23.5), radius=14.0)
-    low[low == BG] = 0.0  # the wall out of range: the disc in front of nothing
+    low[:, 6:][low[:, 6:] == BG] = 0.0  # the wall out of range on the right: no depth there
+    low[:6, 7:] = 0.0  # and a hole that reaches into the disc
     maps = np.zeros((1, 12 * r, 12 * r, 2), np.float32)
     nearest = register_and_fuse(low[None], maps, r, 0)
     voted = register_and_fuse(low[None], maps, r, 0, edge_votes=True)
+    assert (voted != nearest).any()  # the votes act on the edge before the wall
     np.testing.assert_array_equal(voted > 0, nearest > 0)
 
 
