@@ -60,6 +60,31 @@ def test_never_across_a_depth_edge():
     assert (out[:, 6 * 4 :] == 4000.0).all()
 
 
+def test_a_face_seen_obliquely_is_one_surface():
+    """A box's side seen obliquely, two low-res px wide between two flat surfaces (the
+    profile of the realistic camera-toward-wall scene): its steps 57, 125, 95 mm do not agree
+    within STEEP_RATIO, yet the middle one joins the face (both steps beside it go the same
+    way within FACE_RATIO), so both face pixels take the central slope and the output ramps
+    across them instead of jumping by 125 mm."""
+    row = np.array([2123.0, 2123.0, 2123.0, 2180.0, 2305.0, 2400.0, 2400.0, 2400.0], np.float32)
+    low = np.tile(row, (5, 1))
+    sy, sx = surface_slopes(low, 100.0)
+    assert not sy.any()
+    np.testing.assert_allclose(sx[:, 3:5], [[91.0, 110.0]] * 5)
+    out = follow_slopes(_blocks(low, 4), low, sigma_mm=0.0, edge_mm=100.0)
+    assert np.abs(np.diff(out[8, 12:20])).max() < 60.0  # nearest upsampling: a 125 mm jump
+    assert np.abs(out.reshape(5, 4, 8, 4).mean(axis=(1, 3)) - low).max() < 1e-2  # means kept
+
+
+def test_an_occlusion_edge_with_a_flat_side_is_no_face():
+    """A ramp (80 mm per px) ending in a 200 mm step to a flat wall: the step agrees with the
+    ramp within FACE_RATIO, but the wall's side is flat: an edge, not a face."""
+    row = np.array([1000.0, 1080.0, 1160.0, 1240.0, 1440.0, 1440.0, 1440.0], np.float32)
+    sy, sx = surface_slopes(np.tile(row, (5, 1)), 100.0)
+    assert not sy.any()
+    np.testing.assert_allclose(sx, [[80.0, 80.0, 80.0, 80.0, 0.0, 0.0, 0.0]] * 5)
+
+
 def test_holes_edges_inside_a_block_and_invalid_pixels_are_left_alone():
     low, _ = _plane(6, 6, 4, gx=50.0, gy=0.0)
     up = _blocks(low, 4)

@@ -192,6 +192,36 @@ def test_a_static_scene_gets_no_radial_offset():
     assert not off[4].any()
 
 
+@pytest.mark.parametrize("m_side", [5, 4])  # 25 and 16 differences: odd and even medians
+def test_the_offset_is_the_significant_median_of_the_differences(m_side):
+    """The kernel decides most pixels by counting the differences beyond the threshold (no
+    selection); the result must be exactly the significant median: offsets near the
+    threshold, with odd and even numbers of differences."""
+    import math
+
+    from upsr.method.trust import _offset_at
+
+    rng = np.random.default_rng(m_side)
+    sigma, signif = 10.0, 2.0
+    m = m_side * m_side
+    thr = signif * 1.2533 * math.sqrt(2.0) * sigma / math.sqrt(m)
+    ref = np.full((m_side, m_side), 2000.0, np.float32)
+    anc = np.zeros_like(ref)  # no surface test
+    sig = np.full((1, m_side, m_side), signif, np.float32)
+    buf = np.empty(m, np.float32)
+    found = 0
+    for _ in range(400):
+        shift = rng.uniform(-2.0 * thr, 2.0 * thr)
+        diff = (shift + rng.normal(0, 0.5 * thr, (m_side, m_side))).astype(np.float32)
+        reg = (ref + diff)[None]
+        med = float(np.median((reg[0] - ref).astype(np.float64)))
+        want = med if abs(med) > thr else 0.0
+        got = _offset_at(reg, ref, anc, 0, 0, 0, 100.0, sigma, 0.0, 2 * m_side, 1, buf, sig)
+        assert got == pytest.approx(want, abs=1e-3)
+        found += want != 0.0
+    assert 50 < found < 350  # both outcomes, many of them near the threshold
+
+
 def test_a_frame_that_moved_has_its_offsets_measured_at_a_lower_significance():
     """Where the frame moved (a camera along a slanted wall), an offset of 3 standard errors
     of the 5×5 median is kept there; where it did not, it needs 4 and the frame falls back on

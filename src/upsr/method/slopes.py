@@ -17,7 +17,10 @@ block and its 4-neighbours on the same surface (a first-order, plane-wise recons
   lies on the block's surface; a link between two neighbours is on one surface when its step
   is at most ``edge_mm``, or when it belongs to a run of three agreeing steep steps (same
   sign, within a factor :data:`STEEP_RATIO`: a floor seen at a grazing angle, not the
-  staircase of two depth edges);
+  staircase of two depth edges), or when both links beside it step the same way within a
+  factor :data:`FACE_RATIO` (the middle of a box's side seen obliquely, two or three pixels
+  wide, whose end steps into the flat surfaces around it are partial; an occlusion edge has
+  a flat side);
 * the slope is used only where it is significant (beyond :data:`SIGNIFICANCE` σ); elsewhere
   the block keeps its own trend (the sub-pixel detail the fusion found);
 * only blocks whose every pixel lies on the block's surface are changed (within 3σ + 2 mm of
@@ -39,12 +42,16 @@ import numpy.typing as npt
 
 from upsr.method.mixed import _steps_agree
 
-__all__ = ["SIGNIFICANCE", "STEEP_RATIO", "follow_slopes", "surface_slopes"]
+__all__ = ["FACE_RATIO", "SIGNIFICANCE", "STEEP_RATIO", "follow_slopes", "surface_slopes"]
 
 #: A slope is used where it exceeds this many σ (mm per low-res px).
 SIGNIFICANCE = 2.0
 #: Consecutive steep steps (beyond the edge threshold) of one slope agree within this factor.
 STEEP_RATIO = 1.5
+#: A steep step between two steps of the same sign, each within this factor of it, is the
+#: middle of a face seen obliquely (two or more pixels on it: its end steps into the flat
+#: surfaces around it are partial, so the run is not even); an occlusion edge has a flat side.
+FACE_RATIO = 3.0
 
 
 @nb.njit(cache=True, nogil=True, inline="always")
@@ -67,8 +74,8 @@ def _agree(s, t):  # pragma: no cover - numba
 
 @nb.njit(cache=True, nogil=True, inline="always")
 def _link(row, k, edge):  # pragma: no cover - numba
-    """The step of link k where it joins one surface (at most ``edge``, or a steep link in a
-    run of three agreeing links), else NaN."""
+    """The step of link k where it joins one surface (at most ``edge``, a steep link in a
+    run of three agreeing links, or the middle of a face), else NaN."""
     s = _step(row, k)
     if s != s or abs(s) <= edge:
         return s
@@ -77,6 +84,13 @@ def _link(row, k, edge):  # pragma: no cover - numba
     after = _agree(s, a1)
     if (before and after) or (before and _agree(b2, b1)) or (after and _agree(a1, a2)):
         return s
+    if (
+        b1 == b1
+        and a1 == a1
+        and _steps_agree(b1, s, FACE_RATIO)
+        and _steps_agree(s, a1, FACE_RATIO)
+    ):
+        return s  # the middle of a face
     return np.nan
 
 

@@ -421,12 +421,22 @@ def _offset_at(reg, ref, anc, k, i, j, edge, sigma, power, radius, stride, buf, 
                 zsum += u
     if m < 5:
         return 0.0
-    med = _select_median(buf, m)
     sig = sigma if power == 0.0 else sigma * (zsum / m / 1000.0) ** power
     # significant only: beyond ``signif`` standard errors of the median of m differences of
     # two noisy samples
     se = 1.2533 * math.sqrt(2.0) * sig / math.sqrt(m)
-    return med if abs(med) > signif[k, i, j] * se else 0.0
+    thr = signif[k, i, j] * se
+    # the median exceeds thr only if at least half the differences do (the common case, no
+    # offset, is decided by counting, without the selection; the result is the same)
+    above = 0
+    below = 0
+    for q in range(m):
+        above += buf[q] > thr
+        below += buf[q] < -thr
+    if 2 * above < m and 2 * below < m:
+        return 0.0
+    med = _select_median(buf, m)
+    return med if abs(med) > thr else 0.0
 
 
 @nb.njit(cache=True, nogil=True, parallel=True)
