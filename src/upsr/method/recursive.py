@@ -447,10 +447,24 @@ def _state_significance(
     diff = (reg[0] - meas)[valid]
     diff = diff[np.abs(diff) <= edge_mm]
     se = 1.2533 * math.sqrt(2.0) * STATE_NOISE_FACTOR * sigma_mm / (2 * radius + 1)
-    along = diff.size >= 25 and abs(float(np.median(diff))) > se
+    along = diff.size >= 25 and _median_beyond(diff, se)
     if along:
         sig = np.minimum(sig, np.float32(STATE_SIGNIFICANCE))
     return sig, along
+
+
+def _median_beyond(values: np.ndarray, limit: float) -> bool:
+    """Whether |median(values)| > ``limit`` (1-D, not empty): decided by counting the values
+    beyond ±limit (more than half beyond one of them, or fewer than half beyond both), the
+    median computed only where exactly half lie beyond one (an even count)."""
+    n = values.size
+    above = 2 * int(np.count_nonzero(values > limit))
+    below = 2 * int(np.count_nonzero(values < -limit))
+    if above < n and below < n:
+        return False
+    if above > n or below > n:
+        return True
+    return abs(float(np.median(values))) > limit
 
 
 # ---------------------------------------------------------------------------------------------

@@ -232,14 +232,16 @@ def follow_slopes(
     >>> follow_slopes(up, low, sigma_mm=0.0, edge_mm=100.0)[2, 2:6].tolist()
     [1030.0, 1050.0, 1070.0, 1090.0]
     """
-    z = np.nan_to_num(np.asarray(depth_mm, np.float32), nan=0.0)
+    z = np.array(depth_mm, np.float32)  # the output, changed block by block in place
+    if not np.isfinite(z).all():
+        np.nan_to_num(z, copy=False, nan=0.0)
     a = np.nan_to_num(np.asarray(anchor, np.float32), nan=0.0)
     h, w = a.shape
     if z.shape[0] % h or z.shape[1] % w or z.shape[0] // h != z.shape[1] // w:
         raise ValueError(f"depth {z.shape} is not a whole multiple of the anchor {a.shape}")
-    out = z.copy()
     if z.shape[0] == h:
-        return out  # r = 1: a block is one pixel, without a trend
+        return z  # r = 1: a block is one pixel, without a trend
     sy, sx = surface_slopes(a, edge_mm)
-    _follow_kernel(z, a, sy, sx, z.shape[0] // h, max(float(sigma_mm), 0.0), out)
-    return out
+    # (each block is read whole before it is written: in place is safe)
+    _follow_kernel(z, a, sy, sx, z.shape[0] // h, max(float(sigma_mm), 0.0), z)
+    return z
