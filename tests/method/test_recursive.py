@@ -221,27 +221,6 @@ def test_a_moving_slopes_state_summarises_fewer_frames():
     assert counts[1] <= 0.6 * counts[0]
 
 
-def test_the_state_moved_along_the_ray_is_decided_as_by_the_median():
-    """_median_beyond (whether the state as a whole lies nearer or farther than the frame)
-    decides by counting: it must agree with the median itself, odd and even counts, values
-    that tie with the limit and halves that split exactly at it included."""
-    from upsr.method.recursive import _median_beyond
-
-    rng = np.random.default_rng(2)
-    cases = [np.array([-1.0, 1.0, 3.0, 5.0], np.float32), np.array([2.0, 2.0, 2.0], np.float32)]
-    for n in (25, 26, 101, 1000):
-        for shift in np.linspace(-3.0, 3.0, 13):
-            cases.append((shift + rng.normal(0, 1.0, n)).astype(np.float32))
-            cases.append(np.round(shift + rng.normal(0, 1.0, n)).astype(np.float32))
-    decided = {True: 0, False: 0}
-    for values in cases:
-        for limit in (0.5, 1.0, 2.0):
-            want = abs(float(np.median(values))) > limit
-            assert _median_beyond(values, limit) == want
-            decided[want] += 1
-    assert min(decided.values()) > 20
-
-
 def test_zero_stays_zero_and_measured_pixels_have_depth():
     rng = np.random.default_rng(0)
     video = (2000 + rng.normal(0, 10, (10, 16, 20))).astype(np.float32)

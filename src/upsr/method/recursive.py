@@ -109,6 +109,7 @@ from upsr.method.motion import FlowBackend, make_flow_backend
 from upsr.method.noise import noise_shape
 from upsr.method.pipeline import TwoStagePipeline
 from upsr.method.registration import flow_positions
+from upsr.method.sorting import median_beyond
 from upsr.method.trust import (
     _offset_kernel,
     _sigma_and_power,
@@ -447,24 +448,10 @@ def _state_significance(
     diff = (reg[0] - meas)[valid]
     diff = diff[np.abs(diff) <= edge_mm]
     se = 1.2533 * math.sqrt(2.0) * STATE_NOISE_FACTOR * sigma_mm / (2 * radius + 1)
-    along = diff.size >= 25 and _median_beyond(diff, se)
+    along = diff.size >= 25 and median_beyond(diff, se)
     if along:
         sig = np.minimum(sig, np.float32(STATE_SIGNIFICANCE))
     return sig, along
-
-
-def _median_beyond(values: np.ndarray, limit: float) -> bool:
-    """Whether |median(values)| > ``limit`` (1-D, not empty): decided by counting the values
-    beyond ±limit (more than half beyond one of them, or fewer than half beyond both), the
-    median computed only where exactly half lie beyond one (an even count)."""
-    n = values.size
-    above = 2 * int(np.count_nonzero(values > limit))
-    below = 2 * int(np.count_nonzero(values < -limit))
-    if above < n and below < n:
-        return False
-    if above > n or below > n:
-        return True
-    return abs(float(np.median(values))) > limit
 
 
 # ---------------------------------------------------------------------------------------------

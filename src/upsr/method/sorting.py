@@ -10,7 +10,7 @@ import numpy as np
 
 from upsr._numba import SAFE_FASTMATH
 
-__all__ = ["sorting_network"]
+__all__ = ["median_beyond", "sorting_network"]
 
 
 @nb.njit(cache=True, nogil=True, inline="always")
@@ -111,3 +111,33 @@ def _heaviest_run(vals, wts, m, edge_mm, g, bonus, ref_value):  # pragma: no cov
         if p < m:
             acc += wts[p]
     return best_lo, best_hi, best_w
+
+
+def median_beyond(values: np.ndarray, limit: float) -> bool:
+    """Whether |median(values)| > ``limit``, decided by counting the values beyond ±limit
+    (more than half beyond one of them, or fewer than half beyond both); the median is
+    computed only where exactly half lie beyond one (an even count). Exact, and O(n) without
+    a selection.
+
+    Parameters
+    ----------
+    values : ndarray (n,), n ≥ 1
+    limit : float (≥ 0)
+
+    Returns
+    -------
+    bool
+
+    Examples
+    --------
+    >>> median_beyond(np.array([-1.0, 1.0, 3.0, 5.0]), 2.0)  # the median is 2.0
+    False
+    """
+    n = values.size
+    above = 2 * int(np.count_nonzero(values > limit))
+    below = 2 * int(np.count_nonzero(values < -limit))
+    if above < n and below < n:
+        return False
+    if above > n or below > n:
+        return True
+    return abs(float(np.median(values))) > limit

@@ -1,0 +1,25 @@
+"""Sorting networks and medians (upsr.method.sorting)."""
+
+import numpy as np
+
+from upsr.method.sorting import median_beyond
+
+
+def test_median_beyond_decides_as_the_median_does():
+    """median_beyond (used by the recursive mode: whether the state as a whole lies nearer or
+    farther than the frame) decides by counting: it must agree with the median itself, odd
+    and even counts, values that tie with the limit and halves that split exactly at it
+    included."""
+    rng = np.random.default_rng(2)
+    cases = [np.array([-1.0, 1.0, 3.0, 5.0], np.float32), np.array([2.0, 2.0, 2.0], np.float32)]
+    for n in (25, 26, 101, 1000):
+        for shift in np.linspace(-3.0, 3.0, 13):
+            cases.append((shift + rng.normal(0, 1.0, n)).astype(np.float32))
+            cases.append(np.round(shift + rng.normal(0, 1.0, n)).astype(np.float32))
+    decided = {True: 0, False: 0}
+    for values in cases:
+        for limit in (0.5, 1.0, 2.0):
+            want = abs(float(np.median(values))) > limit
+            assert median_beyond(values, limit) == want
+            decided[want] += 1
+    assert min(decided.values()) > 20
