@@ -1,8 +1,16 @@
 """Sub-pixel depth edges from the bilinear votes of each frame's samples (upsr.method.edges)."""
 
 import numpy as np
+import pytest
 
-from upsr.method.edges import SURFACE_GAP, edge_band, vote_surface
+from upsr.method.edges import (
+    REVERT_MIN_SHARE,
+    SURFACE_GAP,
+    VOTE_FRAMES,
+    edge_band,
+    state_votes,
+    vote_surface,
+)
 from upsr.method.fusion import register_and_fuse
 
 FG, BG = 1000.0, 2000.0
@@ -99,3 +107,86 @@ def test_several_frames_shifted_by_sub_pixel_motion_vote_together():
     one = register_and_fuse(lowres[1:2], maps[1:2], r, 0, edge_votes=True)
     three = register_and_fuse(lowres, maps, r, 1, edge_votes=True)
     assert (three != truth).sum() < (one != truth).sum()
+
+
+# -- the recursive state's votes (state_votes) ------------------------------------------------
+R7, X = 7, 14  # high-res column 14 at r = 7: 4/7 low-res px right of the FG column's centre
+
+
+def _state_case(state_cols, updated_cols, share):
+    """Three low-res rows: the frame measures FG on columns 0-1, BG on 2-3 (the frame gives FG
+    3/7 of its weight at column X, whose nearest sample is BG); the previous state (FG on
+    high-res columns < ``state_cols``, BG beyond, count 3, share ``share`` at column X and 1
+    elsewhere) and the update's result (FG on columns < ``updated_cols``), registered without
+    motion. Returns (new depth, new count, new share)."""
+    meas = np.tile(np.array([FG, FG, BG, BG], np.float32), (3, 1))
+    hh, ww = 3 * R7, 4 * R7
+    cols = np.arange(ww)[None, :].repeat(hh, axis=0)
+    prev_d = np.where(cols < state_cols, FG, BG).astype(np.float32)
+    depth = np.where(cols < updated_cols, FG, BG).astype(np.float32)
+    count = np.full((hh, ww), 3.0, np.float32)
+    prev_s = np.where(cols == X, share, 1.0).astype(np.float32)
+    qy, qx = np.mgrid[0:hh, 0:ww].astype(np.float32)
+    offsets = np.zeros((3, 4), np.float32)
+    previous = (prev_d, count.copy(), prev_s)
+    new = state_votes(depth, count, previous, (qx, qy), meas, offsets, scale=R7, edge_mm=100.0)
+    return depth, count, new
+
+
+def test_the_state_leaves_its_surface_once_its_share_falls_below_half():
+    """A state on FG at column X with share 0.45 (over VOTE_FRAMES frames with the frame's
+    3/7: below one half) moves to the frame's BG sample; with share 0.9 it stays FG."""
+    w_fg = 3.0 / 7.0
+    depth, count, share = _state_case(state_cols=X + 1, updated_cols=X + 1, share=0.45)
+    assert depth[10, X] == BG and count[10, X] == 1.0
+    assert share[10, X] == pytest.approx(1.0 - (0.45 + (w_fg - 0.45) / VOTE_FRAMES), abs=1e-5)
+    assert (depth[:, :X] == FG).all() and (depth[:, X + 1 :] == BG).all()
+    depth, _count, share = _state_case(state_cols=X + 1, updated_cols=X + 1, share=0.9)
+    assert depth[10, X] == FG
+    assert share[10, X] == pytest.approx(0.9 + (w_fg - 0.9) / VOTE_FRAMES, abs=1e-5)
+
+
+def test_the_state_keeps_its_surface_against_the_frames_staircase_where_it_is_registered():
+    """The update moved column X to the frame's nearest sample (BG), but the state had FG
+    there with share 0.9, and the frame still gives FG 3/7 (≥ REVERT_MIN_SHARE) of its
+    weight: FG stays, with the state's count. Not when the state is not registered there (at
+    its block's centre, column 17, it holds FG where the frame measured BG: a thin part the
+    state did not follow), nor without the frame's weight (the state's FG one column
+    farther, where the frame gives FG 2/7)."""
+    assert REVERT_MIN_SHARE <= 3.0 / 7.0
+    depth, count, _share = _state_case(state_cols=X + 1, updated_cols=X, share=0.9)
+    assert depth[10, X] == FG and count[10, X] == 3.0
+    depth, _count, _share = _state_case(state_cols=X + 4, updated_cols=X, share=0.9)
+    assert depth[10, X] == BG
+    depth, _count, _share = _state_case(state_cols=X + 2, updated_cols=X, share=1.0)
+    assert depth[10, X + 1] == BG
+
+
+def test_state_votes_never_add_depth_nor_remove_it():
+    """A pixel the update left without depth keeps none (share 0), and a pixel with depth
+    never moves to "no depth" when the other samples around it have none."""
+    r = 5
+    meas = np.tile(np.array([FG, FG, 0.0, 0.0], np.float32), (3, 1))
+    meas[:, 3] = BG  # an edge (FG | hole | BG): the band holds columns 1-3
+    hh, ww = 3 * r, 4 * r
+    depth = np.repeat(np.repeat(meas, r, axis=0), r, axis=1)
+    before = depth.copy()
+    count = np.full((hh, ww), 3.0, np.float32)
+    previous = (before.copy(), count.copy(), np.full((hh, ww), 0.3, np.float32))
+    qy, qx = np.mgrid[0:hh, 0:ww].astype(np.float32)
+    offsets = np.zeros((3, 4), np.float32)
+    share = state_votes(depth, count, previous, (qx, qy), meas, offsets, scale=r, edge_mm=100.0)
+    np.testing.assert_array_equal(depth > 0, before > 0)
+    assert (share[before == 0] == 0).all()
+
+
+def test_the_band_of_the_state_votes_leaves_out_steep_floors():
+    """A floor seen at a grazing angle (even steps of 250 mm per row, beyond the edge
+    threshold) spans more than edge_mm in every 3×3: edge_band holds it, the slope-aware
+    band does not; an occlusion edge is in both."""
+    floor = np.tile((1000.0 + 250.0 * np.arange(8, dtype=np.float32))[:, None], (1, 6))
+    assert edge_band(floor, 100.0).all()
+    assert not edge_band(floor, 100.0, slopes=True).any()
+    z = np.full((8, 6), BG, np.float32)
+    z[:, :3] = FG
+    np.testing.assert_array_equal(edge_band(z, 100.0, slopes=True), edge_band(z, 100.0))

@@ -221,6 +221,32 @@ def test_a_moving_slopes_state_summarises_fewer_frames():
     assert counts[1] <= 0.6 * counts[0]
 
 
+def test_the_edge_votes_place_a_moving_edge_better_over_the_frames():
+    """A disc moving 1/3 low-res px per frame (noise-free, r = 4): with the state's surface
+    shares (edge_votes, default) the edge falls on the truth more often than with the
+    update's own rules, and either beats the frames' staircase (measured: 1242, 1467 and
+    1556 wrong pixels over the last 8 frames)."""
+    r = 4
+    hh, ww = 24 * r, 32 * r
+    y, x = np.mgrid[0:hh, 0:ww].astype(np.float64)
+    yl, xl = y[r // 2 :: r, r // 2 :: r] - 0.5, x[r // 2 :: r, r // 2 :: r] - 0.5
+    truths, frames = [], []
+    for k in range(12):
+        cy, cx = 47.3, 40.7 + 4.0 * k / 3.0
+        truths.append(np.where(np.hypot(y - cy, x - cx) <= 30.0, 1000.0, 2000.0))
+        frames.append(np.where(np.hypot(yl - cy, xl - cx) <= 30.0, 1000.0, 2000.0))
+    truth = np.stack(truths).astype(np.float32)[4:]
+    low = np.stack(frames).astype(np.float32)
+
+    def wrong(est):
+        return int((np.abs(est[4:] - truth) > 100.0).sum())
+
+    voted = wrong(upsr.super_resolve(low, r, 9, mode="recursive"))
+    plain = wrong(upsr.super_resolve(low, r, 9, mode="recursive", edge_votes=False))
+    assert voted < 0.93 * plain
+    assert plain < wrong(np.repeat(np.repeat(low, r, axis=1), r, axis=2))
+
+
 def test_zero_stays_zero_and_measured_pixels_have_depth():
     rng = np.random.default_rng(0)
     video = (2000 + rng.normal(0, 10, (10, 16, 20))).astype(np.float32)

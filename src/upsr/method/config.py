@@ -219,7 +219,9 @@ class UPSRConfig:
         Fusion at depth edges (beyond the paper): near the reference's depth edges, each
         pixel's surface from the bilinear votes of the four low-res samples around every
         frame's registered position, not only the nearest one (sub-pixel edges instead of the
-        r×r block grid; :mod:`upsr.method.edges`). Depth is never interpolated.
+        r×r block grid; :mod:`upsr.method.edges`). Depth is never interpolated. In recursive
+        mode: each pixel's surface share over the last frames
+        (:func:`upsr.method.edges.state_votes`; not where mixed pixels are removed).
     speckle_px : int or None
         Beyond the paper: after the deblurring, connected regions of at most this many
         high-res px that no neighbour joins within ``edge_mm`` (isolated noise outliers that

@@ -96,6 +96,7 @@ from upsr.errors import InputError
 from upsr.method._parallel import resolve_workers
 from upsr.method.config import UPSRConfig
 from upsr.method.consistency import _block_side, _nearer_beside, hole_backgrounds
+from upsr.method.edges import state_votes
 from upsr.method.finishing import finish_frame, finish_fused
 from upsr.method.frontend import MotionFrontEnd
 from upsr.method.memory import moving_caps, state_caps
@@ -108,7 +109,7 @@ from upsr.method.mixed import (
 from upsr.method.motion import FlowBackend, make_flow_backend
 from upsr.method.noise import noise_shape
 from upsr.method.pipeline import TwoStagePipeline
-from upsr.method.registration import flow_positions
+from upsr.method.registration import _registered_state_kernel, flow_positions
 from upsr.method.sorting import median_beyond
 from upsr.method.trust import (
     _offset_kernel,
@@ -155,37 +156,6 @@ NOISE_SAMPLE_PX = 65536
 # ---------------------------------------------------------------------------------------------
 # compiled kernels
 # ---------------------------------------------------------------------------------------------
-@nb.njit(cache=True, nogil=True, parallel=True, fastmath=SAFE_FASTMATH, error_model="numpy")
-def _registered_state_kernel(depth, qx, qy, scale, out):  # pragma: no cover - numba
-    """out[i, j]: the state at low-res pixel (i, j)'s centre, moved by the flow: the mean of
-    the (nearest) state at the 1 (odd r) or 2×2 (even r) output pixels around the centre, 0
-    where one of them has no state or they lie on different surfaces."""
-    h, w = out.shape
-    hh, ww = depth.shape
-    c = scale // 2
-    lo = c - 1 if scale % 2 == 0 else c
-    for i in nb.prange(h):
-        for j in range(w):
-            total = 0.0
-            vmin = np.inf
-            vmax = 0.0
-            m = 0
-            for y in range(i * scale + lo, i * scale + c + 1):
-                for x in range(j * scale + lo, j * scale + c + 1):
-                    xi = math.floor(qx[y, x] + 0.5)
-                    yi = math.floor(qy[y, x] + 0.5)
-                    v = 0.0
-                    if 0 <= xi < ww and 0 <= yi < hh:
-                        v = depth[yi, xi]
-                    if v > 0:
-                        total += v
-                        vmin = min(vmin, v)
-                        vmax = max(vmax, v)
-                        m += 1
-            n_px = (c + 1 - lo) * (c + 1 - lo)
-            out[i, j] = total / m if m == n_px and vmax - vmin < 100.0 else 0.0
-
-
 @nb.njit(cache=True, nogil=True, inline="always", fastmath=SAFE_FASTMATH, error_model="numpy")
 def _step(d, m, n, use_mean, sigma):  # pragma: no cover - numba
     e = m - d
@@ -352,7 +322,8 @@ def recursive_update(
     radial_radius_px: int | None = 2,
     noise_profile: tuple[float, float] | None = None,
     holes: np.ndarray | None = None,
-) -> tuple[np.ndarray, np.ndarray]:
+    share: np.ndarray | None = None,
+) -> tuple[np.ndarray, ...]:
     """One step of the recursive fusion (see the module): the state (``depth``, ``count``) of
     the previous frame, registered and updated with the current frame's ``measurement``.
 
@@ -386,10 +357,13 @@ def recursive_update(
         :func:`upsr.method.consistency.hole_backgrounds` of the current frame: where it
         measured nothing, a state more than ``edge_mm`` nearer than this is forgotten.
         Default: those of ``measurement``.
+    share : ndarray float32 (r·h, r·w), optional
+        The previous state's surface shares: with it, the sub-pixel edge votes
+        (:func:`upsr.method.edges.state_votes`) follow the update.
 
     Returns
     -------
-    (depth, count): the new state, float32 (r·h, r·w).
+    (depth, count): the new state, float32 (r·h, r·w); with ``share``, (depth, count, share).
     """
     d = np.ascontiguousarray(depth, np.float32)
     c = np.ascontiguousarray(count, np.float32)
@@ -427,7 +401,12 @@ def recursive_update(
         offsets, int(scale), caps, estimator == "mean", float(sigma_mm), float(edge_mm),
         np.ascontiguousarray(holes, np.float32), out_d, out_n,
     )  # fmt: skip
-    return out_d, out_n
+    if share is None:
+        return out_d, out_n
+    previous = (d, c, np.ascontiguousarray(share, np.float32))
+    edge = float(edge_mm)
+    votes = state_votes(out_d, out_n, previous, (qx, qy), meas, offsets, scale=scale, edge_mm=edge)
+    return out_d, out_n, votes
 
 
 def _state_significance(
@@ -513,6 +492,7 @@ class RecursiveUPSR(TwoStagePipeline):
         self._prev_guide: np.ndarray | None = None
         self._depth: np.ndarray | None = None
         self._conf: np.ndarray | None = None
+        self._share: np.ndarray | None = None  # the surface shares (edge votes)
         self._temporal_mm = 0.0
         self._profile: tuple[float, float] | None = None
         # "auto": the mean of the trusted samples (see the module), whatever the noise
@@ -609,6 +589,10 @@ class RecursiveUPSR(TwoStagePipeline):
                 flow = np.zeros((*pre.shape, 2), np.float32)
                 depth = np.zeros((f.shape[0] * r, f.shape[1] * r), np.float32)
                 conf = np.zeros_like(depth)
+                # (not where mixed pixels are removed: the samples beside the edges, whose
+                # weights the votes compare, are the removed ones; measured worse)
+                votes = cfg.edge_votes and not self._remove_mixed
+                self._share = np.zeros_like(depth) if votes else None
             else:
                 depth, conf = self._depth, self._conf
             caps = state_caps(
@@ -617,7 +601,7 @@ class RecursiveUPSR(TwoStagePipeline):
             if self._depth is not None and k:
                 # (a moving slope's state: fewer frames)
                 caps = moving_caps(caps, flow, cfg.n_frames, grid_scale=flow.shape[1] / f.shape[1])
-            fused, conf = recursive_update(
+            fused, conf, *share = recursive_update(
                 depth,
                 conf,  # type: ignore[arg-type]
                 flow,
@@ -637,8 +621,10 @@ class RecursiveUPSR(TwoStagePipeline):
                 noise_profile=self._profile,
                 # (the holes of the frame as measured: its removed mixed pixels are not holes)
                 holes=np.where(f > 0, np.float32(0.0), hole_backgrounds(meas)),
+                share=self._share,
             )
         self._depth, self._conf = fused, conf
+        self._share = share[0] if share else None
         self._prev_pre, self._prev_guide = pre, guide
         self._count = t + 1
         return fused, f, meas, anchor, noise

@@ -17,6 +17,7 @@ a's grid and maps a's pixel p to p + flow(p) in b.
 from __future__ import annotations
 
 import functools
+import math
 from collections.abc import Callable, Sequence
 
 import cv2
@@ -444,3 +445,34 @@ def trace_to_reference(
             pos = advance_positions(pos, (forward if k < ref else backward)[m])  # type: ignore[arg-type]
         to_output_grid(pos, scale / s, out=out[k])
     return out
+
+
+@nb.njit(cache=True, nogil=True, parallel=True, fastmath=SAFE_FASTMATH, error_model="numpy")
+def _registered_state_kernel(depth, qx, qy, scale, out):  # pragma: no cover - numba
+    """out[i, j]: the state at low-res pixel (i, j)'s centre, moved by the flow: the mean of
+    the (nearest) state at the 1 (odd r) or 2×2 (even r) output pixels around the centre, 0
+    where one of them has no state or they lie on different surfaces."""
+    h, w = out.shape
+    hh, ww = depth.shape
+    c = scale // 2
+    lo = c - 1 if scale % 2 == 0 else c
+    for i in nb.prange(h):
+        for j in range(w):
+            total = 0.0
+            vmin = np.inf
+            vmax = 0.0
+            m = 0
+            for y in range(i * scale + lo, i * scale + c + 1):
+                for x in range(j * scale + lo, j * scale + c + 1):
+                    xi = math.floor(qx[y, x] + 0.5)
+                    yi = math.floor(qy[y, x] + 0.5)
+                    v = 0.0
+                    if 0 <= xi < ww and 0 <= yi < hh:
+                        v = depth[yi, xi]
+                    if v > 0:
+                        total += v
+                        vmin = min(vmin, v)
+                        vmax = max(vmax, v)
+                        m += 1
+            n_px = (c + 1 - lo) * (c + 1 - lo)
+            out[i, j] = total / m if m == n_px and vmax - vmin < 100.0 else 0.0

@@ -42,7 +42,14 @@ import numpy.typing as npt
 
 from upsr.method.mixed import _steps_agree
 
-__all__ = ["FACE_RATIO", "SIGNIFICANCE", "STEEP_RATIO", "follow_slopes", "surface_slopes"]
+__all__ = [
+    "FACE_RATIO",
+    "SIGNIFICANCE",
+    "STEEP_RATIO",
+    "edge_ends",
+    "follow_slopes",
+    "surface_slopes",
+]
 
 #: A slope is used where it exceeds this many σ (mm per low-res px).
 SIGNIFICANCE = 2.0
@@ -245,3 +252,46 @@ def follow_slopes(
     # (each block is read whole before it is written: in place is safe)
     _follow_kernel(z, a, sy, sx, z.shape[0] // h, max(float(sigma_mm), 0.0), z)
     return z
+
+
+@nb.njit(cache=True, nogil=True)
+def _edge_ends_kernel(z, edge, out):  # pragma: no cover - numba
+    h, w = z.shape
+    for i in range(h):
+        row = z[i]
+        for k in range(w - 1):
+            if abs(row[k + 1] - row[k]) > edge and row[k] > 0 and row[k + 1] > 0:
+                if _link(row, k, edge) != _link(row, k, edge):  # NaN: no surface joins them
+                    out[i, k] = True
+                    out[i, k + 1] = True
+
+
+def edge_ends(depth_mm: npt.ArrayLike, edge_mm: float) -> np.ndarray:
+    """The pixels at either end of a depth edge: a 4-neighbour step beyond ``edge_mm`` that
+    no surface joins (not a steep slope nor a face seen obliquely, see the module).
+
+    Parameters
+    ----------
+    depth_mm : array_like (h, w)
+        Depth (mm; ≤ 0 or NaN: none).
+    edge_mm : float
+        Depth step that separates two surfaces.
+
+    Returns
+    -------
+    ndarray bool (h, w)
+
+    Examples
+    --------
+    >>> edge_ends(np.array([[1000.0, 1000.0, 3000.0, 3000.0]]), 100.0).astype(int).tolist()
+    [[0, 1, 1, 0]]
+    >>> floor = np.array([[1000.0, 1150.0, 1300.0, 1450.0]])  # even steps: one surface
+    >>> edge_ends(floor, 100.0).any()
+    np.False_
+    """
+    z = np.nan_to_num(np.asarray(depth_mm, np.float32), nan=0.0)
+    out = np.zeros(z.shape, np.bool_)
+    _edge_ends_kernel(np.ascontiguousarray(z), float(edge_mm), out)
+    rows = np.zeros(z.shape[::-1], np.bool_)
+    _edge_ends_kernel(np.ascontiguousarray(z.T), float(edge_mm), rows)
+    return out | rows.T
