@@ -25,7 +25,6 @@ from __future__ import annotations
 import numba as nb
 import numpy as np
 import numpy.typing as npt
-from scipy import ndimage
 
 from upsr.method.slopes import edge_ends
 from upsr.method.sorting import _heaviest_run
@@ -72,16 +71,32 @@ def edge_band(reference: npt.ArrayLike, edge_mm: float, *, slopes: bool = False)
     -------
     ndarray bool (h, w)
     """
-    z = np.nan_to_num(np.asarray(reference, np.float32), nan=0.0)
-    valid = z > 0
-    z = np.where(valid, z, np.float32(0.0))
-    far = np.float32(np.finfo(np.float32).max)
-    hi = ndimage.maximum_filter(z, size=3, mode="nearest")
-    lo = ndimage.minimum_filter(np.where(valid, z, far), size=3, mode="nearest")
-    band = (hi > 0) & (hi - lo > edge_mm)
-    if slopes:
-        band &= ndimage.binary_dilation(edge_ends(z, edge_mm), np.ones((3, 3), bool))
+    z = np.ascontiguousarray(reference, np.float32)
+    ends = edge_ends(z, edge_mm) if slopes else np.zeros((0, 0), np.bool_)
+    band = np.empty(z.shape, np.bool_)
+    _band_kernel(z, float(edge_mm), ends, bool(slopes), band)
     return band
+
+
+@nb.njit(cache=True, nogil=True, parallel=True)
+def _band_kernel(z, edge, ends, use_ends, out):  # pragma: no cover - numba
+    """out[i, j]: the valid depths of the 3×3 neighbourhood of (i, j) (clipped at the border)
+    span more than ``edge``, and (with ``use_ends``) one of its pixels is in ``ends``."""
+    h, w = z.shape
+    for i in nb.prange(h):
+        for j in range(w):
+            hi = 0.0
+            lo = np.inf
+            near_end = not use_ends
+            for a in range(max(i - 1, 0), min(i + 2, h)):
+                for b in range(max(j - 1, 0), min(j + 2, w)):
+                    v = z[a, b]
+                    if v > 0:  # (False for NaN and removed samples)
+                        hi = max(hi, v)
+                        lo = min(lo, v)
+                    if use_ends and ends[a, b]:
+                        near_end = True
+            out[i, j] = hi > 0 and hi - lo > edge and near_end
 
 
 @nb.njit(cache=True, nogil=True, inline="always")
