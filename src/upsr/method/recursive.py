@@ -62,7 +62,10 @@ Per frame t (only frame t and the state of t − 1 are read):
 
    so every pixel that frame t measured has depth in the output (the current frame anchors
    it), and a sample beyond τ never gets averaged in;
-6. the windowed engine's finishing steps (:mod:`upsr.method.finishing`: deblurring, its
+6. sub-pixel edges (``edge_votes``): near frame t's occlusion edges each pixel's surface
+   follows its share over the last frames of the bilinear weight of frame t's four samples
+   around it, carried as a third state image (:func:`~upsr.method.edges.state_votes`);
+7. the windowed engine's finishing steps (:mod:`upsr.method.finishing`: deblurring, its
    first step from the noise of every k-th row of the state, :data:`NOISE_SAMPLE_PX`; speckle
    removal, the speckle filter never erasing what frame t measured on a surface, frame t's
    removed pixels split between their neighbours, blocks following their surface's slope,
