@@ -43,6 +43,8 @@ METHOD_OPTIONS = {
     "--mixed-removal",
     "--no-registration-check",
     "--no-radial",
+    "--no-slopes",
+    "--no-edge-votes",
 }
 READ_OPTIONS = {
     "--key",

@@ -459,6 +459,14 @@ NoSlopesOpt = Annotated[
         "the slope measured between the reference's neighbouring pixels.",
     ),
 ]
+NoEdgeVotesOpt = Annotated[
+    bool,
+    typer.Option(
+        "--no-edge-votes",
+        help="Place depth edges on the nearest sample of each frame (the r×r block grid) "
+        "instead of the bilinear votes of the four samples around each position.",
+    ),
+]
 
 
 def config_from_options(
@@ -488,6 +496,7 @@ def config_from_options(
     no_registration_check: bool = False,
     no_radial: bool = False,
     no_slopes: bool = False,
+    no_edge_votes: bool = False,
 ) -> UPSRConfig:
     """The :class:`UPSRConfig` of the method options shared by ``upsr run`` and ``upsr batch``
     (``None``: the default; ``frames=None``: N = 9)."""
@@ -543,6 +552,8 @@ def config_from_options(
         options["radial_compensation"] = False
     if no_slopes:
         options["follow_slopes"] = False
+    if no_edge_votes:
+        options["edge_votes"] = False
     return UPSRConfig.from_options(scale, DEFAULT_FRAMES if frames is None else frames, **options)
 
 
@@ -583,6 +594,7 @@ METHOD_OPTIONS: tuple[tuple[str, Any, Any], ...] = (
     ("no_registration_check", NoRegistrationCheckOpt, False),
     ("no_radial", NoRadialOpt, False),
     ("no_slopes", NoSlopesOpt, False),
+    ("no_edge_votes", NoEdgeVotesOpt, False),
 )
 
 
