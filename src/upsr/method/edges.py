@@ -100,6 +100,25 @@ def _band_kernel(z, edge, ends, use_ends, out):  # pragma: no cover - numba
 
 
 @nb.njit(cache=True, nogil=True, inline="always")
+def _corner(u, t, h, w, c):  # pragma: no cover - numba
+    """The c-th (0–3) of the four low-res samples around the low-res position (u, t) (row,
+    column; pixel centres at integers): its indices, clamped to the frame, and its bilinear
+    weight."""
+    i0 = int(np.floor(u))
+    j0 = int(np.floor(t))
+    di = c // 2
+    dj = c % 2
+    fy = u - i0
+    fx = t - j0
+    wy = fy if di == 1 else 1.0 - fy
+    return (
+        min(max(i0 + di, 0), h - 1),
+        min(max(j0 + dj, 0), w - 1),
+        wy * (fx if dj == 1 else 1.0 - fx),
+    )
+
+
+@nb.njit(cache=True, nogil=True, inline="always")
 def vote_surface(lowres, offsets, raw, px, py, scale, edge_mm, floor, fused, vals, wts):
     # pragma: no cover - numba
     """The depth of one output pixel from the bilinear votes of its frames (see the module).
@@ -124,26 +143,18 @@ def vote_surface(lowres, offsets, raw, px, py, scale, edge_mm, floor, fused, val
             continue
         u = (py[k] + 0.5) * inv_r - 0.5
         v = (px[k] + 0.5) * inv_r - 0.5
-        i0 = int(np.floor(u))
-        j0 = int(np.floor(v))
-        fy = u - i0
-        fx = v - j0
-        for di in range(2):
-            ii = min(max(i0 + di, 0), h - 1)
-            wy = fy if di == 1 else 1.0 - fy
-            for dj in range(2):
-                jj = min(max(j0 + dj, 0), w - 1)
-                wt = wy * (fx if dj == 1 else 1.0 - fx)
-                z = lowres[k, ii, jj]
-                if wt <= 0.0 or z < 0:
-                    continue
-                val = z - offsets[k] if z > 0 else inf
-                if val < floor:
-                    continue
-                far |= (z > 0) & (abs(val - fused) > gap)
-                vals[m] = val
-                wts[m] = wt
-                m += 1
+        for c in range(4):
+            ii, jj, wt = _corner(u, v, h, w, c)
+            z = lowres[k, ii, jj]
+            if wt <= 0.0 or z < 0:
+                continue
+            val = z - offsets[k] if z > 0 else inf
+            if val < floor:
+                continue
+            far |= (z > 0) & (abs(val - fused) > gap)
+            vals[m] = val
+            wts[m] = wt
+            m += 1
     if not far:
         # every depth sample within the gap of the fusion's value: so is the winning
         # surface, or "no depth" wins; either way the fusion's value stays (most pixels of
@@ -221,33 +232,25 @@ def _state_vote_kernel(
             # state's surface (w_s)
             u = (y + 0.5) * inv_r - 0.5
             t = (x + 0.5) * inv_r - 0.5
-            i0 = int(np.floor(u))
-            j0 = int(np.floor(t))
-            fy = u - i0
-            fx = t - j0
             w_v = 0.0
             w_o = 0.0
             w_s = 0.0
             other = 0.0
             heaviest = -1.0
-            for di in range(2):
-                ii = min(max(i0 + di, 0), h - 1)
-                wy = fy if di == 1 else 1.0 - fy
-                for dj in range(2):
-                    jj = min(max(j0 + dj, 0), w - 1)
-                    wt = wy * (fx if dj == 1 else 1.0 - fx)
-                    z = meas[ii, jj]
-                    if not z > 0:
-                        continue  # no depth, or a removed mixed pixel: no vote
-                    if abs(z - s) <= gap:
-                        w_s += wt
-                    if abs(z - v) <= gap:
-                        w_v += wt
-                    else:
-                        w_o += wt
-                        if wt > heaviest:
-                            heaviest = wt
-                            other = z
+            for c in range(4):
+                ii, jj, wt = _corner(u, t, h, w, c)
+                z = meas[ii, jj]
+                if not z > 0:
+                    continue  # no depth, or a removed mixed pixel: no vote
+                if abs(z - s) <= gap:
+                    w_s += wt
+                if abs(z - v) <= gap:
+                    w_v += wt
+                else:
+                    w_o += wt
+                    if wt > heaviest:
+                        heaviest = wt
+                        other = z
             total = w_v + w_o
             if total <= 0.0:
                 share[y, x] = 1.0
