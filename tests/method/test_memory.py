@@ -201,14 +201,16 @@ def test_frames_beyond_a_moving_slopes_reach_abstain():
 
 def test_a_moving_slopes_state_summarises_about_half_its_frames():
     """moving_caps: where the pixel moved (beyond MOVED_PX) and n* < N, the cap becomes
-    min(n*, max(REACH_MIN_FRAMES, ⌊(n* − 1)/2⌋)); flat surfaces (n* = N), pixels that did
-    not move and motions below MOVED_PX keep their cap."""
-    from upsr.method.memory import MOVED_PX, moving_caps
+    min(n*, max(REACH_MIN_FRAMES, ⌊(n* − 1)/2⌋)), and a flat surface's (n* = N) becomes
+    MOVING_STATE_FRAMES; pixels that did not move and motions below MOVED_PX keep their cap."""
+    from upsr.method.memory import MOVED_PX, MOVING_STATE_FRAMES, moving_caps
 
     caps = np.array([[9.0, 7.0, 5.0, 3.0, 1.5]], np.float32)
     flow = np.zeros((2, 10, 2), np.float32)  # grid scale 2
     flow[..., 0] = 2.0  # one low-res px
-    np.testing.assert_array_equal(moving_caps(caps, flow, 9, grid_scale=2.0), [[9, 3, 2, 2, 1.5]])
+    assert 3 < MOVING_STATE_FRAMES < 9
+    want = [[MOVING_STATE_FRAMES, 3, 2, 2, 1.5]]
+    np.testing.assert_array_equal(moving_caps(caps, flow, 9, grid_scale=2.0), want)
     np.testing.assert_array_equal(moving_caps(caps, np.zeros_like(flow), 9, grid_scale=2.0), caps)
     flow[..., 0] = 2.0 * 0.9 * MOVED_PX
     np.testing.assert_array_equal(moving_caps(caps, flow, 9, grid_scale=2.0), caps)
