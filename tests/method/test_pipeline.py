@@ -77,3 +77,23 @@ def test_without_workers_everything_runs_here():
     assert future.done() and future.result()[1] == threading.current_thread().name
     engine.flush()
     assert [float(o[0]) for o in engine.process([1, 2])] == [1.0, 3.0]
+
+
+def test_frames_stay_in_order_when_the_pipeline_is_turned_off_with_a_frame_in_flight():
+    """The probe turns the pipeline off inside a frame's finishing on the helper; the next
+    frame, finished here, must wait for it: ``then`` (which writes the output) runs in frame
+    order (before the fix, ``upsr live`` wrote two frames swapped in a loaded CI run)."""
+
+    class SlowHelper(_Engine):  # the helper's finishing slower than the caller's
+        def _finish(self, total):
+            on_helper = threading.current_thread() is not threading.main_thread()
+            time.sleep(0.05 if on_helper else 0.001)
+            return np.array([total, threading.current_thread().name], dtype=object)
+
+    engine = SlowHelper(0.001, 0.0)
+    seen = []
+    futures = [engine.push_async(k, then=lambda out: seen.append(float(out[0]))) for k in range(9)]
+    engine.wait()
+    assert engine._pipelined is False
+    assert seen == [float(sum(range(k + 1))) for k in range(9)]
+    assert [float(f.result()[0]) for f in futures] == seen

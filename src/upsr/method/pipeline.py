@@ -90,6 +90,9 @@ class TwoStagePipeline:
             return out
 
         if pool is None:
+            # a frame still finishing on the helper (the probe turned the pipeline off during
+            # it) goes first: outputs and ``then`` in frame order
+            self.wait()
             done: Future = Future()
             done.set_result(finish())
             return done
