@@ -22,10 +22,13 @@ depth rules.
 
 from __future__ import annotations
 
+import math
+
 import numba as nb
 import numpy as np
 import numpy.typing as npt
 
+from upsr._numba import SAFE_FASTMATH
 from upsr.method.slopes import edge_ends
 from upsr.method.sorting import _heaviest_run
 
@@ -186,6 +189,23 @@ def vote_surface(lowres, offsets, raw, px, py, scale, edge_mm, floor, fused, val
     return vals[b_hi - 1]
 
 
+@nb.njit(cache=True, nogil=True, inline="always", fastmath=SAFE_FASTMATH, error_model="numpy")
+def _centre_agrees(depth, qx, qy, i, j, scale, off, a, tl):  # pragma: no cover - numba
+    """Whether the recursive state ``depth``, looked up (nearest) at the centre pixel of
+    low-res block (i, j) moved by the positions ``qx``, ``qy``, less the radial offset
+    ``off``, lies within ``tl`` of ``a``: the block's surface is where the state has it (the
+    state is registered there, its edges known)."""
+    hh, ww = depth.shape
+    yc = i * scale + scale // 2
+    xc = j * scale + scale // 2
+    xn = math.floor(qx[yc, xc] + 0.5)
+    yn = math.floor(qy[yc, xc] + 0.5)
+    if 0 <= xn < ww and 0 <= yn < hh:
+        v = depth[yn, xn]
+        return v > 0 and abs(v - off - a) <= tl
+    return False
+
+
 #: The recursive state's surface share (:func:`state_votes`) is the running mean of at most
 #: this many frames' bilinear weights (realistic scenes, ToF size, Laplace σ = 0 and 10,
 #: seed 0: 4 and 8 within 0.5 % of rmse of each other, 2 better on the deforming body and
@@ -272,17 +292,11 @@ def _state_vote_kernel(
                 # whose share stays the larger: kept where the state is registered (it holds
                 # the block's own surface at the block's centre; a thin part that the state
                 # did not follow is not overwritten)
-                yc = i * r + r // 2
-                xc = j * r + r // 2
-                xq = int(np.floor(qxs[yc, xc] + 0.5))
-                yq = int(np.floor(qys[yc, xc] + 0.5))
-                if 0 <= xq < ww and 0 <= yq < hh:
-                    c = prev_d[yq, xq] - offsets[i, j]
-                    if c > 0 and abs(c - meas[i, j]) <= gap:
-                        out_d[y, x] = s
-                        out_n[y, x] = n
-                        share[y, x] = new
-                        continue
+                if _centre_agrees(prev_d, qxs, qys, i, j, r, offsets[i, j], meas[i, j], gap):
+                    out_d[y, x] = s
+                    out_n[y, x] = n
+                    share[y, x] = new
+                    continue
             share[y, x] = w_v / total
 
 

@@ -99,7 +99,7 @@ from upsr.errors import InputError
 from upsr.method._parallel import resolve_workers
 from upsr.method.config import UPSRConfig
 from upsr.method.consistency import _block_side, _nearer_beside, hole_backgrounds
-from upsr.method.edges import state_votes
+from upsr.method.edges import _centre_agrees, state_votes
 from upsr.method.finishing import finish_frame, finish_fused
 from upsr.method.frontend import MotionFrontEnd
 from upsr.method.memory import moving_caps, state_caps
@@ -189,21 +189,6 @@ def _same_surface(depth, count, qx, qy, x0, y0, c0, thr):  # pragma: no cover - 
                     sd += wk * v
                     sn += wk * count[ya, xa]
     return sd / sw, sn / sw
-
-
-@nb.njit(cache=True, nogil=True, inline="always", fastmath=SAFE_FASTMATH, error_model="numpy")
-def _centre_agrees(depth, qx, qy, i, j, scale, off, a, tl):  # pragma: no cover - numba
-    """Whether the state looked up at the centre pixel of low-res block (i, j) lies within
-    ``tl`` of ``a`` (the block's surface is where the state has it: its edge is known)."""
-    hh, ww = depth.shape
-    yc = i * scale + scale // 2
-    xc = j * scale + scale // 2
-    xn = math.floor(qx[yc, xc] + 0.5)
-    yn = math.floor(qy[yc, xc] + 0.5)
-    if 0 <= xn < ww and 0 <= yn < hh:
-        v = depth[yn, xn]
-        return v > 0 and abs(v - off - a) <= tl
-    return False
 
 
 @nb.njit(cache=True, nogil=True, parallel=True, fastmath=SAFE_FASTMATH, error_model="numpy")

@@ -261,7 +261,8 @@ def _edge_ends_kernel(z, edge, out):  # pragma: no cover - numba
         row = z[i]
         for k in range(w - 1):
             if abs(row[k + 1] - row[k]) > edge and row[k] > 0 and row[k + 1] > 0:
-                if _link(row, k, edge) != _link(row, k, edge):  # NaN: no surface joins them
+                s = _link(row, k, edge)
+                if s != s:  # NaN: no surface joins them
                     out[i, k] = True
                     out[i, k + 1] = True
 

@@ -113,6 +113,19 @@ def _heaviest_run(vals, wts, m, edge_mm, g, bonus, ref_value):  # pragma: no cov
     return best_lo, best_hi, best_w
 
 
+@nb.njit(cache=True, nogil=True, inline="always")
+def _twice_beyond(values, m, limit):  # pragma: no cover - numba
+    """(2·#{values[:m] > limit}, 2·#{values[:m] < −limit}): the median of values[:m] can
+    exceed +limit (−limit) only where the first (second) is at least m, and does where it is
+    more than m."""
+    above = 0
+    below = 0
+    for q in range(m):
+        above += values[q] > limit
+        below += values[q] < -limit
+    return 2 * above, 2 * below
+
+
 def median_beyond(values: np.ndarray, limit: float) -> bool:
     """Whether |median(values)| > ``limit``, decided by counting the values beyond ±limit
     (more than half beyond one of them, or fewer than half beyond both); the median is
@@ -134,8 +147,7 @@ def median_beyond(values: np.ndarray, limit: float) -> bool:
     False
     """
     n = values.size
-    above = 2 * int(np.count_nonzero(values > limit))
-    below = 2 * int(np.count_nonzero(values < -limit))
+    above, below = _twice_beyond(values, n, limit)
     if above < n and below < n:
         return False
     if above > n or below > n:

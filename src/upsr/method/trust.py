@@ -25,6 +25,7 @@ import numpy.typing as npt
 
 from upsr.method.consistency import maps_at_centres, registered_samples
 from upsr.method.mixed import ABSTAIN
+from upsr.method.sorting import _twice_beyond
 
 __all__ = [
     "OFFSET_SIGNIFICANCE",
@@ -428,12 +429,8 @@ def _offset_at(reg, ref, anc, k, i, j, edge, sigma, power, radius, stride, buf, 
     thr = signif[k, i, j] * se
     # the median exceeds thr only if at least half the differences do (the common case, no
     # offset, is decided by counting, without the selection; the result is the same)
-    above = 0
-    below = 0
-    for q in range(m):
-        above += buf[q] > thr
-        below += buf[q] < -thr
-    if 2 * above < m and 2 * below < m:
+    above, below = _twice_beyond(buf, m, thr)
+    if above < m and below < m:
         return 0.0
     med = _select_median(buf, m)
     return med if abs(med) > thr else 0.0
