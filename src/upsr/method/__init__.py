@@ -9,6 +9,7 @@ motion front-end          §4, §5.2, eq. 16–19    :mod:`upsr.method.frontend`
 cumulative registration   eq. 18–21              :mod:`upsr.method.registration`
 registration check        —                      :mod:`upsr.method.consistency`
 mixed (flying) pixels     —                      :mod:`upsr.method.mixed`
+thin parts (ToF)          —                      :mod:`upsr.method.thin`
 sample trust              —                      :mod:`upsr.method.trust`
 state memory per pixel    —                      :mod:`upsr.method.memory`
 temporal median           eq. 26–28              :mod:`upsr.method.fusion`
@@ -42,6 +43,7 @@ __getattr__, __dir__, __all__ = attach(
         "registration",
         "resources",
         "smoothing",
+        "thin",
         "trust",
         "upsampling",
         "validation",

@@ -271,6 +271,7 @@ class UPSR:
         # the per-video choices, fixed from the first window (fix_video_statistics)
         self._stats: VideoStatistics | None = None
         self._lowres: dict[int, np.ndarray] = {}
+        self._clean: dict[int, np.ndarray] = {}  # (_cleaned)
         self._pre: dict[int, np.ndarray] = {}
         self._guide: dict[int, np.ndarray] = {}
         self._fwd: dict[int, np.ndarray] = {}
@@ -369,7 +370,7 @@ class UPSR:
             assert stats is not None  # fixed with the N-th frame, before any window
             if stats.remove_mixed:
                 # mixed (flying) input pixels abstain: the other frames fill them
-                lowres = remove_mixed_pixels(measured, self._front.edge_mm, marker=ABSTAIN)
+                lowres = np.stack([self._cleaned(k) for k in idx])
             noise = stats.trust_noise_mm  # (cfg.trust_noise_mm where given)
             anchor = tolerance = caps = None
             if cfg.trust_k is not None:
@@ -461,6 +462,14 @@ class UPSR:
                 measured=measured[ref],
             )
 
+    def _cleaned(self, k: int) -> np.ndarray:
+        """Frame k with its mixed pixels marked to abstain, once per frame."""
+        out = self._clean.get(k)
+        if out is None:
+            edge = self._front.edge_mm  # type: ignore[union-attr]
+            out = self._clean[k] = remove_mixed_pixels(self._lowres[k], edge, marker=ABSTAIN)
+        return out
+
     def _chain(self, k: int, m: int) -> np.ndarray:
         """Frame k's low-res sample centres carried by the consecutive flows to frame m (flow
         grid px), one flow step beyond what an earlier window computed. Windows finished at
@@ -504,9 +513,9 @@ class UPSR:
         # frames, which is at least this; windows in the background start later still
         cfg = self.config
         keep_from = max(min(t + 1 - cfg.half_before, self._count - cfg.n_frames), 0)
-        for store in (self._lowres, self._pre, self._guide, self._fwd, self._bwd):
-            for k in [k for k in store if k < keep_from]:
-                del store[k]
+        for store in (self._lowres, self._clean, self._pre, self._guide, self._fwd, self._bwd):
+            for k in [k for k in list(store) if k < keep_from]:  # (workers add to _clean)
+                store.pop(k, None)
         for key in list(self._chains):  # (list(): workers may add chains meanwhile)
             if key[0] < keep_from:
                 self._chains.pop(key, None)
