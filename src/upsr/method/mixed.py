@@ -9,8 +9,9 @@ realistic ToF scenes of :mod:`upsr.research.synth.realistic`). This module
   an edge between two flat surfaces has a pixel between them; point-sampling sensors only on
   steep slopes, which the mixed-pixel test would take for mixed);
 * finds the mixed pixels of each frame (:func:`remove_mixed_pixels`: between its nearest and
-  farthest neighbour, on no surface of its own, and not on a slope), which then abstain in
-  the fusion so that the other frames fill them;
+  farthest neighbour, on no surface of its own, and not on a slope; and the parts narrower
+  than a pixel, mixed along their whole length, :mod:`upsr.method.thin`), which then abstain
+  in the fusion so that the other frames fill them;
 * splits those of the reference that no frame filled between the surfaces around them
   (:func:`split_mixed_pixels`): never a depth between two surfaces, never a hole where the
   camera measured something.

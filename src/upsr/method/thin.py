@@ -92,7 +92,7 @@ def _thin_kernel(z, edge, reach, near, far, axis):  # pragma: no cover - numba
         down = across[min(i + 1, h - 1)]
         for j in range(w):
             deepest[i, j] = max(up[j], mid[j], down[j])
-    support = np.full((h, w), -1, np.int64)  # (computed where needed: _support)
+    support = np.full((h, w), -1, np.int64)  # (counted where needed: _on_surface)
     # the thin pixels: runs of one or two pixels (a part narrower than a pixel covers at most
     # two) in front of the two neighbours that end them, along a row, a column or a
     # diagonal, each end on a surface of its own; B the nearer end (the run whose nearer end
