@@ -1,8 +1,8 @@
 """Run every benchmark (``make bench``): speed (ToF always; Samba, speed-up and memory when the
 Samba meshes are at ``--data``, default ``../shared/data``), the flow grid, the synthetic scenes,
-the realistic sensor scenes (``--out docs/results`` writes them to docs/results/realistic), the
-deblurring iterations and speckle removal, and the Samba accuracy tables. Each benchmark prints
-its table and writes ``results.json`` under ``--out``."""
+the realistic sensor scenes (``--out docs/results`` writes them to docs/results/realistic), thin
+parts on a ToF sensor, the deblurring iterations and speckle removal, and the Samba accuracy
+tables. Each benchmark prints its table and writes ``results.json`` under ``--out``."""
 
 from __future__ import annotations
 
@@ -18,6 +18,7 @@ import realistic_eval
 import samba_eval
 import speed_eval
 import synthetic_eval
+import thin_parts_eval
 
 
 def main() -> int:
@@ -34,6 +35,8 @@ def main() -> int:
     synthetic_eval.main(["--out", str(out / "synthetic")])
     print("\n== realistic sensors (ToF footprint, Kinect, large and camera motion) ==", flush=True)
     realistic_eval.main(["--out", str(out / "realistic")])
+    print("\n== thin parts on a ToF sensor (random bars, with and without the split) ==")
+    thin_parts_eval.main(["--out", str(out / "thin_parts")])
     print("\n== deblurring iterations and speckle removal ==", flush=True)
     deblur_eval.main(["--data", args.data, "--out", str(out / "deblur")])
     if (Path(args.data) / "samba" / "mesh_0000.obj").is_file():

@@ -34,6 +34,8 @@ def test_from_options_routes_deblur_prefix():
         {"scale": 2, "trust_noise_profile": (2.0, 9.0)},
         {"scale": 2, "trust_noise_profile": (float("nan"), 2.0)},
         {"scale": 2, "trust_noise_profile": None},
+        {"scale": 2, "thin_parts": "yes"},
+        {"scale": 2, "edge_votes": 1},
     ],
 )
 def test_bad_parameters_rejected(kwargs):

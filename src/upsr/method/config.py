@@ -222,6 +222,12 @@ class UPSRConfig:
         r×r block grid; :mod:`upsr.method.edges`). Depth is never interpolated. In recursive
         mode: each pixel's surface share over the last frames
         (:func:`upsr.method.edges.state_votes`; not where mixed pixels are removed).
+    thin_parts : bool
+        Where mixed pixels are removed (``remove_mixed``), also the parts narrower than a
+        pixel, mixed along their whole length, and split the reference's between the depth
+        of the surface they grow out of and what lies behind (:mod:`upsr.method.thin`):
+        fewer flying pixels and better edges, at some cost in rmse where a part's position
+        inside its pixels is uncertain.
     speckle_px : int or None
         Beyond the paper: after the deblurring, connected regions of at most this many
         high-res px that no neighbour joins within ``edge_mm`` (isolated noise outliers that
@@ -317,6 +323,7 @@ class UPSRConfig:
     refine: bool = True
     splat_radius_px: float | None = 1.0
     edge_votes: bool = True
+    thin_parts: bool = True
     speckle_px: int | None = None
     min_valid_fraction: float = 0.5
     edge_mm: float = 100.0
@@ -421,6 +428,7 @@ class UPSRConfig:
             "follow_slopes",
             "fill_holes",
             "edge_votes",
+            "thin_parts",
         ):
             _check(isinstance(getattr(self, name), bool), f"{name} must be True or False")
         object.__setattr__(self, "scale", int(self.scale))

@@ -67,7 +67,13 @@ def settle_fused(
         fused = level_to_reference(fused, reference, caps, cfg, edge_mm=edge_mm)
     source = reference if anchor is None else anchor
     return split_mixed_pixels(
-        fused, measured, reference, source, keep_mean=keep_mean, edge_mm=edge_mm
+        fused,
+        measured,
+        reference,
+        source,
+        keep_mean=keep_mean,
+        edge_mm=edge_mm,
+        thin_parts=cfg.thin_parts,
     )
 
 

@@ -26,7 +26,8 @@ import numpy as np
 import numpy.typing as npt
 
 from upsr.method.slopes import STEEP_RUN_RATIO, _on_slope, _steps_agree
-from upsr.method.thin import split_thin_parts, thin_parts
+from upsr.method.thin import split_thin_parts
+from upsr.method.thin import thin_parts as find_thin_parts
 
 __all__ = [
     "ABSTAIN",
@@ -146,7 +147,9 @@ def _starts_slope(z, i, j, edge, strength, own):  # pragma: no cover - numba
     return False
 
 
-def remove_mixed_pixels(frames: npt.ArrayLike, edge_mm: float, marker: float = 0.0) -> np.ndarray:
+def remove_mixed_pixels(
+    frames: npt.ArrayLike, edge_mm: float, marker: float = 0.0, *, thin_parts: bool = True
+) -> np.ndarray:
     """Set the mixed ("flying") pixels of each frame to ``marker`` (0 = no measurement).
 
     A pixel is mixed when its depth lies more than ``edge_mm`` behind its nearest valid
@@ -175,6 +178,8 @@ def remove_mixed_pixels(frames: npt.ArrayLike, edge_mm: float, marker: float = 0
     marker : float
         What a mixed pixel becomes: 0 (no measurement: it votes "no depth") or
         :data:`ABSTAIN` (the fusion ignores it, like a sample outside the frame).
+    thin_parts : bool
+        Also the pixels of parts narrower than a pixel (:func:`upsr.method.thin.thin_parts`).
 
     Returns
     -------
@@ -186,8 +191,9 @@ def remove_mixed_pixels(frames: npt.ArrayLike, edge_mm: float, marker: float = 0
     out = np.empty_like(flat)
     for k in range(flat.shape[0]):
         _mixed_kernel(np.ascontiguousarray(flat[k]), float(edge_mm), float(marker), out[k])
-        near, _ = thin_parts(flat[k], edge_mm)  # mixed along their whole length
-        out[k][near > 0] = marker
+        if thin_parts:
+            near, _ = find_thin_parts(flat[k], edge_mm)  # mixed along their whole length
+            out[k][near > 0] = marker
     return out.reshape(z.shape)
 
 
@@ -332,6 +338,7 @@ def split_mixed_pixels(
     *,
     keep_mean: bool = False,
     edge_mm: float = math.inf,
+    thin_parts: bool = True,
 ) -> np.ndarray:
     """Give the reference's mixed pixels that no frame filled the depth of their neighbours.
 
@@ -354,7 +361,7 @@ def split_mixed_pixels(
       min(:data:`BETWEEN_SHARE` · (B − F), ``edge_mm``) from both F and B, is split afresh:
       samples that followed a moving edge keep the footprint's mean, misregistered ones do
       not, and other frames' mixes that their own test missed are mixes still;
-    * with ``keep_mean``, the blocks of the reference's thin parts
+    * with ``keep_mean`` and ``thin_parts``, the blocks of the reference's thin parts
       (:func:`upsr.method.thin.split_thin_parts`: their share of the part along its line,
       the rest the depth behind it), whatever the fusion gave them;
     * otherwise (a lone outlier, or one side only) each high-res pixel takes the depth of
@@ -375,6 +382,8 @@ def split_mixed_pixels(
     edge_mm : float
         Depth step that separates two surfaces: with ``keep_mean``, a fused pixel farther
         than this from both sides lies between them, however far apart they are.
+    thin_parts : bool
+        With ``keep_mean``, also split the blocks of the reference's thin parts.
 
     Returns
     -------
@@ -391,7 +400,7 @@ def split_mixed_pixels(
         out = f.copy()
         r = int(f.shape[0] // z.shape[0])
         _split_kernel(f, removed, z, src, r, bool(keep_mean), float(edge_mm), out)
-    if keep_mean:
+    if keep_mean and thin_parts:
         out = split_thin_parts(out, z, edge_mm)  # mixed along their whole length
     return out
 

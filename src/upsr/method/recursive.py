@@ -565,7 +565,11 @@ class RecursiveUPSR(TwoStagePipeline):
                 # one flow per frame: current -> previous (the backward lookup of the state)
                 flow = front.consecutive_flow(pre, self._prev_pre, guide, self._prev_guide)
         with self._timed("fusion"):
-            meas = remove_mixed_pixels(f, front.edge_mm) if self._remove_mixed else f
+            meas = (
+                remove_mixed_pixels(f, front.edge_mm, thin_parts=cfg.thin_parts)
+                if self._remove_mixed
+                else f
+            )
             noise = self._noise()
             k = cfg.trust_k
             anchor, tol = reference_anchor(
@@ -627,7 +631,13 @@ class RecursiveUPSR(TwoStagePipeline):
                 # the mixed pixels the state did not fill: split between their neighbours
                 # (in the output only, the state holds measurements)
                 fused = split_mixed_pixels(
-                    fused, f, meas, anchor, keep_mean=True, edge_mm=self._front.edge_mm
+                    fused,
+                    f,
+                    meas,
+                    anchor,
+                    keep_mean=True,
+                    edge_mm=self._front.edge_mm,
+                    thin_parts=cfg.thin_parts,
                 )
             return finish_frame(
                 finish_fused(

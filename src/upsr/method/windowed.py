@@ -467,7 +467,9 @@ class UPSR:
         out = self._clean.get(k)
         if out is None:
             edge = self._front.edge_mm  # type: ignore[union-attr]
-            out = self._clean[k] = remove_mixed_pixels(self._lowres[k], edge, marker=ABSTAIN)
+            thin = self.config.thin_parts
+            out = remove_mixed_pixels(self._lowres[k], edge, marker=ABSTAIN, thin_parts=thin)
+            self._clean[k] = out
         return out
 
     def _chain(self, k: int, m: int) -> np.ndarray:

@@ -318,7 +318,11 @@ def _abstaining(
     from upsr.method.mixed import ABSTAIN, remove_mixed_pixels
     from upsr.method.trust import abstain_lone_outliers, reference_anchor
 
-    lowres = remove_mixed_pixels(measured, edge_mm, marker=ABSTAIN) if mixed else measured
+    lowres = (
+        remove_mixed_pixels(measured, edge_mm, marker=ABSTAIN, thin_parts=cfg.thin_parts)
+        if mixed
+        else measured
+    )
     if cfg.trust_k is None:
         return lowres, None, None
     anchor, tol = reference_anchor(

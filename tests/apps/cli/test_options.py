@@ -45,6 +45,7 @@ METHOD_OPTIONS = {
     "--no-radial",
     "--no-slopes",
     "--no-edge-votes",
+    "--no-thin-parts",
 }
 READ_OPTIONS = {
     "--key",

@@ -305,10 +305,10 @@ def test_issue13_flags_reach_the_config(capsys, here: Path, monkeypatch) -> None
     rc, _, err = run_cli(capsys, "run", "in.npy", "-o", "o.npy", "-r", 2, *FAST, "--fill-holes",
                          "--no-trust", "--fusion-estimator", "mean", "--no-mixed-removal",
                          "--no-radial", "--no-registration-check", "--no-edge-votes",
-                         "--noise-model", "constant")  # fmt: skip
+                         "--no-thin-parts", "--noise-model", "constant")  # fmt: skip
     assert rc == 0, err
     cfg = seen["cfg"]
-    assert not cfg.edge_votes
+    assert not cfg.edge_votes and not cfg.thin_parts
     assert cfg.fill_holes and cfg.trust_k is None and cfg.fusion_estimator == "mean"
     assert cfg.trust_noise_profile == "constant"
     assert cfg.remove_mixed is False and not cfg.radial_compensation
@@ -317,7 +317,7 @@ def test_issue13_flags_reach_the_config(capsys, here: Path, monkeypatch) -> None
     assert rc == 0 and seen["cfg"].trust_k == 2.5 and not seen["cfg"].fill_holes
     assert seen["cfg"].remove_mixed == "auto" and seen["cfg"].radial_compensation
     assert seen["cfg"].trust_noise_profile == "auto"
-    assert seen["cfg"].check_registration and seen["cfg"].edge_votes
+    assert seen["cfg"].check_registration and seen["cfg"].edge_votes and seen["cfg"].thin_parts
     rc, _, err = run_cli(capsys, "run", "in.npy", "-o", "m.npy", "-r", 2, *FAST, "--mixed-removal")
     assert rc == 0 and seen["cfg"].remove_mixed is True
     rc, _, err = run_cli(capsys, "run", "in.npy", "-o", "q.npy", "-r", 2, *FAST, "--trust-k", 2,

@@ -467,6 +467,15 @@ NoEdgeVotesOpt = Annotated[
         "instead of the bilinear votes of the four samples around each position.",
     ),
 ]
+NoThinPartsOpt = Annotated[
+    bool,
+    typer.Option(
+        "--no-thin-parts",
+        help="Where mixed pixels are removed, leave parts narrower than a pixel (legs, "
+        "cables) as measured, a mix of the part and what lies behind, instead of splitting "
+        "them (fewer flying pixels, some rmse where a part's place in its pixels is unsure).",
+    ),
+]
 
 
 def config_from_options(
@@ -497,6 +506,7 @@ def config_from_options(
     no_radial: bool = False,
     no_slopes: bool = False,
     no_edge_votes: bool = False,
+    no_thin_parts: bool = False,
 ) -> UPSRConfig:
     """The :class:`UPSRConfig` of the method options shared by ``upsr run`` and ``upsr batch``
     (``None``: the default; ``frames=None``: N = 9)."""
@@ -554,6 +564,8 @@ def config_from_options(
         options["follow_slopes"] = False
     if no_edge_votes:
         options["edge_votes"] = False
+    if no_thin_parts:
+        options["thin_parts"] = False
     return UPSRConfig.from_options(scale, DEFAULT_FRAMES if frames is None else frames, **options)
 
 
@@ -595,6 +607,7 @@ METHOD_OPTIONS: tuple[tuple[str, Any, Any], ...] = (
     ("no_radial", NoRadialOpt, False),
     ("no_slopes", NoSlopesOpt, False),
     ("no_edge_votes", NoEdgeVotesOpt, False),
+    ("no_thin_parts", NoThinPartsOpt, False),
 )
 
 
