@@ -630,14 +630,9 @@ class RecursiveUPSR(TwoStagePipeline):
             if self._remove_mixed:
                 # the mixed pixels the state did not fill: split between their neighbours
                 # (in the output only, the state holds measurements)
+                edge, thin = self._front.edge_mm, cfg.thin_parts  # type: ignore[union-attr]
                 fused = split_mixed_pixels(
-                    fused,
-                    f,
-                    meas,
-                    anchor,
-                    keep_mean=True,
-                    edge_mm=self._front.edge_mm,
-                    thin_parts=cfg.thin_parts,
+                    fused, f, meas, anchor, keep_mean=True, edge_mm=edge, thin_parts=thin
                 )
             return finish_frame(
                 finish_fused(
