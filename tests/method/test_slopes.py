@@ -144,3 +144,30 @@ def test_upsr_follows_a_slanted_wall_that_the_frames_cannot_resolve(mode, deblur
     assert rms(off) > (5.0 if deblur else 17.0)
     assert rms(on) < (0.3 * rms(off) if deblur else 0.01)
     assert (on > 0).all()
+
+
+def test_a_face_the_anchor_flattens_follows_the_frames_slope():
+    """A box side seen at a grazing angle, two pixels wide (the realistic approaching camera):
+    the anchor's 3×3 median pulls the face towards the flat surfaces beside it, so the face
+    rule no longer joins its links and its middle block keeps its staircase; the frame's own
+    slope, steep beyond half the edge threshold, takes over where the anchor gives none. A
+    noisy flat surface stays as it was (its slopes are far below that)."""
+    from upsr.method.trust import reference_anchor
+
+    row = np.array([2400, 2400, 2400, 2333, 2170, 2069, 2030, 2030, 2030], np.float32)
+    low = np.repeat(row[None], 5, axis=0)
+    anchor = reference_anchor(low, 10.0, 3.0, 100.0)[0]
+    up = _blocks(low, 4)
+    kw = dict(sigma_mm=10.0, edge_mm=100.0)
+    plain = follow_slopes(up, anchor, **kw)[8, 16:20]
+    np.testing.assert_array_equal(plain, 2170.0)  # the staircase
+    face = follow_slopes(up, anchor, frame=low, **kw)[8, 16:20]
+    np.testing.assert_allclose(np.diff(face), (2069.0 - 2333.0) / 2 / 4, atol=0.5)
+    assert face.mean() == pytest.approx(2170.0, abs=0.01)  # the block's mean kept
+    rng = np.random.default_rng(0)
+    flat = (2000.0 + rng.normal(0, 10.0, (12, 12))).astype(np.float32)
+    anchor = reference_anchor(flat, 10.0, 3.0, 100.0)[0]
+    np.testing.assert_array_equal(
+        follow_slopes(_blocks(flat, 4), anchor, frame=flat, **kw),
+        follow_slopes(_blocks(flat, 4), anchor, **kw),
+    )
