@@ -115,6 +115,7 @@ from upsr.method.pipeline import TwoStagePipeline
 from upsr.method.registration import _registered_state_kernel, flow_positions
 from upsr.method.sorting import median_beyond
 from upsr.method.trust import (
+    OFFSET_GRID,
     _offset_kernel,
     _sigma_and_power,
     _with_wide_offsets,
@@ -372,7 +373,7 @@ def recursive_update(
         args = (reg, meas, anchor, -1, float(edge_mm), STATE_NOISE_FACTOR * sigma, power)
         radius = int(radial_radius_px)
         signif, along = _state_significance(fl, reg, meas, sigma_mm, edge_mm, radius)
-        _offset_kernel(*args, signif, radius, off)
+        _offset_kernel(*args, signif, radius, off, *OFFSET_GRID)
         if along:
             # the state as a whole moved along the viewing ray (a camera walking): where the
             # offset is not significant, that of the wide neighbourhood

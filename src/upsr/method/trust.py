@@ -438,7 +438,7 @@ def _offset_at(reg, ref, anc, k, i, j, edge, sigma, power, radius, stride, buf, 
 
 @nb.njit(cache=True, nogil=True, parallel=True)
 def _offset_kernel(
-    reg, ref, anc, ref_index, edge, sigma, power, signif, radius, out, step=2, stride=1, own=True
+    reg, ref, anc, ref_index, edge, sigma, power, signif, radius, out, step, stride, own
 ):
     # pragma: no cover - numba
     n, h, w = reg.shape
@@ -481,6 +481,12 @@ def _offset_kernel(
             else:
                 out[k, i, j] = 0.0
 
+
+#: ``_offset_kernel``'s (step, stride, own) of the offsets on the neighbourhood of
+#: :func:`radial_offsets`: every 2nd pixel's own, the others' from it on its surface. (Passed
+#: explicitly: a call that leaves arguments to their defaults takes numba's slow dispatch,
+#: 0.7 ms per call.)
+OFFSET_GRID = (2, 1, True)
 
 #: The wider neighbourhood of :func:`radial_offsets` where the first is not significant
 #: (radius × this factor, every second pixel of it: (f·R + 1)² differences).
@@ -559,7 +565,7 @@ def radial_offsets(
     sigma, power = _sigma_and_power(sigma_mm, noise_profile)
     args = (reg, lr[ref], anc, int(ref), float(edge_mm), sigma, power, signif)
     out = np.empty((n, h, w), np.float32)
-    _offset_kernel(*args, int(radius_px), out)
+    _offset_kernel(*args, int(radius_px), out, *OFFSET_GRID)
     return _with_wide_offsets(out, args[:-1], int(radius_px))
 
 
