@@ -37,6 +37,7 @@ __all__ = [
     "SPLIT_MEAN_TOLERANCE",
     "footprint_share",
     "has_mixed_pixels",
+    "mixed_pixels",
     "remove_mixed_pixels",
     "split_mixed_pixels",
 ]
@@ -125,6 +126,29 @@ def _mixed_kernel(z, edge, marker, out):  # pragma: no cover - numba
                 out[i, j] = marker
 
 
+def mixed_pixels(frame: npt.ArrayLike, edge_mm: float) -> np.ndarray:
+    """The pixels of one frame that lie between two surfaces: :func:`remove_mixed_pixels`'
+    test without the thin parts.
+
+    Parameters
+    ----------
+    frame : array_like (h, w)
+        Depth (mm), 0 or NaN = no measurement.
+    edge_mm : float
+        Depth step that separates two surfaces.
+
+    Returns
+    -------
+    ndarray of bool (h, w)
+    """
+    z = np.ascontiguousarray(np.nan_to_num(np.asarray(frame, np.float32), nan=0.0))
+    if z.ndim != 2:
+        raise ValueError(f"frame must be (h, w), got shape {z.shape}")
+    out = np.empty_like(z)
+    _mixed_kernel(z, float(edge_mm), 0.0, out)
+    return (z > 0) & ~(out > 0)
+
+
 @nb.njit(cache=True, nogil=True, inline="always")
 def _starts_slope(z, i, j, edge, strength, own):  # pragma: no cover - numba
     """A steep slope begins at (i, j): in some direction its next two steps each exceed the
@@ -190,9 +214,11 @@ def remove_mixed_pixels(
     flat = z.reshape(-1, *z.shape[-2:])
     out = np.empty_like(flat)
     for k in range(flat.shape[0]):
-        _mixed_kernel(np.ascontiguousarray(flat[k]), float(edge_mm), float(marker), out[k])
+        zk = np.ascontiguousarray(flat[k])
+        _mixed_kernel(zk, float(edge_mm), float(marker), out[k])
         if thin_parts:
-            near, _ = find_thin_parts(flat[k], edge_mm)  # mixed along their whole length
+            # (mixed along their whole length; the pixels just removed end no run)
+            near, _ = find_thin_parts(zk, edge_mm, mixed=out[k] != zk)
             out[k][near > 0] = marker
     return out.reshape(z.shape)
 

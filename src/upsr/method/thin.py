@@ -16,7 +16,8 @@ This module
   pixel covers at most two) along a row, a column or a diagonal, in front of both pixels
   that end the run by more than the edge threshold, each of which lies on a surface of its
   own (at least :data:`SURFACE_NEIGHBOURS` of its 8-neighbours within the edge threshold of
-  it: not a mix itself), none of them on a steep slope
+  it) and is not a mix itself (:func:`upsr.method.mixed.mixed_pixels`: a line of mixed
+  pixels along a box's edge is its own neighbour), none of them on a steep slope
   (:func:`upsr.method.slopes._on_slope`: a box side seen at a grazing angle is a surface);
   the part's own depth F is that of the surface it grows out of, where it touches it,
   carried along the part (breadth first, at most :data:`REACH_PX` steps): a thin part is
@@ -46,12 +47,16 @@ from upsr.method.slopes import _on_slope
 __all__ = ["REACH_PX", "SURFACE_NEIGHBOURS", "split_thin_parts", "thin_parts"]
 
 #: A pixel lies on a surface of its own when at least this many of its 8-neighbours lie
-#: within the edge threshold of it (a mixed pixel between two surfaces has at most 2: the
-#: pixels before and after it along the edge). With 4, a background pixel in the corner
-#: between a leg and the body fails it, and the leg stays mixed (realistic ToF galloping
-#: animal, windowed, seeds 0–2: flying pixels 1.19 / 1.14 / 1.29 % against 1.12 / 0.65 /
-#: 1.07 % with 3).
-SURFACE_NEIGHBOURS = 3
+#: within the edge threshold of it (the background seen through a gap one pixel wide between
+#: two legs has 2: the gap's pixels above and below); the mixed pixels, which a line of them
+#: along an edge also gives 2, are excluded by their own test. Realistic ToF galloping
+#: animal, windowed, seeds 0–2 (``benchmarks/realistic_eval.py --quick --no-oracle --seed
+#: S``): flying pixels 1.19 / 1.14 / 1.29 % with 4 (a background pixel in the corner between
+#: a leg and the body fails it), 1.12 / 0.65 / 1.07 % with 3, 0.82 / 0.37 / 0.49 % with 2
+#: and the mixed pixels excluded (rmse −3.6 … −4.8 %), 1.20 / 0.46 / 0.60 % with 2 alone
+#: (the lines of mixed pixels along the room's box edges taken for runs' ends: its edge
+#: accuracy −0.8 points).
+SURFACE_NEIGHBOURS = 2
 #: The farthest (low-res px, 8-connected steps along the part) a thin part's depth is carried
 #: from the surface it grows out of (8 gave the same realistic results: their legs and
 #: antlers are shorter; a 320×240 sensor sees longer ones).
@@ -77,7 +82,7 @@ def _on_surface(z, i, j, edge, support):  # pragma: no cover - numba
 
 
 @nb.njit(cache=True, nogil=True)
-def _thin_kernel(z, edge, reach, near, far, axis):  # pragma: no cover - numba
+def _thin_kernel(z, edge, reach, mixed, near, far, axis):  # pragma: no cover - numba
     h, w = z.shape
     # the deepest 8-neighbour of each pixel (a separable 3×3 maximum): the start of a run
     # has both its ends over edge behind it
@@ -95,8 +100,8 @@ def _thin_kernel(z, edge, reach, near, far, axis):  # pragma: no cover - numba
     support = np.full((h, w), -1, np.int64)  # (counted where needed: _on_surface)
     # the thin pixels: runs of one or two pixels (a part narrower than a pixel covers at most
     # two) in front of the two neighbours that end them, along a row, a column or a
-    # diagonal, each end on a surface of its own; B the nearer end (the run whose nearer end
-    # is farthest)
+    # diagonal, each end on a surface of its own and not mixed; B the nearer end (the run
+    # whose nearer end is farthest)
     span = np.full((h, w), np.inf)
     for i in range(h):
         for j in range(w):
@@ -116,6 +121,8 @@ def _thin_kernel(z, edge, reach, near, far, axis):  # pragma: no cover - numba
                     lo = z[ia, ja]
                     hi = z[ib, jb]
                     if not (lo - z[i, j] > edge and hi - z[i, j] > edge):
+                        continue
+                    if mixed[ia, ja] or mixed[ib, jb]:
                         continue
                     if not (
                         _on_surface(z, ia, ja, edge, support)
@@ -190,7 +197,11 @@ def _thin_kernel(z, edge, reach, near, far, axis):  # pragma: no cover - numba
 
 
 def thin_parts(
-    measured: npt.ArrayLike, edge_mm: float, *, reach_px: int = REACH_PX
+    measured: npt.ArrayLike,
+    edge_mm: float,
+    *,
+    reach_px: int = REACH_PX,
+    mixed: npt.ArrayLike | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """The pixels of a frame that measured a mix of a thin part and what lies behind it.
 
@@ -202,6 +213,9 @@ def thin_parts(
         Depth step that separates two surfaces.
     reach_px : int
         The farthest (8-connected steps along the part) F is carried.
+    mixed : array_like of bool (h, w), optional
+        The frame's mixed pixels (:func:`upsr.method.mixed.mixed_pixels`, which never end a
+        run); default: found here.
 
     Returns
     -------
@@ -211,15 +225,23 @@ def thin_parts(
     z = np.ascontiguousarray(np.nan_to_num(np.asarray(measured, np.float32), nan=0.0))
     if z.ndim != 2:
         raise ValueError(f"measured must be (h, w), got shape {z.shape}")
-    near, far, _ = _thin_parts(z, float(edge_mm), int(reach_px))
+    near, far, _ = _thin_parts(z, float(edge_mm), int(reach_px), mixed)
     return near, far
 
 
-def _thin_parts(z, edge_mm, reach_px=REACH_PX):
+def _thin_parts(z, edge_mm, reach_px=REACH_PX, mixed=None):
+    if mixed is None:
+        # (upsr.method.mixed imports this module: its test is imported where it is used)
+        from upsr.method.mixed import mixed_pixels
+
+        mixed = mixed_pixels(z, edge_mm)
+    mixed = np.ascontiguousarray(mixed, np.bool_)
+    if mixed.shape != z.shape:
+        raise ValueError(f"mixed {mixed.shape} differs from the frame's shape {z.shape}")
     near = np.empty_like(z)
     far = np.empty_like(z)
     axis = np.zeros(z.shape, np.int64)  # the index in AXES of the run across the part
-    _thin_kernel(z, edge_mm, reach_px, near, far, axis)
+    _thin_kernel(z, edge_mm, reach_px, mixed, near, far, axis)
     return near, far, axis
 
 
