@@ -149,3 +149,19 @@ def test_a_mixed_pixel_never_ends_a_run():
     assert not set(far[near > 0].tolist()) & set(BOX_CORNER[mixed].tolist())
     _, unguarded = thin_parts(BOX_CORNER, 100.0, mixed=np.zeros(BOX_CORNER.shape, bool))
     assert 3010.0 in unguarded  # (without the test, a mix of the line is taken for B)
+
+
+def test_two_ends_on_one_surface_need_one_neighbour_each():
+    # two legs with one pixel of wall between them, closed by the body above and a foot
+    # below: the gap's first and last pixels have one neighbour on the wall, which both
+    # ends of each leg's row see (ends within the edge threshold of each other)
+    z = np.full((12, 10), WALL, np.float32)
+    z[0:2, 1:9] = BODY
+    z[2:8, 3] = z[2:8, 5] = 2400.0
+    z[8, 2:7] = 2400.0
+    near, far = thin_parts(z, 100.0)
+    legs = np.zeros(z.shape, bool)
+    legs[2:8, [3, 5]] = legs[8, 2:7] = True
+    np.testing.assert_array_equal(near > 0, legs)
+    np.testing.assert_allclose(near[legs], BODY)
+    np.testing.assert_allclose(far[legs], WALL)
