@@ -485,7 +485,7 @@ def _offset_kernel(
 #: ``_offset_kernel``'s (step, stride, own) of the offsets on the neighbourhood of
 #: :func:`radial_offsets`: every 2nd pixel's own, the others' from it on its surface. (Passed
 #: explicitly: a call that leaves arguments to their defaults takes numba's slow dispatch,
-#: 0.7 ms per call.)
+#: 0.7 ms per call under cProfile at 320×240.)
 OFFSET_GRID = (2, 1, True)
 
 #: The wider neighbourhood of :func:`radial_offsets` where the first is not significant
