@@ -21,7 +21,9 @@ This module
   not a mix itself (:func:`upsr.method.mixed.mixed_pixels`: a line of mixed pixels along a
   box's edge is its own neighbour), none of them on a steep slope
   (:func:`upsr.method.slopes._on_slope`: a box side seen at a grazing angle is a surface);
-  the part's own depth F is that of the surface it grows out of, where it touches it,
+  the part's own depth F is that of the surface it grows out of, where it touches it
+  (directly, or through one pixel that the part fills but for a sliver: nearer than the
+  thin pixel by less than the edge threshold, with nothing on its surface but the part),
   carried along the part (breadth first, at most :data:`REACH_PX` steps): a thin part is
   about as far as what it sticks out of;
 * has them abstain in the fusion with the other mixed pixels
@@ -82,6 +84,40 @@ def _on_surface(z, i, j, edge, support):  # pragma: no cover - numba
                 n_on += 1 if (z[a, b] > 0 and abs(z[a, b] - v) <= edge) else 0
         support[i, j] = n_on - 1 if v > 0 else 0  # (not the pixel itself)
     return support[i, j] >= SURFACE_NEIGHBOURS
+
+
+@nb.njit(cache=True, nogil=True, inline="always")
+def _through_the_part(z, far, i, j, edge, support):  # pragma: no cover - numba
+    """The depth of the surface the thin pixel (i, j) reaches through one neighbour that is
+    mostly the part (nearer than it, within the edge threshold, not thin itself: the part
+    fills it but for a sliver) and has no other neighbour on its surface but thin pixels (a
+    box's corner or a staircase's step one pixel tall has one): that neighbour's on-surface
+    neighbour farthest away that lies more than the edge threshold in front of (i, j) and
+    no farther than it; −inf when there is none."""
+    h, w = z.shape
+    v = z[i, j]
+    f = -np.inf
+    for a in range(max(i - 1, 0), min(i + 2, h)):
+        for b in range(max(j - 1, 0), min(j + 2, w)):
+            q = z[a, b]
+            if far[a, b] > 0 or not (q > 0 and q < v and v - q <= edge):
+                continue
+            alone = True
+            for c in range(max(a - 1, 0), min(a + 2, h)):
+                for d in range(max(b - 1, 0), min(b + 2, w)):
+                    u = z[c, d]
+                    if (c != a or d != b) and far[c, d] == 0 and u > 0 and abs(u - q) <= edge:
+                        alone = False
+            if not alone:
+                continue
+            for c in range(max(a - 1, 0), min(a + 2, h)):
+                for d in range(max(b - 1, 0), min(b + 2, w)):
+                    u = z[c, d]
+                    if far[c, d] > 0 or not (0 < u <= q and u < v - edge and u > f):
+                        continue
+                    if _on_surface(z, c, d, edge, support):
+                        f = u
+    return f
 
 
 @nb.njit(cache=True, nogil=True)
@@ -164,9 +200,10 @@ def _thin_kernel(z, edge, reach, mixed, near, far, axis):  # pragma: no cover - 
                 cols[n] = j
                 n += 1
     # F: the depth of the surface the part grows out of, carried along the part from where
-    # it touches it (a breadth-first walk: each sweep one step, reading the last sweep's
-    # depths, so that reach counts steps; a pixel keeps the first depth that reaches it, the
-    # farthest of those that reach it in the same step)
+    # it touches it, directly or through a pixel that is mostly the part (a breadth-first
+    # walk: each sweep one step, reading the last sweep's depths, so that reach counts
+    # steps; a pixel keeps the first depth that reaches it, the farthest of those that
+    # reach it in the same step)
     since = np.full((h, w), reach, np.int64)  # the sweep that set the pixel's depth
     for sweep in range(reach):
         changed = False
@@ -187,6 +224,8 @@ def _thin_kernel(z, edge, reach, mixed, near, far, axis):  # pragma: no cover - 
                         continue
                     if c < v - edge and c > f:
                         f = c
+            if f == -np.inf:
+                f = _through_the_part(z, far, i, j, edge, support)
             if f > -np.inf:
                 near[i, j] = f
                 since[i, j] = sweep
