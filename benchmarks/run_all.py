@@ -35,7 +35,7 @@ def main() -> int:
     synthetic_eval.main(["--out", str(out / "synthetic")])
     print("\n== realistic sensors (ToF footprint, Kinect, large and camera motion) ==", flush=True)
     realistic_eval.main(["--out", str(out / "realistic")])
-    print("\n== thin parts on a ToF sensor (random bars, with and without the split) ==")
+    print("\n== thin parts on a ToF sensor (random bars, with and without split) ==", flush=True)
     thin_parts_eval.main(["--out", str(out / "thin_parts")])
     print("\n== deblurring iterations and speckle removal ==", flush=True)
     deblur_eval.main(["--data", args.data, "--out", str(out / "deblur")])
