@@ -4,8 +4,8 @@ import numpy as np
 import pytest
 
 import upsr
-from upsr.method.mixed import mixed_pixels, split_mixed_pixels
-from upsr.method.thin import split_thin_parts, thin_parts
+from upsr.method.mixed import mixed_pixels, remove_mixed_pixels, split_mixed_pixels
+from upsr.method.thin import ThinParts, split_thin_parts, thin_parts
 from upsr.research.metrics import flying_pixel_mask
 from upsr.research.synth.degradation import tof_footprint
 
@@ -189,3 +189,25 @@ def test_a_part_reaches_its_surface_through_a_pixel_it_fills():
     # that pixel with a neighbour on its own surface (a step of a staircase one pixel tall,
     # a box's corner) is a surface, not the part: no depth through it
     assert (thin_parts(_leg_through_a_pixel_of_leg(step_beside=True), 100.0)[0] == 0).all()
+
+
+def test_the_thin_parts_of_the_removal_are_those_the_split_would_find():
+    # found once per frame: remove_mixed_pixels hands them to split_mixed_pixels
+    low = tof_footprint(_animal(), R)
+    video = np.stack([low, tof_footprint(_animal(leg_x_px=42.0), R)])
+    cleaned, thin = remove_mixed_pixels(video, 100.0, return_thin_parts=True)
+    np.testing.assert_array_equal(cleaned, remove_mixed_pixels(video, 100.0))
+    near, far = thin_parts(low, 100.0)
+    np.testing.assert_array_equal(thin.near[0], near)
+    np.testing.assert_array_equal(thin.far[0], far)
+    assert (thin.axis[0][near > 0] == 0).all()  # a leg along a column: its run is a row's
+    fused = np.kron(low, np.ones((R, R), np.float32))
+    kw = {"keep_mean": True, "edge_mm": 100.0}
+    once = split_mixed_pixels(
+        fused, low, cleaned[0], low, **kw, thin=ThinParts(*(a[0] for a in thin))
+    )
+    np.testing.assert_array_equal(once, split_mixed_pixels(fused, low, cleaned[0], low, **kw))
+    assert (once != fused).any()
+    with pytest.raises(ValueError, match="thin parts"):
+        split_thin_parts(fused, low, 100.0, parts=thin)  # a video's, not the frame's
+    assert remove_mixed_pixels(low, 100.0, thin_parts=False, return_thin_parts=True)[1] is None

@@ -19,6 +19,7 @@ from upsr.method.memory import level_to_reference
 from upsr.method.mixed import split_mixed_pixels
 from upsr.method.outliers import remove_speckles
 from upsr.method.slopes import follow_slopes
+from upsr.method.thin import ThinParts
 from upsr.method.trust import fill_holes, reference_anchor, surface_support
 
 __all__ = ["finish_frame", "finish_fused", "settle_fused"]
@@ -34,6 +35,7 @@ def settle_fused(
     *,
     edge_mm: float,
     keep_mean: bool = False,
+    thin: ThinParts | None = None,
 ) -> np.ndarray:
     """The rules between a window's fusion and its deblurring (the engine and the
     straightforward path alike): with ``cfg.check_registration`` no fill of a hole behind a
@@ -56,6 +58,8 @@ def settle_fused(
         The edge threshold (mm).
     keep_mean : bool
         A split block keeps the footprint's mean the reference measured (a ToF sensor).
+    thin : upsr.method.thin.ThinParts, optional
+        The reference's thin parts, where its mixed pixels' removal found them.
 
     Returns
     -------
@@ -74,6 +78,7 @@ def settle_fused(
         keep_mean=keep_mean,
         edge_mm=edge_mm,
         thin_parts=cfg.thin_parts,
+        thin=thin,
     )
 
 

@@ -26,8 +26,7 @@ import numpy as np
 import numpy.typing as npt
 
 from upsr.method.slopes import STEEP_RUN_RATIO, _on_slope, _steps_agree
-from upsr.method.thin import split_thin_parts
-from upsr.method.thin import thin_parts as find_thin_parts
+from upsr.method.thin import ThinParts, _thin_parts, split_thin_parts
 
 __all__ = [
     "ABSTAIN",
@@ -172,8 +171,13 @@ def _starts_slope(z, i, j, edge, strength, own):  # pragma: no cover - numba
 
 
 def remove_mixed_pixels(
-    frames: npt.ArrayLike, edge_mm: float, marker: float = 0.0, *, thin_parts: bool = True
-) -> np.ndarray:
+    frames: npt.ArrayLike,
+    edge_mm: float,
+    marker: float = 0.0,
+    *,
+    thin_parts: bool = True,
+    return_thin_parts: bool = False,
+) -> np.ndarray | tuple[np.ndarray, ThinParts | None]:
     """Set the mixed ("flying") pixels of each frame to ``marker`` (0 = no measurement).
 
     A pixel is mixed when its depth lies more than ``edge_mm`` behind its nearest valid
@@ -204,23 +208,33 @@ def remove_mixed_pixels(
         :data:`ABSTAIN` (the fusion ignores it, like a sample outside the frame).
     thin_parts : bool
         Also the pixels of parts narrower than a pixel (:func:`upsr.method.thin.thin_parts`).
+    return_thin_parts : bool
+        Also return the thin parts found, for :func:`split_mixed_pixels` (``thin``).
 
     Returns
     -------
     ndarray float32, same shape: the frames with mixed pixels set to ``marker`` (NaN become 0).
+    thin : upsr.method.thin.ThinParts of arrays of the same shape, or None
+        With ``return_thin_parts``: the frames' thin parts (None without ``thin_parts``).
     """
     z = np.asarray(frames, np.float32)
     z = np.where(np.isnan(z), np.float32(0.0), z)
     flat = z.reshape(-1, *z.shape[-2:])
     out = np.empty_like(flat)
+    found = []
     for k in range(flat.shape[0]):
         zk = np.ascontiguousarray(flat[k])
         _mixed_kernel(zk, float(edge_mm), float(marker), out[k])
         if thin_parts:
             # (mixed along their whole length; the pixels just removed end no run)
-            near, _ = find_thin_parts(zk, edge_mm, mixed=out[k] != zk)
-            out[k][near > 0] = marker
-    return out.reshape(z.shape)
+            found.append(_thin_parts(zk, float(edge_mm), mixed=out[k] != zk))
+            out[k][found[-1].near > 0] = marker
+    out = out.reshape(z.shape)
+    if not return_thin_parts:
+        return out
+    if not found:
+        return out, None
+    return out, ThinParts(*(np.stack(a).reshape(z.shape) for a in zip(*found, strict=True)))
 
 
 @nb.njit(cache=True, nogil=True, inline="always")
@@ -365,6 +379,7 @@ def split_mixed_pixels(
     keep_mean: bool = False,
     edge_mm: float = math.inf,
     thin_parts: bool = True,
+    thin: ThinParts | None = None,
 ) -> np.ndarray:
     """Give the reference's mixed pixels that no frame filled the depth of their neighbours.
 
@@ -410,6 +425,9 @@ def split_mixed_pixels(
         than this from both sides lies between them, however far apart they are.
     thin_parts : bool
         With ``keep_mean``, also split the blocks of the reference's thin parts.
+    thin : upsr.method.thin.ThinParts of (h, w) arrays, optional
+        The reference's thin parts where :func:`remove_mixed_pixels` found them
+        (``return_thin_parts``); default: found here.
 
     Returns
     -------
@@ -427,7 +445,7 @@ def split_mixed_pixels(
         r = int(f.shape[0] // z.shape[0])
         _split_kernel(f, removed, z, src, r, bool(keep_mean), float(edge_mm), out)
     if keep_mean and thin_parts:
-        out = split_thin_parts(out, z, edge_mm)  # mixed along their whole length
+        out = split_thin_parts(out, z, edge_mm, parts=thin)  # mixed along their whole length
     return out
 
 

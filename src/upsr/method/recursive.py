@@ -114,6 +114,7 @@ from upsr.method.noise import noise_shape
 from upsr.method.pipeline import TwoStagePipeline
 from upsr.method.registration import _registered_state_kernel, flow_positions
 from upsr.method.sorting import median_beyond
+from upsr.method.thin import ThinParts
 from upsr.method.trust import (
     OFFSET_GRID,
     _offset_kernel,
@@ -566,10 +567,12 @@ class RecursiveUPSR(TwoStagePipeline):
                 # one flow per frame: current -> previous (the backward lookup of the state)
                 flow = front.consecutive_flow(pre, self._prev_pre, guide, self._prev_guide)
         with self._timed("fusion"):
-            meas = (
-                remove_mixed_pixels(f, front.edge_mm, thin_parts=cfg.thin_parts)
+            meas, thin = (
+                remove_mixed_pixels(
+                    f, front.edge_mm, thin_parts=cfg.thin_parts, return_thin_parts=True
+                )
                 if self._remove_mixed
-                else f
+                else (f, None)
             )
             noise = self._noise()
             k = cfg.trust_k
@@ -620,10 +623,16 @@ class RecursiveUPSR(TwoStagePipeline):
         self._share = share[0] if share else None
         self._prev_pre, self._prev_guide = pre, guide
         self._count = t + 1
-        return fused, f, meas, anchor, noise
+        return fused, f, meas, anchor, noise, thin
 
     def _finish(
-        self, fused: np.ndarray, f: np.ndarray, meas: np.ndarray, anchor: np.ndarray, noise: float
+        self,
+        fused: np.ndarray,
+        f: np.ndarray,
+        meas: np.ndarray,
+        anchor: np.ndarray,
+        noise: float,
+        thin: ThinParts | None,
     ) -> np.ndarray:
         """The output frame from the new state (the deblurring and the rules after it)."""
         cfg = self.config
@@ -631,9 +640,15 @@ class RecursiveUPSR(TwoStagePipeline):
             if self._remove_mixed:
                 # the mixed pixels the state did not fill: split between their neighbours
                 # (in the output only, the state holds measurements)
-                edge, thin = self._front.edge_mm, cfg.thin_parts  # type: ignore[union-attr]
                 fused = split_mixed_pixels(
-                    fused, f, meas, anchor, keep_mean=True, edge_mm=edge, thin_parts=thin
+                    fused,
+                    f,
+                    meas,
+                    anchor,
+                    keep_mean=True,
+                    edge_mm=self._front.edge_mm,  # type: ignore[union-attr]
+                    thin_parts=cfg.thin_parts,
+                    thin=thin,
                 )
             return finish_frame(
                 finish_fused(

@@ -42,13 +42,15 @@ measured: nothing says how deep it is.
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numba as nb
 import numpy as np
 import numpy.typing as npt
 
 from upsr.method.slopes import _on_slope
 
-__all__ = ["REACH_PX", "SURFACE_NEIGHBOURS", "split_thin_parts", "thin_parts"]
+__all__ = ["REACH_PX", "SURFACE_NEIGHBOURS", "ThinParts", "split_thin_parts", "thin_parts"]
 
 #: A pixel lies on a surface of its own when at least this many of its 8-neighbours lie
 #: within the edge threshold of it (the background seen through a gap one pixel wide between
@@ -69,6 +71,23 @@ REACH_PX = 16
 
 #: The directions across a thin part: along a row, a column and the two diagonals.
 AXES = ((0, 1), (1, 0), (1, 1), (1, -1))
+
+
+class ThinParts(NamedTuple):
+    """A frame's thin parts, found once (:func:`upsr.method.mixed.remove_mixed_pixels` with
+    ``return_thin_parts``) for :func:`split_thin_parts`.
+
+    Attributes
+    ----------
+    near, far : ndarray float32 (..., h, w)
+        F and B of each thin pixel (F < measured < B), 0 elsewhere (mm).
+    axis : ndarray int64 (..., h, w)
+        The index in :data:`AXES` of the run across the part.
+    """
+
+    near: np.ndarray
+    far: np.ndarray
+    axis: np.ndarray
 
 
 @nb.njit(cache=True, nogil=True, inline="always")
@@ -282,11 +301,9 @@ def _thin_parts(z, edge_mm, reach_px=REACH_PX, mixed=None):
     mixed = np.ascontiguousarray(mixed, np.bool_)
     if mixed.shape != z.shape:
         raise ValueError(f"mixed {mixed.shape} differs from the frame's shape {z.shape}")
-    near = np.empty_like(z)
-    far = np.empty_like(z)
-    axis = np.zeros(z.shape, np.int64)  # the index in AXES of the run across the part
-    _thin_kernel(z, edge_mm, reach_px, mixed, near, far, axis)
-    return near, far, axis
+    parts = ThinParts(np.empty_like(z), np.empty_like(z), np.zeros(z.shape, np.int64))
+    _thin_kernel(z, edge_mm, reach_px, mixed, *parts)
+    return parts
 
 
 @nb.njit(cache=True, nogil=True, inline="always")
@@ -364,6 +381,8 @@ def split_thin_parts(
     fused: npt.ArrayLike,
     measured: npt.ArrayLike,
     edge_mm: float,
+    *,
+    parts: ThinParts | None = None,
 ) -> np.ndarray:
     """Split the blocks of a frame's thin parts (:func:`thin_parts`) between the part and
     what lies behind it, keeping the mean the camera measured.
@@ -376,6 +395,9 @@ def split_thin_parts(
         The frame as measured (mm).
     edge_mm : float
         Depth step that separates two surfaces.
+    parts : ThinParts of (h, w) arrays, optional
+        The frame's thin parts where already found (by
+        :func:`upsr.method.mixed.remove_mixed_pixels`); default: found here.
 
     Returns
     -------
@@ -384,7 +406,9 @@ def split_thin_parts(
     """
     f = np.ascontiguousarray(fused, np.float32)
     z = np.ascontiguousarray(np.nan_to_num(np.asarray(measured, np.float32), nan=0.0))
-    near, far, axis = _thin_parts(z, float(edge_mm))
+    near, far, axis = _thin_parts(z, float(edge_mm)) if parts is None else parts
+    if near.shape != z.shape:
+        raise ValueError(f"thin parts {near.shape} differ from the frame's shape {z.shape}")
     if not (near > 0).any():
         return f
     r = f.shape[0] // z.shape[0]

@@ -60,6 +60,7 @@ from upsr.method.registration import (
     sample_centres,
     to_output_grid,
 )
+from upsr.method.thin import ThinParts
 from upsr.method.trust import (
     abstain_lone_outliers,
     far_offsets,
@@ -271,7 +272,7 @@ class UPSR:
         # the per-video choices, fixed from the first window (fix_video_statistics)
         self._stats: VideoStatistics | None = None
         self._lowres: dict[int, np.ndarray] = {}
-        self._clean: dict[int, np.ndarray] = {}  # (_cleaned)
+        self._clean: dict[int, tuple] = {}  # (_cleaned)
         self._pre: dict[int, np.ndarray] = {}
         self._guide: dict[int, np.ndarray] = {}
         self._fwd: dict[int, np.ndarray] = {}
@@ -370,7 +371,7 @@ class UPSR:
             assert stats is not None  # fixed with the N-th frame, before any window
             if stats.remove_mixed:
                 # mixed (flying) input pixels abstain: the other frames fill them
-                lowres = np.stack([self._cleaned(k) for k in idx])
+                lowres = np.stack([self._cleaned(k)[0] for k in idx])
             noise = stats.trust_noise_mm  # (cfg.trust_noise_mm where given)
             anchor = tolerance = caps = None
             if cfg.trust_k is not None:
@@ -449,6 +450,7 @@ class UPSR:
             fused = settle_fused(
                 fused, lowres[ref], measured[ref], anchor, caps, cfg,
                 edge_mm=self._front.edge_mm, keep_mean=stats.remove_mixed,
+                thin=self._cleaned(idx[ref])[1] if stats.remove_mixed else None,
             )  # fmt: skip
         with self._timed("deblur"):
             return finish_frame(
@@ -462,15 +464,21 @@ class UPSR:
                 measured=measured[ref],
             )
 
-    def _cleaned(self, k: int) -> np.ndarray:
-        """Frame k with its mixed pixels marked to abstain, once per frame."""
+    def _cleaned(self, k: int) -> tuple[np.ndarray, ThinParts | None]:
+        """Frame k with its mixed pixels marked to abstain, and its thin parts, once per
+        frame."""
         out = self._clean.get(k)
         if out is None:
             edge = self._front.edge_mm  # type: ignore[union-attr]
-            thin = self.config.thin_parts
-            out = remove_mixed_pixels(self._lowres[k], edge, marker=ABSTAIN, thin_parts=thin)
+            out = remove_mixed_pixels(
+                self._lowres[k],
+                edge,
+                marker=ABSTAIN,
+                thin_parts=self.config.thin_parts,
+                return_thin_parts=True,
+            )
             self._clean[k] = out
-        return out
+        return out  # type: ignore[return-value]
 
     def _chain(self, k: int, m: int) -> np.ndarray:
         """Frame k's low-res sample centres carried by the consecutive flows to frame m (flow
