@@ -322,3 +322,41 @@ def test_a_fill_beyond_the_edge_threshold_from_both_surfaces_is_split_afresh():
     block = out[:, 3 * r : 4 * r]
     assert set(np.unique(block)) == {leg, wall}
     assert (block[:, -1] == leg).all() and (block[:, :-1] == wall).all()
+
+
+@pytest.mark.parametrize("side", ["left", "right", "top", "bottom"])
+def test_a_footprint_across_an_edge_beyond_the_image_border_is_mixed(side):
+    """The first column of a ToF frame a quarter on a wall that no other pixel sees and three
+    quarters on the box in front of it (realistic ToF room, seed 2): nothing shows the depth
+    behind it, yet it belongs to neither surface; a border pixel on a surface of its own, or
+    one beside a slope, stays."""
+    from upsr.research.synth.degradation import tof_footprint
+
+    r = 4
+    hr = np.full((12 * r, 14 * r), 1500.0, np.float32)
+    hr[:, :1] = 2480.0  # the wall's sliver inside the first column's footprint
+    hr[: 6 * r, : 3 * r] = 2480.0  # above: the wall seen over three pixels
+    hr[6 * r : 7 * r, :r] = 2480.0  # and one pixel of it at the border below them
+    low = tof_footprint(hr, r)
+    turn = {"left": 0, "bottom": 1, "right": 2, "top": 3}[side]
+    z = np.rot90(low, turn).copy()
+    out = np.rot90(remove_mixed_pixels(z, 100.0), -turn)
+    assert low[8, 0] == pytest.approx(0.25 * 2480 + 0.75 * 1500)
+    assert (out[7:, 0] == 0).all()  # the mix, all the way along the border below the wall
+    np.testing.assert_array_equal(out[:, 1:], low[:, 1:])
+    # the wall: a surface inward of it, also diagonally (the pixel of wall beside the box)
+    np.testing.assert_array_equal(out[:7, 0], 2480.0)
+    # a floor at a grazing angle down to the border: steps beyond the threshold, no mix
+    floor = np.repeat((1000.0 + 150.0 * np.arange(10, dtype=np.float32) ** 1.3)[None], 6, 0)
+    np.testing.assert_array_equal(remove_mixed_pixels(floor, 100.0), floor)
+    # a surface whose edge falls on the pixels' boundary, nothing beyond it along the border
+    # (a box top seen at the image's top, the wall above it beyond the image): kept
+    # a slope that tapers into a flat surface at the border, something nearer above: kept
+    taper = np.repeat((1000.0 + np.cumsum([0, 111, 95, 95, 95, 95, 95, 95]))[None], 9, 0)
+    taper[:3] = 500.0
+    kept = np.rot90(remove_mixed_pixels(np.rot90(taper.astype(np.float32), turn), 100.0), -turn)
+    np.testing.assert_array_equal(kept[4:], taper[4:])  # (row 3: between the two surfaces)
+    aligned = np.full((12, 14), 1500.0, np.float32)
+    aligned[:, 0] = 2480.0
+    aligned = np.rot90(aligned, turn).copy()
+    np.testing.assert_array_equal(remove_mixed_pixels(aligned, 100.0), aligned)

@@ -445,12 +445,11 @@ class UPSR:
                 estimator=stats.estimator,
                 hole_floors=cfg.check_registration,
             )
-            # holes behind a nearer surface, the level of blocks on steep slopes, the
-            # reference's mixed pixels and lone outliers no frame filled
+            # stale hole fills, steep blocks' level, the reference's unfilled removed pixels
             fused = settle_fused(
                 fused, lowres[ref], measured[ref], anchor, caps, cfg,
                 edge_mm=self._front.edge_mm, keep_mean=stats.remove_mixed,
-                thin=self._cleaned(idx[ref])[1] if stats.remove_mixed else None,
+                thin=self._cleaned(t)[1] if stats.remove_mixed else None,
             )  # fmt: skip
         with self._timed("deblur"):
             return finish_frame(
