@@ -278,6 +278,31 @@ def test_the_anchor_ignores_a_lone_outlier_and_keeps_a_thin_line():
     np.testing.assert_array_equal(anchor[:, 4], 1500.0)
 
 
+def test_the_anchor_stays_on_the_pixels_own_surface_where_a_wall_meets_a_slope():
+    """A ToF frame of the approaching camera (Gaussian noise σ ≈ 21 mm): a box side sloping
+    away from the wall begins inside the centre pixel's block. The two-step median over the
+    neighbours within the edge threshold walked onto the wall (2442 mm, 93 mm from the pixel's
+    2349, where the slope's pixel below it reads 2312): the recursive state restarted from the
+    wall there. With ``own_surface`` (the recursive mode) the anchor stays within 3σ of the
+    pixel when a neighbour on its side lies beyond 3σ of the wall; a noise outlier with no
+    such neighbour keeps the surface's."""
+    z = np.array(
+        [
+            [2469, 2442, 2439, 2461, 2440],
+            [2486, 2463, 2349, 2187, 2083],
+            [2472, 2456, 2312, 2165, 2085],
+        ],
+        np.float32,
+    )
+    anchor, _ = reference_anchor(z, 20.7, 3.0, 100.0, own_surface=True)
+    assert anchor[1, 2] == pytest.approx(0.5 * (2349 + 2312))
+    assert reference_anchor(z, 20.7, 3.0, 100.0)[0][1, 2] > 2430.0  # the windowed mode's
+    lone = z.copy()
+    lone[2, 2] = 2460.0  # no neighbour on the pixel's side: a noise outlier on the wall
+    anchor, _ = reference_anchor(lone, 20.7, 3.0, 100.0, own_surface=True)
+    assert anchor[1, 2] > 2430.0
+
+
 def _kinect(z, rng, f=580.0, b=75.0, sigma_px=0.07):
     """Kinect-like structured light: disparity with noise, quantised to 1/8 px."""
     disparity = f * b / z + rng.normal(0, sigma_px, z.shape)

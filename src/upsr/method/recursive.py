@@ -576,8 +576,14 @@ class RecursiveUPSR(TwoStagePipeline):
             )
             noise = self._noise()
             k = cfg.trust_k
+            # (on its own surface: a pixel restarts from it)
             anchor, tol = reference_anchor(
-                meas, noise, k if k is not None else 1.0, front.edge_mm, noise_profile=self._profile
+                meas,
+                noise,
+                k if k is not None else 1.0,
+                front.edge_mm,
+                noise_profile=self._profile,
+                own_surface=True,
             )
             if k is None:
                 tol = np.zeros_like(tol)  # every state sample is trusted

@@ -6,9 +6,10 @@ wall behind it and vote it away), the ones that see another depth because the su
 along the viewing ray, and the mixed ("flying") pixels of ToF sensors
 (:mod:`upsr.method.mixed`). This module computes, on the low-res grid:
 
-* :func:`reference_anchor`: per reference pixel, an edge-aware robust estimate of its own depth
-  (the median of its 3×3 neighbours on its surface) and the tolerance τ = k·σ + the local
-  relief of that surface, against which each registered sample is trusted or not;
+* :func:`reference_anchor` (of :mod:`upsr.method.anchor`, here too): per reference pixel, an
+  edge-aware robust estimate of its own depth (the median of its 3×3 neighbours on its
+  surface) and the tolerance τ = k·σ + the local relief of that surface, against which each
+  registered sample is trusted or not;
 * :func:`radial_offsets`: per frame of the window, the depth offset of the frame registered to
   the reference (motion along the viewing ray), a masked median over a neighbourhood of one
   surface, subtracted from that frame's samples before trust and fusion;
@@ -23,6 +24,13 @@ import numba as nb
 import numpy as np
 import numpy.typing as npt
 
+from upsr.method.anchor import (
+    OWN_SURFACE_SIGMAS,
+    TOLERANCE_FLOOR_MM,
+    _median_inplace,
+    _sigma_and_power,
+    reference_anchor,
+)
 from upsr.method.consistency import maps_at_centres, registered_samples
 from upsr.method.mixed import ABSTAIN
 from upsr.method.sorting import _twice_beyond
@@ -30,6 +38,7 @@ from upsr.method.sorting import _twice_beyond
 __all__ = [
     "OFFSET_SIGNIFICANCE",
     "OFFSET_SIGNIFICANCE_MOVED",
+    "OWN_SURFACE_SIGMAS",
     "TOLERANCE_FLOOR_MM",
     "abstain_lone_outliers",
     "alternatives_on_grid",
@@ -44,10 +53,6 @@ __all__ = [
     "trust_arrays",
 ]
 
-#: Smallest trust tolerance (mm): noiseless or coarsely quantised data still trust their own
-#: surface's samples.
-TOLERANCE_FLOOR_MM = 2.0
-
 #: Standard errors of its median beyond which a radial offset is kept (:func:`radial_offsets`)
 #: where the frame did not move there (zero motion: noise alone never shifts a static frame).
 OFFSET_SIGNIFICANCE = 4.0
@@ -55,104 +60,6 @@ OFFSET_SIGNIFICANCE = 4.0
 #: and offsets below 4 standard errors, left unmeasured, biased the fused frames of a camera
 #: moving along slanted walls (see :func:`radial_offsets`).
 OFFSET_SIGNIFICANCE_MOVED = 2.0
-
-
-@nb.njit(cache=True, nogil=True, inline="always")
-def _median_inplace(buf, m):  # pragma: no cover - numba
-    """Median of buf[:m], sorted in place (insertion sort: m is at most 25)."""
-    for p in range(1, m):
-        x = buf[p]
-        q = p - 1
-        while q >= 0 and buf[q] > x:
-            buf[q + 1] = buf[q]
-            q -= 1
-        buf[q + 1] = x
-    return buf[m // 2] if m % 2 == 1 else 0.5 * (buf[m // 2 - 1] + buf[m // 2])
-
-
-#: Devillard's median-of-9 network (19 compare-exchanges; the median lands in slot 4).
-_MEDIAN9 = np.array(
-    [(1, 2), (4, 5), (7, 8), (0, 1), (3, 4), (6, 7), (1, 2), (4, 5), (7, 8), (0, 3), (5, 8),
-     (4, 7), (3, 6), (1, 4), (2, 5), (4, 7), (4, 2), (6, 4), (4, 2)],
-    np.int64,
-)  # fmt: skip
-
-
-@nb.njit(cache=True, nogil=True, inline="always")
-def _interior_median(z, i, j, edge, buf, net):  # pragma: no cover - numba
-    """The anchor of an interior pixel whose 8 neighbours all lie within ``edge`` of it and
-    of their median (the common case; both steps of the general rule give that median), or
-    0 where that does not hold."""
-    v = z[i, j]
-    m = 0
-    for a in range(i - 1, i + 2):
-        for b in range(j - 1, j + 2):
-            u = z[a, b]
-            if not (u > 0 and abs(u - v) <= edge):
-                return 0.0
-            buf[m] = u
-            m += 1
-    for q in range(net.shape[0]):
-        x = buf[net[q, 0]]
-        y = buf[net[q, 1]]
-        buf[net[q, 0]] = min(x, y)
-        buf[net[q, 1]] = max(x, y)
-    c = buf[4]
-    for a in range(i - 1, i + 2):
-        for b in range(j - 1, j + 2):
-            if abs(z[a, b] - c) > edge:
-                return 0.0
-    return c
-
-
-@nb.njit(cache=True, nogil=True, parallel=True)
-def _anchor_kernel(z, edge, sigma, power, k, floor, anchor, tol):  # pragma: no cover - numba
-    h, w = z.shape
-    net = _MEDIAN9
-    for i in nb.prange(h):
-        buf = np.empty(9, np.float32)
-        for j in range(w):
-            v = z[i, j]
-            anchor[i, j] = 0.0
-            if not v > 0:
-                continue
-            if 0 < i < h - 1 and 0 < j < w - 1:
-                c = _interior_median(z, i, j, edge, buf, net)
-                if c > 0:
-                    anchor[i, j] = c
-                    continue
-            # the median of the neighbours on the pixel's surface, then of those on the
-            # surface of that median: a noise outlier at the pixel itself (its neighbours
-            # within the edge threshold of it all on one side) does not pull the anchor along
-            c = v
-            for step in range(2):
-                m = 0
-                for a in range(max(i - 1, 0), min(i + 2, h)):
-                    for b in range(max(j - 1, 0), min(j + 2, w)):
-                        u = z[a, b]
-                        if u > 0 and abs(u - c) <= edge:
-                            buf[m] = u
-                            m += 1
-                if step == 0 and m == 1:
-                    break  # no neighbour on its surface: a noise outlier, no anchor
-                c = _median_inplace(buf, m)
-            anchor[i, j] = c if m > 1 else 0.0
-    for i in nb.prange(h):
-        for j in range(w):
-            a0 = anchor[i, j]
-            tol[i, j] = 0.0
-            if not a0 > 0:
-                continue
-            relief = 0.0
-            for di, dj in ((-1, 0), (1, 0), (0, -1), (0, 1)):
-                a = i + di
-                b = j + dj
-                if 0 <= a < h and 0 <= b < w:
-                    u = anchor[a, b]
-                    if u > 0 and abs(u - a0) <= edge:
-                        relief = max(relief, abs(u - a0))
-            sig = sigma if power == 0.0 else sigma * (a0 / 1000.0) ** power
-            tol[i, j] = max(k * sig + relief, floor)
 
 
 def abstain_lone_outliers(lowres: np.ndarray, ref: int, anchor: npt.ArrayLike) -> np.ndarray:
@@ -184,64 +91,6 @@ def abstain_lone_outliers(lowres: np.ndarray, ref: int, anchor: npt.ArrayLike) -
     out = np.array(lowres, np.float32, copy=True)
     out[ref][lone] = ABSTAIN
     return out
-
-
-def _sigma_and_power(
-    sigma_mm: float, noise_profile: tuple[float, float] | None
-) -> tuple[float, float]:
-    """(σ, 0) of one noise std, or (σ₁, p) of a profile whose power is not 0 (kernels'
-    arguments: σ(z) = σ₁·(z / 1 m)^p)."""
-    if noise_profile is not None and noise_profile[1] > 0:
-        return float(noise_profile[0]), float(noise_profile[1])
-    return float(sigma_mm), 0.0
-
-
-def reference_anchor(
-    reference: npt.ArrayLike,
-    sigma_mm: float,
-    k: float,
-    edge_mm: float,
-    *,
-    noise_profile: tuple[float, float] | None = None,
-) -> tuple[np.ndarray, np.ndarray]:
-    """The reference's own depth, robustly, and how far a trusted sample may lie from it.
-
-    Parameters
-    ----------
-    reference : array_like (h, w)
-        The reference low-res frame (mm, 0 = no measurement).
-    sigma_mm : float
-        Noise std of the video (mm).
-    noise_profile : (float, float), optional
-        (σ₁, p) of :func:`upsr.method.noise.noise_profile`: with p > 0 the σ of the tolerance
-        is σ₁·(a / 1 m)^p at each pixel's anchor a instead of ``sigma_mm``.
-    k : float
-        Tolerance in units of the noise std.
-    edge_mm : float
-        Depth step that separates two surfaces: only the neighbours within it of a pixel take
-        part in its anchor and relief (never across a depth edge).
-
-    Returns
-    -------
-    anchor : ndarray float32 (h, w)
-        Median of the pixel's 3×3 neighbours (itself included) within ``edge_mm`` of the
-        median of those within ``edge_mm`` of it (two steps: an outlier at the pixel does not
-        choose its neighbours); 0 where the reference has no depth, and where no 8-neighbour
-        lies on its surface (a lone outlier, which the other frames then outvote; a thin
-        part one pixel wide still has neighbours along it).
-    tolerance : ndarray float32 (h, w)
-        τ = k·σ (or k·σ(anchor)) + the largest difference to the anchor of a 4-neighbour on
-        the same surface
-        (the relief of a slanted surface over one low-res pixel), at least
-        :data:`TOLERANCE_FLOOR_MM`; 0 where the reference has no depth.
-    """
-    z = np.ascontiguousarray(reference, np.float32)
-    z = np.where(np.isnan(z), np.float32(0.0), z)
-    anchor = np.empty(z.shape, np.float32)
-    tol = np.empty(z.shape, np.float32)
-    sigma, power = _sigma_and_power(sigma_mm, noise_profile)
-    _anchor_kernel(z, float(edge_mm), sigma, power, float(k), TOLERANCE_FLOOR_MM, anchor, tol)
-    return anchor, tol
 
 
 @nb.njit(cache=True, nogil=True, inline="always")

@@ -1,0 +1,224 @@
+"""The reference frame's own depth per low-res pixel, robustly, and the tolerance of the trust
+test around it (beyond the paper; :mod:`upsr.method.trust` uses them).
+
+:func:`reference_anchor`: per reference pixel, an edge-aware robust estimate of its own depth
+(the median of its 3×3 neighbours on its surface) and the tolerance τ = k·σ + the local relief
+of that surface, against which each registered sample is trusted or not.
+"""
+
+from __future__ import annotations
+
+import numba as nb
+import numpy as np
+import numpy.typing as npt
+
+__all__ = ["OWN_SURFACE_SIGMAS", "TOLERANCE_FLOOR_MM", "reference_anchor"]
+
+#: Smallest trust tolerance (mm): noiseless or coarsely quantised data still trust their own
+#: surface's samples.
+TOLERANCE_FLOOR_MM = 2.0
+#: How far (noise σ at its depth) a pixel's anchor may lie from its own measurement before a
+#: neighbour on the measurement's side makes it the median of the pixel's own surface
+#: (:func:`reference_anchor` ``own_surface``, the recursive mode). Realistic scenes, seeds
+#: 0–2 (``benchmarks/realistic_eval.py --quick --no-oracle --seed S``), recursive: rmse
+#: geomean −0.4 … −0.7 %, surface rmse geomean −3.7 … −5.2 % (rooms and the approaching
+#: camera's slopes down to −27 %; at worst the galloping animal at Laplace σ = 30, +3 … +9 %).
+#: In the windowed mode too the realistic scenes gained (rmse geomean −0.3 … −0.5 %, surface
+#: −2.6 … −3.5 %), but the synthetic wall's r = 2 rmse rose 3.3 / 2.5 % at σ = 0 / 10 (edge
+#: accuracy −0.3 points: the rims of its point-sampled blob), above bicubic's at σ = 10.
+OWN_SURFACE_SIGMAS = 3.0
+
+
+@nb.njit(cache=True, nogil=True, inline="always")
+def _median_inplace(buf, m):  # pragma: no cover - numba
+    """Median of buf[:m], sorted in place (insertion sort: m is at most 25)."""
+    for p in range(1, m):
+        x = buf[p]
+        q = p - 1
+        while q >= 0 and buf[q] > x:
+            buf[q + 1] = buf[q]
+            q -= 1
+        buf[q + 1] = x
+    return buf[m // 2] if m % 2 == 1 else 0.5 * (buf[m // 2 - 1] + buf[m // 2])
+
+
+#: Devillard's median-of-9 network (19 compare-exchanges; the median lands in slot 4).
+_MEDIAN9 = np.array(
+    [(1, 2), (4, 5), (7, 8), (0, 1), (3, 4), (6, 7), (1, 2), (4, 5), (7, 8), (0, 3), (5, 8),
+     (4, 7), (3, 6), (1, 4), (2, 5), (4, 7), (4, 2), (6, 4), (4, 2)],
+    np.int64,
+)  # fmt: skip
+
+
+@nb.njit(cache=True, nogil=True, inline="always")
+def _interior_median(z, i, j, edge, buf, net):  # pragma: no cover - numba
+    """The anchor of an interior pixel whose 8 neighbours all lie within ``edge`` of it and
+    of their median (the common case; both steps of the general rule give that median), or
+    0 where that does not hold."""
+    v = z[i, j]
+    m = 0
+    for a in range(i - 1, i + 2):
+        for b in range(j - 1, j + 2):
+            u = z[a, b]
+            if not (u > 0 and abs(u - v) <= edge):
+                return 0.0
+            buf[m] = u
+            m += 1
+    for q in range(net.shape[0]):
+        x = buf[net[q, 0]]
+        y = buf[net[q, 1]]
+        buf[net[q, 0]] = min(x, y)
+        buf[net[q, 1]] = max(x, y)
+    c = buf[4]
+    for a in range(i - 1, i + 2):
+        for b in range(j - 1, j + 2):
+            if abs(z[a, b] - c) > edge:
+                return 0.0
+    return c
+
+
+@nb.njit(cache=True, nogil=True, inline="always")
+def _own_surface(z, i, j, c, sigma, power, buf, own_surface):  # pragma: no cover - numba
+    """The anchor c of pixel (i, j), or, where it lies beyond OWN_SURFACE_SIGMAS·σ of the
+    pixel's own measurement v and a neighbour within that of v lies beyond it of c (v is on a
+    surface of its own, not a noise outlier: a wall meeting a slope inside the pixel's
+    block), the median of v and its neighbours within OWN_SURFACE_SIGMAS·σ of it."""
+    if not own_surface:
+        return c
+    h, w = z.shape
+    v = z[i, j]
+    sig = sigma if power == 0.0 else sigma * (v / 1000.0) ** power
+    lim = OWN_SURFACE_SIGMAS * sig
+    if not abs(c - v) > lim:
+        return c
+    m = 0
+    own = False
+    for a in range(max(i - 1, 0), min(i + 2, h)):
+        for b in range(max(j - 1, 0), min(j + 2, w)):
+            u = z[a, b]
+            if u > 0 and abs(u - v) <= lim:
+                buf[m] = u
+                m += 1
+                own |= (a != i or b != j) and abs(u - c) > lim
+    return _median_inplace(buf, m) if own else c
+
+
+@nb.njit(cache=True, nogil=True, parallel=True)
+def _anchor_kernel(
+    z, edge, sigma, power, k, floor, own_surface, anchor, tol
+):  # pragma: no cover - numba
+    h, w = z.shape
+    net = _MEDIAN9
+    for i in nb.prange(h):
+        buf = np.empty(9, np.float32)
+        for j in range(w):
+            v = z[i, j]
+            anchor[i, j] = 0.0
+            if not v > 0:
+                continue
+            if 0 < i < h - 1 and 0 < j < w - 1:
+                c = _interior_median(z, i, j, edge, buf, net)
+                if c > 0:
+                    anchor[i, j] = _own_surface(z, i, j, c, sigma, power, buf, own_surface)
+                    continue
+            # the median of the neighbours on the pixel's surface, then of those on the
+            # surface of that median: a noise outlier at the pixel itself (its neighbours
+            # within the edge threshold of it all on one side) does not pull the anchor along
+            c = v
+            for step in range(2):
+                m = 0
+                for a in range(max(i - 1, 0), min(i + 2, h)):
+                    for b in range(max(j - 1, 0), min(j + 2, w)):
+                        u = z[a, b]
+                        if u > 0 and abs(u - c) <= edge:
+                            buf[m] = u
+                            m += 1
+                if step == 0 and m == 1:
+                    break  # no neighbour on its surface: a noise outlier, no anchor
+                c = _median_inplace(buf, m)
+            if m > 1:
+                anchor[i, j] = _own_surface(z, i, j, c, sigma, power, buf, own_surface)
+    for i in nb.prange(h):
+        for j in range(w):
+            a0 = anchor[i, j]
+            tol[i, j] = 0.0
+            if not a0 > 0:
+                continue
+            relief = 0.0
+            for di, dj in ((-1, 0), (1, 0), (0, -1), (0, 1)):
+                a = i + di
+                b = j + dj
+                if 0 <= a < h and 0 <= b < w:
+                    u = anchor[a, b]
+                    if u > 0 and abs(u - a0) <= edge:
+                        relief = max(relief, abs(u - a0))
+            sig = sigma if power == 0.0 else sigma * (a0 / 1000.0) ** power
+            tol[i, j] = max(k * sig + relief, floor)
+
+
+def _sigma_and_power(
+    sigma_mm: float, noise_profile: tuple[float, float] | None
+) -> tuple[float, float]:
+    """(σ, 0) of one noise std, or (σ₁, p) of a profile whose power is not 0 (kernels'
+    arguments: σ(z) = σ₁·(z / 1 m)^p)."""
+    if noise_profile is not None and noise_profile[1] > 0:
+        return float(noise_profile[0]), float(noise_profile[1])
+    return float(sigma_mm), 0.0
+
+
+def reference_anchor(
+    reference: npt.ArrayLike,
+    sigma_mm: float,
+    k: float,
+    edge_mm: float,
+    *,
+    noise_profile: tuple[float, float] | None = None,
+    own_surface: bool = False,
+) -> tuple[np.ndarray, np.ndarray]:
+    """The reference's own depth, robustly, and how far a trusted sample may lie from it.
+
+    Parameters
+    ----------
+    reference : array_like (h, w)
+        The reference low-res frame (mm, 0 = no measurement).
+    sigma_mm : float
+        Noise std of the video (mm).
+    noise_profile : (float, float), optional
+        (σ₁, p) of :func:`upsr.method.noise.noise_profile`: with p > 0 the σ of the tolerance
+        is σ₁·(a / 1 m)^p at each pixel's anchor a instead of ``sigma_mm``.
+    k : float
+        Tolerance in units of the noise std.
+    own_surface : bool
+        Keep each anchor on its pixel's own surface (above): the recursive mode, which
+        restarts a pixel from its anchor.
+    edge_mm : float
+        Depth step that separates two surfaces: only the neighbours within it of a pixel take
+        part in its anchor and relief (never across a depth edge).
+
+    Returns
+    -------
+    anchor : ndarray float32 (h, w)
+        Median of the pixel's 3×3 neighbours (itself included) within ``edge_mm`` of the
+        median of those within ``edge_mm`` of it (two steps: an outlier at the pixel does not
+        choose its neighbours); 0 where the reference has no depth, and where no 8-neighbour
+        lies on its surface (a lone outlier, which the other frames then outvote; a thin
+        part one pixel wide still has neighbours along it). With ``own_surface``, where that
+        median lies more than :data:`OWN_SURFACE_SIGMAS`·σ from the pixel's own measurement
+        and a neighbour within that of the measurement lies beyond it of the median (the
+        pixel on a surface of its own: a slope beginning inside its block beside a wall,
+        whose pixels the median's second step took in), the median of the pixel and those
+        neighbours.
+    tolerance : ndarray float32 (h, w)
+        τ = k·σ (or k·σ(anchor)) + the largest difference to the anchor of a 4-neighbour on
+        the same surface
+        (the relief of a slanted surface over one low-res pixel), at least
+        :data:`TOLERANCE_FLOOR_MM`; 0 where the reference has no depth.
+    """
+    z = np.ascontiguousarray(reference, np.float32)
+    z = np.where(np.isnan(z), np.float32(0.0), z)
+    anchor = np.empty(z.shape, np.float32)
+    tol = np.empty(z.shape, np.float32)
+    sigma, power = _sigma_and_power(sigma_mm, noise_profile)
+    floor = TOLERANCE_FLOOR_MM
+    _anchor_kernel(z, float(edge_mm), sigma, power, float(k), floor, bool(own_surface), anchor, tol)
+    return anchor, tol
