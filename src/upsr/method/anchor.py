@@ -85,22 +85,31 @@ def _own_surface(z, i, j, c, sigma, power, buf, own_surface):  # pragma: no cove
     block), the median of v and its neighbours within OWN_SURFACE_SIGMAS·σ of it."""
     if not own_surface:
         return c
-    h, w = z.shape
     v = z[i, j]
     sig = sigma if power == 0.0 else sigma * (v / 1000.0) ** power
     lim = OWN_SURFACE_SIGMAS * sig
     if not abs(c - v) > lim:
         return c
+    m = _within(z, i, j, v, lim, buf)
+    beyond = 0  # (v itself is one of them)
+    for q in range(m):
+        beyond += 1 if abs(buf[q] - c) > lim else 0
+    return _median_inplace(buf, m) if beyond >= 2 else c
+
+
+@nb.njit(cache=True, nogil=True, inline="always")
+def _within(z, i, j, centre, limit, buf):  # pragma: no cover - numba
+    """The valid 3×3 neighbours of (i, j), itself included, within ``limit`` of ``centre``:
+    copied to buf[:m]; returns m."""
+    h, w = z.shape
     m = 0
-    own = False
     for a in range(max(i - 1, 0), min(i + 2, h)):
         for b in range(max(j - 1, 0), min(j + 2, w)):
             u = z[a, b]
-            if u > 0 and abs(u - v) <= lim:
+            if u > 0 and abs(u - centre) <= limit:
                 buf[m] = u
                 m += 1
-                own |= (a != i or b != j) and abs(u - c) > lim
-    return _median_inplace(buf, m) if own else c
+    return m
 
 
 @nb.njit(cache=True, nogil=True, parallel=True)
@@ -126,13 +135,7 @@ def _anchor_kernel(
             # within the edge threshold of it all on one side) does not pull the anchor along
             c = v
             for step in range(2):
-                m = 0
-                for a in range(max(i - 1, 0), min(i + 2, h)):
-                    for b in range(max(j - 1, 0), min(j + 2, w)):
-                        u = z[a, b]
-                        if u > 0 and abs(u - c) <= edge:
-                            buf[m] = u
-                            m += 1
+                m = _within(z, i, j, c, edge, buf)
                 if step == 0 and m == 1:
                     break  # no neighbour on its surface: a noise outlier, no anchor
                 c = _median_inplace(buf, m)
