@@ -294,13 +294,46 @@ def test_the_anchor_stays_on_the_pixels_own_surface_where_a_wall_meets_a_slope()
         ],
         np.float32,
     )
-    anchor, _ = reference_anchor(z, 20.7, 3.0, 100.0, own_surface=True)
-    assert anchor[1, 2] == pytest.approx(0.5 * (2349 + 2312))
-    assert reference_anchor(z, 20.7, 3.0, 100.0)[0][1, 2] > 2430.0  # the windowed mode's
+    for mode in ("always", "except_rims"):  # (the anchor lies beyond the pixel: no rim)
+        anchor, _ = reference_anchor(z, 20.7, 3.0, 100.0, own_surface=mode)
+        assert anchor[1, 2] == pytest.approx(0.5 * (2349 + 2312))
+    assert reference_anchor(z, 20.7, 3.0, 100.0)[0][1, 2] > 2430.0
     lone = z.copy()
     lone[2, 2] = 2460.0  # no neighbour on the pixel's side: a noise outlier on the wall
-    anchor, _ = reference_anchor(lone, 20.7, 3.0, 100.0, own_surface=True)
+    anchor, _ = reference_anchor(lone, 20.7, 3.0, 100.0, own_surface="always")
     assert anchor[1, 2] > 2430.0
+
+
+def test_the_windowed_anchor_of_a_rim_stays_the_surfaces_median():
+    """The synthetic wall (``benchmarks/synthetic_eval.py``, r = 2, σ = 10 mm): the centre
+    pixel samples the steep far end of a blob's rim (1776 mm; the blob inside reads ~1700,
+    the wall behind 2820). Its block is half wall; with the anchor at the pixel's own value
+    the windowed fusion gave the wall's half the blob's depth (rmse +2.5 % there), so
+    ``"except_rims"`` keeps the median where it lies nearer and a neighbour lies beyond the
+    edge threshold; ``"always"`` (the recursive mode) takes the pixel's own surface."""
+    z = np.array(
+        [
+            [1655, 1632, 1634, 1635, 1648],
+            [1673, 1672, 1713, 1695, 1701],
+            [1775, 1771, 1776, 2823, 2821],
+            [2812, 2816, 2819, 2819, 2824],
+            [2838, 2811, 2813, 2815, 2822],
+        ],
+        np.float32,
+    )
+    median = reference_anchor(z, 10.0, 3.0, 300.0)[0][2, 2]
+    assert median < 1730.0
+    assert reference_anchor(z, 10.0, 3.0, 300.0, own_surface="except_rims")[0][2, 2] == median
+    own = reference_anchor(z, 10.0, 3.0, 300.0, own_surface="always")[0][2, 2]
+    assert own == pytest.approx(0.5 * (1771 + 1776))
+    ridge = z.copy()
+    ridge[2, 3:] = 1700.0  # no edge beside it: a ridge on the blob, its own surface kept
+    ridge[3:] = 1705.0
+    anchor = reference_anchor(ridge, 10.0, 3.0, 300.0, own_surface="except_rims")[0]
+    assert anchor[2, 2] == pytest.approx(0.5 * (1771 + 1776))
+    assert reference_anchor(ridge, 10.0, 3.0, 300.0)[0][2, 2] == pytest.approx(1705.0)
+    with pytest.raises(ValueError, match="own_surface"):
+        reference_anchor(z, 10.0, 3.0, 300.0, own_surface=True)
 
 
 def _kinect(z, rng, f=580.0, b=75.0, sigma_px=0.07):

@@ -12,21 +12,23 @@ import numba as nb
 import numpy as np
 import numpy.typing as npt
 
-__all__ = ["OWN_SURFACE_SIGMAS", "TOLERANCE_FLOOR_MM", "reference_anchor"]
+__all__ = ["OWN_SURFACE", "OWN_SURFACE_SIGMAS", "TOLERANCE_FLOOR_MM", "reference_anchor"]
 
 #: Smallest trust tolerance (mm): noiseless or coarsely quantised data still trust their own
 #: surface's samples.
 TOLERANCE_FLOOR_MM = 2.0
 #: How far (noise σ at its depth) a pixel's anchor may lie from its own measurement before a
 #: neighbour on the measurement's side makes it the median of the pixel's own surface
-#: (:func:`reference_anchor` ``own_surface``, the recursive mode). Realistic scenes, seeds
-#: 0–2 (``benchmarks/realistic_eval.py --quick --no-oracle --seed S``), recursive: rmse
-#: geomean −0.4 … −0.7 %, surface rmse geomean −3.7 … −5.2 % (rooms and the approaching
-#: camera's slopes down to −27 %; at worst the galloping animal at Laplace σ = 30, +3 … +9 %).
-#: In the windowed mode too the realistic scenes gained (rmse geomean −0.3 … −0.5 %, surface
-#: −2.6 … −3.5 %), but the synthetic wall's r = 2 rmse rose 3.3 / 2.5 % at σ = 0 / 10 (edge
-#: accuracy −0.3 points: the rims of its point-sampled blob), above bicubic's at σ = 10.
+#: (:func:`reference_anchor` ``own_surface``). Realistic scenes, seeds 0–2
+#: (``benchmarks/realistic_eval.py --quick --no-oracle --seed S``), recursive mode
+#: (``"always"``): rmse geomean −0.4 … −0.7 %, surface rmse geomean −3.7 … −5.2 % (rooms and the
+#: approaching camera's slopes down to −27 %; at worst the galloping animal at Laplace σ = 30,
+#: +3 … +9 %). In the windowed mode, ``"always"`` cost the synthetic wall's r = 2 rmse 3.3 /
+#: 2.5 % at σ = 0 / 10 (``benchmarks/synthetic_eval.py``: the rims of its point-sampled
+#: blob), hence ``"except_rims"`` there (see :func:`reference_anchor`).
 OWN_SURFACE_SIGMAS = 3.0
+#: The values of :func:`reference_anchor`'s ``own_surface``, in the kernel's code order.
+OWN_SURFACE = ("never", "always", "except_rims")
 
 
 @nb.njit(cache=True, nogil=True, inline="always")
@@ -78,23 +80,40 @@ def _interior_median(z, i, j, edge, buf, net):  # pragma: no cover - numba
 
 
 @nb.njit(cache=True, nogil=True, inline="always")
-def _own_surface(z, i, j, c, sigma, power, buf, own_surface):  # pragma: no cover - numba
+def _own_surface(z, i, j, c, sigma, power, edge, buf, mode):  # pragma: no cover - numba
     """The anchor c of pixel (i, j), or, where it lies beyond OWN_SURFACE_SIGMAS·σ of the
     pixel's own measurement v and a neighbour within that of v lies beyond it of c (v is on a
     surface of its own, not a noise outlier: a wall meeting a slope inside the pixel's
-    block), the median of v and its neighbours within OWN_SURFACE_SIGMAS·σ of it."""
-    if not own_surface:
+    block), the median of v and its neighbours within OWN_SURFACE_SIGMAS·σ of it. ``mode``:
+    the index in OWN_SURFACE (0: c; 2: c also where c is nearer than v and a neighbour lies
+    beyond ``edge`` of v, the rim of a nearer surface)."""
+    if mode == 0:
         return c
     v = z[i, j]
     sig = sigma if power == 0.0 else sigma * (v / 1000.0) ** power
     lim = OWN_SURFACE_SIGMAS * sig
     if not abs(c - v) > lim:
         return c
+    if mode == 2 and c < v and _beside_an_edge(z, i, j, edge):
+        return c
     m = _within(z, i, j, v, lim, buf)
     beyond = 0  # (v itself is one of them)
     for q in range(m):
         beyond += 1 if abs(buf[q] - c) > lim else 0
     return _median_inplace(buf, m) if beyond >= 2 else c
+
+
+@nb.njit(cache=True, nogil=True, inline="always")
+def _beside_an_edge(z, i, j, edge):  # pragma: no cover - numba
+    """Whether a valid 3×3 neighbour of (i, j) lies beyond ``edge`` of it."""
+    h, w = z.shape
+    v = z[i, j]
+    for a in range(max(i - 1, 0), min(i + 2, h)):
+        for b in range(max(j - 1, 0), min(j + 2, w)):
+            u = z[a, b]
+            if u > 0 and abs(u - v) > edge:
+                return True
+    return False
 
 
 @nb.njit(cache=True, nogil=True, inline="always")
@@ -128,7 +147,7 @@ def _anchor_kernel(
             if 0 < i < h - 1 and 0 < j < w - 1:
                 c = _interior_median(z, i, j, edge, buf, net)
                 if c > 0:
-                    anchor[i, j] = _own_surface(z, i, j, c, sigma, power, buf, own_surface)
+                    anchor[i, j] = _own_surface(z, i, j, c, sigma, power, edge, buf, own_surface)
                     continue
             # the median of the neighbours on the pixel's surface, then of those on the
             # surface of that median: a noise outlier at the pixel itself (its neighbours
@@ -140,7 +159,7 @@ def _anchor_kernel(
                     break  # no neighbour on its surface: a noise outlier, no anchor
                 c = _median_inplace(buf, m)
             if m > 1:
-                anchor[i, j] = _own_surface(z, i, j, c, sigma, power, buf, own_surface)
+                anchor[i, j] = _own_surface(z, i, j, c, sigma, power, edge, buf, own_surface)
     for i in nb.prange(h):
         for j in range(w):
             a0 = anchor[i, j]
@@ -176,7 +195,7 @@ def reference_anchor(
     edge_mm: float,
     *,
     noise_profile: tuple[float, float] | None = None,
-    own_surface: bool = False,
+    own_surface: str = "never",
 ) -> tuple[np.ndarray, np.ndarray]:
     """The reference's own depth, robustly, and how far a trusted sample may lie from it.
 
@@ -191,9 +210,9 @@ def reference_anchor(
         is σ₁·(a / 1 m)^p at each pixel's anchor a instead of ``sigma_mm``.
     k : float
         Tolerance in units of the noise std.
-    own_surface : bool
-        Keep each anchor on its pixel's own surface (above): the recursive mode, which
-        restarts a pixel from its anchor.
+    own_surface : {"never", "always", "except_rims"}
+        Keep each anchor on its pixel's own surface (below): ``"always"`` in the recursive
+        mode, which restarts a pixel from its anchor; ``"except_rims"`` in the windowed mode.
     edge_mm : float
         Depth step that separates two surfaces: only the neighbours within it of a pixel take
         part in its anchor and relief (never across a depth edge).
@@ -205,23 +224,29 @@ def reference_anchor(
         median of those within ``edge_mm`` of it (two steps: an outlier at the pixel does not
         choose its neighbours); 0 where the reference has no depth, and where no 8-neighbour
         lies on its surface (a lone outlier, which the other frames then outvote; a thin
-        part one pixel wide still has neighbours along it). With ``own_surface``, where that
-        median lies more than :data:`OWN_SURFACE_SIGMAS`·σ from the pixel's own measurement
-        and a neighbour within that of the measurement lies beyond it of the median (the
-        pixel on a surface of its own: a slope beginning inside its block beside a wall,
-        whose pixels the median's second step took in), the median of the pixel and those
-        neighbours.
+        part one pixel wide still has neighbours along it). With ``own_surface`` (not
+        ``"never"``), where that median lies more than :data:`OWN_SURFACE_SIGMAS`·σ from the
+        pixel's own measurement and a neighbour within that of the measurement lies beyond it
+        of the median (the pixel on a surface of its own: a slope beginning inside its block
+        beside a wall, whose pixels the median's second step took in), the median of the
+        pixel and those neighbours; with ``"except_rims"`` not where the median is nearer
+        than the measurement and a neighbour lies beyond ``edge_mm`` of it (the rim of a
+        nearer surface, its steep far end point-sampled: the windowed fusion's block there
+        is half the surface behind, which the measurement's anchor would outvote).
     tolerance : ndarray float32 (h, w)
         τ = k·σ (or k·σ(anchor)) + the largest difference to the anchor of a 4-neighbour on
         the same surface
         (the relief of a slanted surface over one low-res pixel), at least
         :data:`TOLERANCE_FLOOR_MM`; 0 where the reference has no depth.
     """
+    if own_surface not in OWN_SURFACE:
+        raise ValueError(f"own_surface must be one of {OWN_SURFACE}, not {own_surface!r}")
     z = np.ascontiguousarray(reference, np.float32)
     z = np.where(np.isnan(z), np.float32(0.0), z)
     anchor = np.empty(z.shape, np.float32)
     tol = np.empty(z.shape, np.float32)
     sigma, power = _sigma_and_power(sigma_mm, noise_profile)
     floor = TOLERANCE_FLOOR_MM
-    _anchor_kernel(z, float(edge_mm), sigma, power, float(k), floor, bool(own_surface), anchor, tol)
+    mode = OWN_SURFACE.index(own_surface)
+    _anchor_kernel(z, float(edge_mm), sigma, power, float(k), floor, mode, anchor, tol)
     return anchor, tol

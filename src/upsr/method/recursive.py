@@ -583,7 +583,7 @@ class RecursiveUPSR(TwoStagePipeline):
                 k if k is not None else 1.0,
                 front.edge_mm,
                 noise_profile=self._profile,
-                own_surface=True,
+                own_surface="always",
             )
             if k is None:
                 tol = np.zeros_like(tol)  # every state sample is trusted

@@ -376,12 +376,9 @@ class UPSR:
             anchor = tolerance = caps = None
             if cfg.trust_k is not None:
                 anchor, tolerance = reference_anchor(
-                    lowres[ref],
-                    noise,
-                    cfg.trust_k,
-                    self._front.edge_mm,
-                    noise_profile=stats.trust_noise_profile,
-                )
+                    lowres[ref], noise, cfg.trust_k, self._front.edge_mm,
+                    noise_profile=stats.trust_noise_profile, own_surface="except_rims",
+                )  # fmt: skip
                 # how many frames each pixel's estimate may draw on (the reach, the level)
                 caps = state_caps(
                     anchor, tolerance, float(cfg.n_frames), noise, cfg.trust_k,

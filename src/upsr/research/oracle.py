@@ -326,8 +326,9 @@ def _abstaining(
     if cfg.trust_k is None:
         return lowres, None, None
     anchor, tol = reference_anchor(
-        lowres[ref], noise_mm, cfg.trust_k, edge_mm, noise_profile=profile
-    )
+        lowres[ref], noise_mm, cfg.trust_k, edge_mm, noise_profile=profile,
+        own_surface="except_rims",
+    )  # fmt: skip
     return abstain_lone_outliers(lowres, ref, anchor), anchor, tol
 
 
