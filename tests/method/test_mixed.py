@@ -360,3 +360,47 @@ def test_a_footprint_across_an_edge_beyond_the_image_border_is_mixed(side):
     aligned[:, 0] = 2480.0
     aligned = np.rot90(aligned, turn).copy()
     np.testing.assert_array_equal(remove_mixed_pixels(aligned, 100.0), aligned)
+
+
+def test_a_slope_two_pixels_wide_along_a_straight_edge_is_kept():
+    """The realistic approaching camera (ToF σ = 10 mm, seed 1, frame 5, rows 12–26, columns
+    37–43): a box side seen at a grazing angle spans two pixels of every row, its steep middle
+    across their boundary (~2325 | ~2088 between the wall at ~2370 and the box at ~1985). A
+    footprint across a straight edge mixes one pixel per row, so the same two pixels along
+    seven rows are a slope, kept (`mixed.RAMP_ALONG_PX`; four of them were taken for mixed
+    before). The same ramp on five rows only and a mixed line whose next pixel is the far
+    surface a little nearer (2307 | 2117 above 2114) stay mixed."""
+    side = np.array(
+        [
+            [2373, 2372, 2319, 2101, 2005, 1985, 1989],
+            [2364, 2383, 2328, 2090, 1996, 1982, 1986],
+            [2383, 2397, 2326, 2088, 1989, 1992, 1969],
+            [2366, 2364, 2325, 2064, 1987, 1982, 2005],
+            [2366, 2364, 2331, 2087, 1987, 1990, 1940],
+            [2371, 2366, 2313, 2083, 1991, 2003, 1993],
+            [2375, 2366, 2330, 2105, 1976, 1983, 1991],
+            [2371, 2374, 2345, 2089, 1983, 1960, 1999],
+            [2367, 2359, 2314, 2076, 1984, 1984, 2018],
+            [2360, 2375, 2334, 2081, 1979, 1998, 1990],
+            [2379, 2376, 2334, 2099, 1940, 1981, 1993],
+            [2376, 2367, 2310, 2093, 1971, 1984, 1993],
+            [2367, 2360, 2335, 2091, 1984, 1994, 1981],
+            [2376, 2379, 2336, 2095, 1997, 1996, 2021],
+            [2374, 2375, 2316, 2078, 2014, 1947, 1993],
+        ],
+        np.float32,
+    )
+    # (the rows with three more of the edge on either side: the patch's first row, without
+    # rows above it here, is split)
+    np.testing.assert_array_equal(remove_mixed_pixels(side, 100.0)[3:12], side[3:12])
+    short = side.copy()
+    short[[0, 1, 2, 3, 4, 10, 11, 12, 13, 14], 2] = 2370.0  # one mix per row beyond row 4 to 9
+    short[[0, 1, 2, 3, 4, 10, 11, 12, 13, 14], 3] = 2200.0
+    assert (remove_mixed_pixels(short, 100.0)[6:8, 3] == 0).all()
+
+    rng = np.random.default_rng(5)
+    col = np.array([2500, 2500, 2500, 2307, 2117, 2114, 2114, 2114], np.float32)
+    line = col[:, None] + rng.normal(0.0, 8.0, (8, 9)).astype(np.float32)
+    line[4] = line[5] + 3.0  # the pixel after the mix a little nearer than the far surface
+    out = remove_mixed_pixels(line, 100.0)
+    assert (out[3, 1:-1] == 0).all()
