@@ -394,7 +394,7 @@ def test_a_slope_two_pixels_wide_along_a_straight_edge_is_kept():
     # rows above it here, is split)
     np.testing.assert_array_equal(remove_mixed_pixels(side, 100.0)[3:12], side[3:12])
     short = side.copy()
-    short[[0, 1, 2, 3, 4, 10, 11, 12, 13, 14], 2] = 2370.0  # one mix per row beyond row 4 to 9
+    short[[0, 1, 2, 3, 4, 10, 11, 12, 13, 14], 2] = 2370.0  # one mix per row outside rows 5-9
     short[[0, 1, 2, 3, 4, 10, 11, 12, 13, 14], 3] = 2200.0
     assert (remove_mixed_pixels(short, 100.0)[6:8, 3] == 0).all()
 

@@ -58,8 +58,9 @@ FLAT_END_SHARE = 1.0 / 6.0
 #: row. The realistic approaching camera's box sides seen at a grazing angle, seeds 0–2
 #: (``benchmarks/realistic_eval.py --quick --no-oracle --seed S``): moving-surface rmse
 #: 9.96 / 9.66 / 4.99 → 9.10 / 8.33 / 4.94 mm (the bilateral filter's 9.84 / 8.98 / 6.17).
-#: With 1 row on either side instead, flying pixels rose to 0.3–1.0 % on the animal, the room
-#: and that scene (curved and slanted edges whose mixes change slowly along them).
+#: With 1 row on either side (and the end steps of the pixel's own row, not averaged), flying
+#: pixels rose to 0.6–1.0 % on the animal, the room and that scene (curved and slanted edges
+#: whose mixes change slowly along them).
 RAMP_ALONG_PX = 3
 #: ... when, averaged along those rows, each pixel of the pair lies beyond this share of the
 #: edge threshold from the flat surface on its side and the step between them is the
