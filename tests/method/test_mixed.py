@@ -62,10 +62,32 @@ def test_footprint_share_tells_a_tof_sensor_from_a_point_sampling_one():
     tof = _tof_edge_frames()
     point = np.full_like(tof, WALL)
     point[:, :, :8] = 1000.0
-    assert footprint_share(tof, 100.0) == 1.0 and has_mixed_pixels(footprint_share(tof, 100.0))
+    # every edge mixed beyond the threshold: the share over what a footprint would give
+    expected = 1.0 - 2.0 * 100.0 / abs(WALL - 1000.0)
+    assert footprint_share(tof, 100.0) == pytest.approx(1.0 / expected)
+    assert has_mixed_pixels(footprint_share(tof, 100.0))
     assert footprint_share(point, 100.0) == 0.0 and not has_mixed_pixels(0.0)
     assert footprint_share(np.full((2, 8, 8), WALL, np.float32), 100.0) == 0.0  # no edge
     assert 0 < MIXED_SHARE < 1
+
+
+def test_footprint_share_counts_against_what_a_footprint_would_mix():
+    """Near surfaces (a step of 350 mm at a threshold of 100): a footprint across the edge mixes
+    beyond the threshold from both sides only where it covers 29–71 % of either, 3 of 8 edge
+    places here; that is what a ToF sensor gives there, near the expectation, far from a
+    point sampler's 0 (the approaching camera of seed 3 had a plain share of the edges of
+    0.28, and a point-sampled room 0.30)."""
+    from upsr.method.mixed import MIXED_SHARE, footprint_share
+    from upsr.research.synth.degradation import tof_footprint
+
+    r = 8
+    hr = np.full((8, 12 * r, 16 * r), 2350.0, np.float32)
+    for k in range(8):
+        hr[k, :, : 7 * r + k] = 2000.0  # the edge k/8 into the 8th low-res column
+    share = footprint_share(tof_footprint(hr, r), 100.0)
+    assert MIXED_SHARE <= share < 1.5
+    point = hr[:, r // 2 :: r, r // 2 :: r]  # the same scene point-sampled
+    assert footprint_share(point, 100.0) == 0.0
 
 
 def test_remove_mixed_auto_follows_the_sensor():

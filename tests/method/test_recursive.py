@@ -352,3 +352,27 @@ def test_a_hole_at_the_edge_of_a_body_that_arrived_keeps_no_wall_on_the_body_sid
     block = out[3, 4 * r : 8 * r, j * r : (j + 1) * r]
     assert not (np.abs(block[:, 0] - wall) < 100).any()  # the body's side: never the wall
     assert (np.abs(block[:, 1] - wall) < 100).all()  # the far side: the wall it saw
+
+
+def test_auto_mixed_removal_pools_the_first_frames():
+    """``remove_mixed="auto"`` in the recursive mode: a first frame without a depth edge tells
+    nothing; the ToF edges of the next frames, pooled with it, turn the removal on (one
+    frame shows too few edges: the approaching camera of seed 3 looked like a point sampler
+    in its first three frames, 0.12–0.30 of a footprint's mixes)."""
+    from upsr.research.synth.degradation import tof_footprint
+
+    r = 4
+    hr = np.full((4, 12 * r, 16 * r), 3000.0, np.float32)
+    for k in range(1, 4):
+        hr[k, :, : 7 * r + k] = 1000.0  # a ToF edge inside the 8th column from frame 1 on
+    frames = tof_footprint(hr, r)
+    engine = RecursiveUPSR(r, 9, workers=0)
+    engine.push(frames[0])
+    assert not engine._remove_mixed
+    for f in frames[1:]:
+        engine.push(f)
+    assert engine._remove_mixed
+    flat = RecursiveUPSR(r, 9, workers=0)
+    for f in np.stack([frames[0]] * 4):
+        flat.push(f)
+    assert not flat._remove_mixed

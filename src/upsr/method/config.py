@@ -265,10 +265,12 @@ class UPSRConfig:
         an edge) before the fusion, so that the other frames fill them; where none does, the
         reference's mixed pixel is split between the surfaces around it
         (:func:`upsr.method.mixed.remove_mixed_pixels`,
-        :func:`~upsr.method.mixed.split_mixed_pixels`). ``"auto"``: decided once per video
-        from its first frames, on when 30 % or more of its edges between flat surfaces
-        have a pixel between them (:func:`upsr.method.mixed.footprint_share`; a
-        point-sampling sensor has none, and its steep slopes would be taken for mixed).
+        :func:`~upsr.method.mixed.split_mixed_pixels`). ``"auto"``: decided per video from
+        its first N frames (the recursive mode: pooled as they arrive), on when its edges
+        between flat surfaces have a pixel between them at least
+        :data:`~upsr.method.mixed.MIXED_SHARE` times as often as a footprint sensor's would
+        (:func:`upsr.method.mixed.footprint_share`; a point-sampling sensor only on steep
+        slopes, which would be taken for mixed).
     radial_compensation : bool
         Subtract from each frame's samples its depth offset to the reference (motion along
         the viewing ray, a masked median over (2·radial_radius_px+1)² low-res px of one

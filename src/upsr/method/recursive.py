@@ -104,7 +104,7 @@ from upsr.method.finishing import finish_frame, finish_fused
 from upsr.method.frontend import MotionFrontEnd
 from upsr.method.memory import moving_caps, state_caps
 from upsr.method.mixed import (
-    footprint_share,
+    footprint_counts,
     has_mixed_pixels,
     remove_mixed_pixels,
     split_mixed_pixels,
@@ -488,6 +488,7 @@ class RecursiveUPSR(TwoStagePipeline):
         # "auto": the mean of the trusted samples (see the module), whatever the noise
         self._estimator = "mean" if cfg.fusion_estimator == "auto" else cfg.fusion_estimator
         self._remove_mixed = cfg.remove_mixed is True
+        self._mixes = np.zeros(2)  # footprint_counts of the frames so far (remove_mixed="auto")
         self._reset_pipeline()
 
     @property
@@ -547,13 +548,18 @@ class RecursiveUPSR(TwoStagePipeline):
             self._front.fix_statistics([f])
             self._first = f
             self._profile = trust_profile(f[None], cfg, self._front.edge_mm)
-            if cfg.remove_mixed == "auto":
-                self._remove_mixed = has_mixed_pixels(footprint_share(f, self._front.edge_mm))
         elif f.shape != self._shape:
             raise InputError(
                 f"frame {t}: shape {f.shape} differs from the first frame's {self._shape}"
             )
         front = self._front
+        if cfg.remove_mixed == "auto" and t < cfg.n_frames:
+            # does the sensor mix? The first N frames pooled as they arrive (one: too few edges)
+            self._mixes += footprint_counts(f, front.edge_mm)
+            self._remove_mixed = has_mixed_pixels(self._mixes[0] / max(self._mixes[1], 1e-9))
+            if self._remove_mixed:
+                self._share = None  # (no edge votes where mixed pixels are removed)
+        remove_mixed = self._remove_mixed
         if t == 1 and self._first is not None:
             if cfg.noise_mm is None:
                 self._temporal_mm = noise_shape(np.stack([self._first, f]), front.edge_mm)[1]
@@ -571,7 +577,7 @@ class RecursiveUPSR(TwoStagePipeline):
                 remove_mixed_pixels(
                     f, front.edge_mm, thin_parts=cfg.thin_parts, return_thin_parts=True
                 )
-                if self._remove_mixed
+                if remove_mixed
                 else (f, None)
             )
             noise = self._noise()
@@ -593,7 +599,7 @@ class RecursiveUPSR(TwoStagePipeline):
                 conf = np.zeros_like(depth)
                 # (not where mixed pixels are removed: the samples beside the edges, whose
                 # weights the votes compare, are the removed ones; measured worse)
-                votes = cfg.edge_votes and not self._remove_mixed
+                votes = cfg.edge_votes and not remove_mixed
                 self._share = np.zeros_like(depth) if votes else None
             else:
                 depth, conf = self._depth, self._conf
@@ -629,7 +635,7 @@ class RecursiveUPSR(TwoStagePipeline):
         self._share = share[0] if share else None
         self._prev_pre, self._prev_guide = pre, guide
         self._count = t + 1
-        return fused, f, meas, anchor, noise, thin
+        return fused, f, meas, anchor, noise, thin, remove_mixed
 
     def _finish(
         self,
@@ -639,11 +645,12 @@ class RecursiveUPSR(TwoStagePipeline):
         anchor: np.ndarray,
         noise: float,
         thin: ThinParts | None,
+        remove_mixed: bool,
     ) -> np.ndarray:
         """The output frame from the new state (the deblurring and the rules after it)."""
         cfg = self.config
         with self._timed("deblur"):
-            if self._remove_mixed:
+            if remove_mixed:
                 # the mixed pixels the state did not fill: split between their neighbours
                 # (in the output only, the state holds measurements)
                 fused = split_mixed_pixels(
