@@ -6,8 +6,9 @@ upsampling spread over the pixel's whole high-res block (18–28 % flying pixels
 realistic ToF scenes of :mod:`upsr.research.synth.realistic`). This module
 
 * decides once per video whether the sensor mixes at all (:func:`footprint_share`: how often
-  an edge between two flat surfaces has a pixel between them; point-sampling sensors only on
-  steep slopes, which the mixed-pixel test would take for mixed);
+  an edge between two flat surfaces has a pixel between them, against how often a footprint
+  would give one; point-sampling sensors only on steep slopes, which the mixed-pixel test
+  would take for mixed);
 * finds the mixed pixels of each frame (:func:`remove_mixed_pixels`: between its nearest and
   farthest neighbour, on no surface of its own, and not on a slope, nor on a slope two pixels
   wide along a straight edge, where a footprint would mix one; and the parts narrower
