@@ -426,3 +426,33 @@ def test_a_slope_two_pixels_wide_along_a_straight_edge_is_kept():
     line[4] = line[5] + 3.0  # the pixel after the mix a little nearer than the far surface
     out = remove_mixed_pixels(line, 100.0)
     assert (out[3, 1:-1] == 0).all()
+
+
+def test_a_mix_between_an_edge_and_a_slope_is_not_a_pixel_of_the_slope():
+    """The realistic ToF room (σ = 10 mm, seed 3, frame 2, column 36 from row 38): a steep
+    strip one pixel high between the wall and a slope seen at a grazing angle straddles two
+    pixels, both mixed (the second a quarter strip, three quarters slope). Its five pixels'
+    steps agree within a factor 3, but the second's step into the slope (358 mm) is 2.4 times
+    the slope's next one (152): not a pixel of the slope (`slopes.STEEP_RUN_RATIO`; it reached
+    the output as 1.9 % flying pixels). A slope's pixel whose step beyond is larger (a mix
+    there) is a pixel of the slope."""
+    col = np.array([4467, 4466, 4466, 3717, 2729, 2371, 2219, 2080, 1950, 1830], np.float32)
+    z = np.repeat(col[:, None], 6, axis=1)
+    out = remove_mixed_pixels(z, 100.0)
+    assert (out[3:5] == 0).all()
+    np.testing.assert_array_equal(out[5:], z[5:])
+
+    col = np.array([2000, 2000, 2000, 2130, 2300, 2450, 2900, 3400, 3400, 3400], np.float32)
+    z = np.repeat(col[:, None], 6, axis=1)
+    out = remove_mixed_pixels(z, 100.0)
+    np.testing.assert_array_equal(out[4], z[4])  # 170 | 150 then 450 to the mix
+    assert (out[6] == 0).all()
+
+
+def test_the_decision_from_the_frames_so_far_turns_off_only_clearly():
+    from upsr.method.mixed import MIXED_SHARE, MIXED_SHARE_HYSTERESIS, has_mixed_pixels
+
+    share = MIXED_SHARE - 0.5 * MIXED_SHARE_HYSTERESIS
+    assert not has_mixed_pixels(share) and has_mixed_pixels(share, was=True)
+    assert not has_mixed_pixels(MIXED_SHARE - 1.5 * MIXED_SHARE_HYSTERESIS, was=True)
+    assert has_mixed_pixels(MIXED_SHARE)

@@ -499,10 +499,8 @@ class RecursiveUPSR(TwoStagePipeline):
     @property
     def output_shape(self) -> tuple[int, int] | None:
         """(r·h, r·w) once the first frame has been pushed."""
-        if self._shape is None:
-            return None
         r = self.config.scale
-        return self._shape[0] * r, self._shape[1] * r
+        return None if self._shape is None else (self._shape[0] * r, self._shape[1] * r)
 
     @property
     def state(self) -> tuple[np.ndarray, np.ndarray] | None:
@@ -556,7 +554,8 @@ class RecursiveUPSR(TwoStagePipeline):
         if cfg.remove_mixed == "auto" and t < cfg.n_frames:
             # does the sensor mix? The first N frames pooled as they arrive (one: too few edges)
             self._mixes += footprint_counts(f, front.edge_mm)
-            self._remove_mixed = has_mixed_pixels(self._mixes[0] / max(self._mixes[1], 1e-9))
+            share = self._mixes[0] / max(self._mixes[1], 1e-9)
+            self._remove_mixed = has_mixed_pixels(share, was=self._remove_mixed)
             if self._remove_mixed:
                 self._share = None  # (no edge votes where mixed pixels are removed)
         remove_mixed = self._remove_mixed
