@@ -211,3 +211,40 @@ def test_the_thin_parts_of_the_removal_are_those_the_split_would_find():
     with pytest.raises(ValueError, match="thin parts"):
         split_thin_parts(fused, low, 100.0, parts=thin)  # a video's, not the frame's
     assert remove_mixed_pixels(low, 100.0, thin_parts=False, return_thin_parts=True)[1] is None
+
+
+def _gap(leg_depth=2100.0, r=R, n=24):
+    """High-res truth: a body with two legs a pixel and a half wide, at different depths,
+    and between them a gap of the wall half a low-res pixel wide, open below the legs."""
+    truth = np.full((n * r, n * r), WALL, np.float32)
+    truth[3 * r : 8 * r, 4 * r : 20 * r] = BODY
+    truth[8 * r : 18 * r, 24:30] = BODY  # the left leg
+    truth[8 * r : 18 * r, 32:38] = leg_depth  # the right leg, 2 px of wall between them
+    return truth
+
+
+def test_a_gap_narrower_than_a_pixel_is_split_between_the_wall_and_the_legs():
+    """The mirror image of a thin part: the pixels that straddle the gap mix a leg and the
+    wall, farther than both legs beside them. F is the wall's depth where the gap opens onto
+    it, B the nearer side's; the split keeps the mean and leaves no flying pixel."""
+    truth = _gap()
+    low = tof_footprint(truth, R)
+    near, far = thin_parts(low, 100.0)
+    assert (low[8:18, 7] > 2100.0 + 100.0).all()  # farther than both legs
+    # (its last pixels, beside the legs' tips and the body's corner, are found as mixed)
+    gap = near > far
+    np.testing.assert_array_equal(np.argwhere(gap), [[i, 7] for i in range(9, 17)])
+    np.testing.assert_allclose(near[gap], WALL)
+    np.testing.assert_allclose(far[gap], 2100.0)
+    fused = np.kron(low, np.ones((R, R), np.float32))
+    assert flying_pixel_mask(fused, truth, R).sum() >= 10 * R * R
+    out = split_thin_parts(fused, low, 100.0)
+    blocks = out[9 * R : 17 * R, 7 * R : 8 * R].reshape(8, R, R)
+    assert set(np.unique(blocks)) == {2100.0, WALL}
+    np.testing.assert_allclose(blocks.mean(axis=(1, 2)), low[9:17, 7], atol=0.5 * 900 / R**2)
+    assert not flying_pixel_mask(out, truth, R)[9 * R : 17 * R, 7 * R : 8 * R].any()
+    # end to end, both modes
+    for mode in ("windowed", "recursive"):
+        video = np.stack([low] * 5)
+        res = upsr.super_resolve(video, R, 5, remove_mixed=True, mode=mode)
+        assert flying_pixel_mask(res, np.stack([truth] * 5), R).sum() == 0, mode
