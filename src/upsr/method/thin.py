@@ -22,8 +22,8 @@ This module
   box's edge is its own neighbour), none of them on a steep slope
   (:func:`upsr.method.slopes._on_slope`: a box side seen at a grazing angle is a surface);
   the part's own depth F is that of the surface it grows out of, where it touches it
-  (directly, or through one pixel that the part fills but for a sliver: nearer than the
-  thin pixel by less than the edge threshold, with nothing on its surface but the part),
+  (directly, or through one pixel that the part fills but for a sliver: as near as the
+  thin pixel or nearer by less than the edge threshold, with nothing on its surface but the part),
   carried along the part (breadth first, at most :data:`REACH_PX` steps): a thin part is
   about as far as what it sticks out of;
 * has them abstain in the fusion with the other mixed pixels
