@@ -161,7 +161,7 @@ def _through_the_part(z, far, i, j, edge, support):  # pragma: no cover - numba
 
 
 @nb.njit(cache=True, nogil=True)
-def _thin_kernel(z, edge, reach, mixed, near, far, axis, n_axes=4):  # pragma: no cover - numba
+def _thin_kernel(z, edge, reach, mixed, near, far, axis, n_axes):  # pragma: no cover - numba
     # (n_axes: across the first n_axes of AXES)
     h, w = z.shape
     # the deepest 8-neighbour of each pixel (a separable 3×3 maximum): the start of a run
@@ -325,14 +325,17 @@ def _thin_parts(z, edge_mm, reach_px=REACH_PX, mixed=None):
     mixed = np.ascontiguousarray(mixed, np.bool_)
     if mixed.shape != z.shape:
         raise ValueError(f"mixed {mixed.shape} differs from the frame's shape {z.shape}")
-    parts = ThinParts(np.empty_like(z), np.empty_like(z), np.zeros(z.shape, np.int64))
-    _thin_kernel(z, edge_mm, reach_px, mixed, *parts)
+
+    def found(depth: np.ndarray, n_axes: int) -> ThinParts:
+        out = ThinParts(np.empty_like(z), np.empty_like(z), np.zeros(z.shape, np.int64))
+        _thin_kernel(depth, edge_mm, reach_px, mixed, *out, n_axes)
+        return out
+
+    parts = found(z, len(AXES))
     # the gaps narrower than a pixel (between two legs): the thin parts of the mirror image
     # (depth top − z: behind becomes in front), along rows and columns
     top = np.float32(2.0 * float(z.max(initial=0.0)) + 2.0 * edge_mm + 1.0)
-    mirror = np.where(z > 0, top - z, np.float32(0.0)).astype(np.float32)
-    gaps = ThinParts(np.empty_like(z), np.empty_like(z), np.zeros(z.shape, np.int64))
-    _thin_kernel(mirror, edge_mm, reach_px, mixed, *gaps, GAP_AXES)
+    gaps = found(np.where(z > 0, top - z, np.float32(0.0)).astype(np.float32), GAP_AXES)
     g = (gaps.near > 0) & ~(parts.near > 0)
     parts.near[g] = top - gaps.near[g]
     parts.far[g] = top - gaps.far[g]
