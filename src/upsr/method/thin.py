@@ -89,7 +89,8 @@ AXES = ((0, 1), (1, 0), (1, 1), (1, -1))
 #: A gap narrower than a pixel is looked for across the first GAP_AXES of :data:`AXES` (rows
 #: and columns): across the diagonals the mirror image also took a room's corner pixels,
 #: mixes of three surfaces (floor, wall, a box), for gaps (realistic ToF room, seeds 0–4:
-#: flying pixels +0.03 … +0.17 points, 0.52 % on seed 0; the deforming body gained as much).
+#: flying pixels up to +0.17 points, 0.52 % on seed 0; the deforming body gained about as
+#: much).
 GAP_AXES = 2
 
 
