@@ -231,7 +231,8 @@ def test_a_gap_narrower_than_a_pixel_is_split_between_the_wall_and_the_legs():
     low = tof_footprint(truth, R)
     near, far = thin_parts(low, 100.0)
     assert (low[8:18, 7] > 2100.0 + 100.0).all()  # farther than both legs
-    # (its last pixels, beside the legs' tips and the body's corner, are found as mixed)
+    # (its first and last pixels, beside the body's corner and the legs' tips, are left to
+    # the mixed-pixel test and the thin-part search)
     gap = near > far
     np.testing.assert_array_equal(np.argwhere(gap), [[i, 7] for i in range(9, 17)])
     np.testing.assert_allclose(near[gap], WALL)
