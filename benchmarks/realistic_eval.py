@@ -8,9 +8,9 @@ per frame (``deforming``) and a room seen by a moving camera (``room``, every pi
 Sensors (:func:`upsr.research.synth.realistic.degrade`): i.i.d. Laplacian noise of std σ
 (``--sigma``, default 0, 10, 30 mm), Gaussian noise (``--gaussian-sigma``, 20 mm), a ToF
 footprint (block mean of the truth: mixed pixels at edges, no return where the block is mostly
-empty; plus Laplacian ``--tof-sigma`` = 10 mm) at the ToF size (56×64, r = 4), and a Kinect v1
-(shadows, Nguyen et al. 2012 noise, 1/8 px disparity, 1 % dropouts) at the Kinect size
-(120×160, r = 2; 240×320 with ``--full-kinect``).
+empty; plus Laplacian ``--tof-sigma`` = 10 mm) at the ToF size (56×64, r = 4; another with
+``--tof-shape``), and a Kinect v1 (shadows, Nguyen et al. 2012 noise, 1/8 px disparity, 1 %
+dropouts) at the Kinect size (120×160, r = 2; 240×320 with ``--full-kinect``).
 
 Methods: ``upsr`` (``upsr.super_resolve(frames, scale=r, n_frames=N)``, defaults),
 ``upsr_recursive`` (the same with ``mode="recursive"``: causal, N caps the state), its input
@@ -273,6 +273,14 @@ def _parse(argv: Sequence[str] | None) -> argparse.Namespace:
     p.add_argument("--frames", "-t", type=int, default=None, help="frames per clip")
     p.add_argument("--n", type=int, default=9, help="UP-SR window length N")
     p.add_argument("--full-kinect", action="store_true", help="Kinect scenes at 240×320")
+    p.add_argument(
+        "--tof-shape",
+        type=int,
+        nargs=2,
+        default=(56, 64),
+        metavar=("H", "W"),
+        help="ToF sensor size (low-res px, r = 4); default 56 64",
+    )
     p.add_argument("--no-oracle", dest="oracle", action="store_false")
     p.add_argument("--seed", type=int, default=0)
     args = p.parse_args(argv)
@@ -287,7 +295,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     args = _parse(argv)
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
-    tof_shape, tof_r = (56, 64), 4
+    tof_shape, tof_r = tuple(args.tof_shape), 4
     kin_shape, kin_r = ((240, 320), 2) if args.full_kinect else ((120, 160), 2)
     config = {
         "argv": " ".join(sys.argv[1:] if argv is None else argv),
