@@ -641,7 +641,11 @@ def footprint_share(frames: npt.ArrayLike, edge_mm: float) -> float:
     -------
     float: the ratio (≥ 0); 0 without any such edge.
     """
-    mixes, expected = footprint_counts(frames, edge_mm)
+    return _share_of(*footprint_counts(frames, edge_mm))
+
+
+def _share_of(mixes: float, expected: float) -> float:
+    """:func:`footprint_share` from :func:`footprint_counts` (summed over frames to pool them)."""
     return mixes / expected if expected > 0 else 0.0
 
 

@@ -104,6 +104,7 @@ from upsr.method.finishing import finish_frame, finish_fused
 from upsr.method.frontend import MotionFrontEnd
 from upsr.method.memory import moving_caps, state_caps
 from upsr.method.mixed import (
+    _share_of,
     footprint_counts,
     has_mixed_pixels,
     remove_mixed_pixels,
@@ -554,7 +555,7 @@ class RecursiveUPSR(TwoStagePipeline):
         if cfg.remove_mixed == "auto" and t < cfg.n_frames:
             # does the sensor mix? The first N frames pooled as they arrive (one: too few edges)
             self._mixes += footprint_counts(f, front.edge_mm)
-            share = self._mixes[0] / max(self._mixes[1], 1e-9)
+            share = _share_of(*self._mixes)
             self._remove_mixed = has_mixed_pixels(share, was=self._remove_mixed)
             if self._remove_mixed:
                 self._share = None  # (no edge votes where mixed pixels are removed)
