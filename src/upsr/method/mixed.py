@@ -159,7 +159,7 @@ def _mixed_kernel(z, edge, marker, out):  # pragma: no cover - numba
             s = strength[i, j]
             if not (v > 0 and s > 0):
                 continue
-            if _on_slope(z, i, j, edge, True) or _ramp_along_the_edge(z, i, j, edge):
+            if _on_slope(z, i, j, edge) or _ramp_along_the_edge(z, i, j, edge):
                 continue
             if _between(z, i, j, edge, strength, s) > 0 or not _starts_slope(
                 z, i, j, edge, strength, s

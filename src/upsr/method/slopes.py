@@ -137,7 +137,7 @@ def _across_on_surface(z, i, j, pi, pj, di, dj, edge):  # pragma: no cover - num
 
 
 @nb.njit(cache=True, nogil=True)
-def _on_slope(z, i, j, edge, even=False):  # pragma: no cover - numba
+def _on_slope(z, i, j, edge):  # pragma: no cover - numba
     """True when, along a row, column or diagonal, the pixel (i, j) continues a slanted surface
     whose steps between neighbours can exceed the edge threshold (a floor seen at a grazing
     angle): its two neighbours step through depth evenly with it, and so do the steps beyond
@@ -149,11 +149,11 @@ def _on_slope(z, i, j, edge, even=False):  # pragma: no cover - numba
     direction the pixel has a neighbour on its own surface (the slope's row). A mixed pixel
     sits between two flat runs, ends a ramp of at most two mixed pixels across a ToF edge,
     or belongs to a line of them along the edge (even along the line, between two surfaces
-    across it). With ``even`` (:func:`upsr.method.mixed.remove_mixed_pixels`), a run of five
-    pixels counts only where the pixel's smaller step is at most :data:`STEEP_RUN_RATIO`
-    times the step beyond it on that side, or that step stays within the edge threshold: a
-    strip one pixel high between a wall and a slope straddles two pixels, and the second
-    (mostly slope, partly strip) steps into the slope further than the slope steps on."""
+    across it). A run of five pixels counts only where the pixel's smaller step is at most
+    :data:`STEEP_RUN_RATIO` times the step beyond it on that side, or that step stays within
+    the edge threshold: a strip one pixel high between a wall and a slope straddles two
+    pixels, and the second (mostly slope, partly strip) steps into the slope further than the
+    slope steps on."""
     h, w = z.shape
     v = z[i, j]
     for di, dj in ((0, 1), (1, 0), (1, 1), (1, -1)):
@@ -175,9 +175,9 @@ def _on_slope(z, i, j, edge, even=False):  # pragma: no cover - numba
         if not (c > 0 and e > 0):
             continue
         if _steps_agree(a - c, v - a) and _steps_agree(b - v, e - b):
-            # (even: on the side of the pixel's smaller step the slope runs on, or tapers)
+            # (on the side of the pixel's smaller step the slope runs on, or tapers)
             small, beyond = (b - v, e - b) if abs(v - a) >= abs(b - v) else (v - a, a - c)
-            if not even or abs(beyond) <= edge or abs(small) <= STEEP_RUN_RATIO * abs(beyond):
+            if abs(beyond) <= edge or abs(small) <= STEEP_RUN_RATIO * abs(beyond):
                 return True
         # or, along a row or column, the slope tapers into a flat surface on one side: the
         # step beyond one neighbour agrees with the pixel's step to it and stays within the
