@@ -128,6 +128,41 @@ def _on_surface(z, i, j, edge, support):  # pragma: no cover - numba
 
 
 @nb.njit(cache=True, nogil=True, inline="always")
+def _tip(z, near, far, i, j, edge, reach, support):  # pragma: no cover - numba
+    """Whether (i, j) ends a line one pixel wide that grows out of a surface (a leg that
+    fills one pixel across): exactly one of its 8-neighbours lies within the edge threshold
+    of it, and so on along the line (each pixel's one other such neighbour) until, within
+    ``reach`` steps, a pixel with more than two such neighbours (a surface, not a line) or
+    one beside a thin pixel whose F lies within the edge threshold of it (the same leg,
+    between two columns there). A cable's line of mixes in front of a wall grows out of
+    neither."""
+    if _on_surface(z, i, j, edge, support) or support[i, j] != 1:
+        return False
+    h, w = z.shape
+    pi, pj = -1, -1
+    for _ in range(reach):
+        ni, nj = -1, -1
+        v = z[i, j]
+        for a in range(max(i - 1, 0), min(i + 2, h)):
+            for b in range(max(j - 1, 0), min(j + 2, w)):
+                if far[a, b] > 0 and near[a, b] < np.inf and abs(near[a, b] - v) <= edge:
+                    return True
+                if (a != i or b != j) and (a != pi or b != pj):
+                    if z[a, b] > 0 and abs(z[a, b] - v) <= edge:
+                        ni, nj = a, b
+        if ni < 0:
+            return False
+        _on_surface(z, ni, nj, edge, support)
+        if support[ni, nj] > 2:
+            return True
+        if support[ni, nj] < 2:
+            return False
+        pi, pj = i, j
+        i, j = ni, nj
+    return False
+
+
+@nb.njit(cache=True, nogil=True, inline="always")
 def _through_the_part(z, far, i, j, edge, support):  # pragma: no cover - numba
     """The depth of the surface the thin pixel (i, j) reaches through one neighbour that is
     mostly the part (as near as it or nearer, within the edge threshold, not thin itself: the part
@@ -162,8 +197,8 @@ def _through_the_part(z, far, i, j, edge, support):  # pragma: no cover - numba
 
 
 @nb.njit(cache=True, nogil=True)
-def _thin_kernel(z, edge, reach, mixed, near, far, axis, n_axes):  # pragma: no cover - numba
-    # (n_axes: across the first n_axes of AXES)
+def _thin_kernel(z, edge, reach, mixed, near, far, axis, n_axes, tips):  # pragma: no cover - numba
+    # (n_axes: across the first n_axes of AXES; tips: the second round of F below)
     h, w = z.shape
     # the deepest 8-neighbour of each pixel (a separable 3×3 maximum): the start of a run
     # has both its ends over edge behind it
@@ -246,8 +281,15 @@ def _thin_kernel(z, edge, reach, mixed, near, far, axis, n_axes):  # pragma: no 
     # walk: each sweep one step, reading the last sweep's depths, so that reach counts
     # steps; a pixel keeps the first depth that reaches it, the farthest of those that
     # reach it in the same step)
-    since = np.full((h, w), reach, np.int64)  # the sweep that set the pixel's depth
-    for sweep in range(reach):
+    since = np.full((h, w), 2 * reach, np.int64)  # the sweep that set the pixel's depth
+    steps = np.zeros((h, w), np.int64)  # and how far it was carried
+    # With ``tips``, a second round for the pixels still without F: also from the tip of a
+    # line one pixel wide (thin itself or not, unless mixed), the end of a leg that fills
+    # its pixels across before it runs on between two columns (rows) of pixels; within the
+    # same reach
+    sweep = 0
+    late = False
+    while sweep < (2 * reach if late else reach):
         changed = False
         for k in range(n):
             i = rows[k]
@@ -256,24 +298,39 @@ def _thin_kernel(z, edge, reach, mixed, near, far, axis, n_axes):  # pragma: no 
                 continue
             v = z[i, j]
             f = -np.inf
+            fs = 0
             for a in range(max(i - 1, 0), min(i + 2, h)):
                 for b in range(max(j - 1, 0), min(j + 2, w)):
-                    if far[a, b] > 0:  # another pixel of a thin part, set before
-                        c = near[a, b] if since[a, b] < sweep else np.inf
-                    elif z[a, b] > 0 and _on_surface(z, a, b, edge, support):
+                    s = 0
+                    if far[a, b] > 0 and near[a, b] < np.inf:  # another part's pixel, set
+                        s = steps[a, b] + 1
+                        c = near[a, b] if since[a, b] < sweep and s < reach else np.inf
+                    elif not z[a, b] > 0:
+                        continue
+                    elif far[a, b] == 0 and _on_surface(z, a, b, edge, support):
+                        c = z[a, b]
+                    elif late and not mixed[a, b]:
+                        if not _tip(z, near, far, a, b, edge, reach, support):
+                            continue
                         c = z[a, b]
                     else:
                         continue
                     if c < v - edge and c > f:
                         f = c
+                        fs = s
             if f == -np.inf:
                 f = _through_the_part(z, far, i, j, edge, support)
             if f > -np.inf:
                 near[i, j] = f
                 since[i, j] = sweep
+                steps[i, j] = fs
                 changed = True
-        if not changed:
-            break
+        sweep += 1
+        if not changed or sweep == reach:
+            if late or not tips:
+                break
+            late = True
+            sweep = reach
     for k in range(n):
         i = rows[k]
         j = cols[k]
@@ -327,16 +384,16 @@ def _thin_parts(z, edge_mm, reach_px=REACH_PX, mixed=None):
     if mixed.shape != z.shape:
         raise ValueError(f"mixed {mixed.shape} differs from the frame's shape {z.shape}")
 
-    def found(depth: np.ndarray, n_axes: int) -> ThinParts:
+    def found(depth: np.ndarray, n_axes: int, tips: bool) -> ThinParts:
         out = ThinParts(np.empty_like(z), np.empty_like(z), np.zeros(z.shape, np.int64))
-        _thin_kernel(depth, edge_mm, reach_px, mixed, *out, n_axes)
+        _thin_kernel(depth, edge_mm, reach_px, mixed, *out, n_axes, tips)
         return out
 
-    parts = found(z, len(AXES))
+    parts = found(z, len(AXES), True)
     # the gaps narrower than a pixel (between two legs): the thin parts of the mirror image
     # (depth top − z: behind becomes in front), along rows and columns
     top = np.float32(2.0 * float(z.max(initial=0.0)) + 2.0 * edge_mm + 1.0)
-    gaps = found(np.where(z > 0, top - z, np.float32(0.0)).astype(np.float32), GAP_AXES)
+    gaps = found(np.where(z > 0, top - z, np.float32(0.0)).astype(np.float32), GAP_AXES, False)
     g = (gaps.near > 0) & ~(parts.near > 0)
     parts.near[g] = top - gaps.near[g]
     parts.far[g] = top - gaps.far[g]
