@@ -8,9 +8,10 @@ per frame (``deforming``) and a room seen by a moving camera (``room``, every pi
 Sensors (:func:`upsr.research.synth.realistic.degrade`): i.i.d. Laplacian noise of std σ
 (``--sigma``, default 0, 10, 30 mm), Gaussian noise (``--gaussian-sigma``, 20 mm), a ToF
 footprint (block mean of the truth: mixed pixels at edges, no return where the block is mostly
-empty; plus Laplacian ``--tof-sigma`` = 10 mm) at the ToF size (56×64, r = 4; another with
-``--tof-shape``), and a Kinect v1 (shadows, Nguyen et al. 2012 noise, 1/8 px disparity, 1 %
-dropouts) at the Kinect size (120×160, r = 2; 240×320 with ``--full-kinect``).
+empty; plus Laplacian ``--tof-sigma`` = 10 mm and ``--tof-dropout`` = 0 of the pixels lost) at
+the ToF size (56×64, r = 4; another with ``--tof-shape``), and a Kinect v1 (shadows, Nguyen et
+al. 2012 noise, 1/8 px disparity, 1 % dropouts) at the Kinect size (120×160, r = 2; 240×320
+with ``--full-kinect``).
 
 Methods: ``upsr`` (``upsr.super_resolve(frames, scale=r, n_frames=N)``, defaults),
 ``upsr_recursive`` (the same with ``mode="recursive"``: causal, N caps the state), its input
@@ -140,7 +141,8 @@ def _sensors(args: argparse.Namespace) -> list[tuple[str, str, float]]:
     """(label, sensor, σ) of every sensor model."""
     out = [(f"laplace{s:g}", "laplace", s) for s in args.sigma]
     out.append((f"gauss{args.gaussian_sigma:g}", "gaussian", args.gaussian_sigma))
-    out.append((f"tof{args.tof_sigma:g}", "tof", args.tof_sigma))
+    drop = f"drop{100 * args.tof_dropout:g}" if args.tof_dropout else ""
+    out.append((f"tof{args.tof_sigma:g}{drop}", "tof", args.tof_sigma))
     out.append(("kinect", "kinect", 0.0))
     return out
 
@@ -149,7 +151,8 @@ def _run_case(
     video: RealisticVideo, label: str, sensor: str, sigma: float, args: argparse.Namespace
 ) -> list[dict[str, Any]]:
     rng = np.random.default_rng([args.seed, zlib.crc32(f"{video.name}/{label}".encode())])
-    low = degrade(video, sensor, rng, sigma_mm=sigma)
+    drop = args.tof_dropout if sensor == "tof" else 0.0
+    low = degrade(video, sensor, rng, sigma_mm=sigma, dropout_fraction=drop)
     n = min(args.n, video.n_frames)
     oracle = (not args.quick and args.oracle) or (args.quick and label == "laplace10")
     rows = []
@@ -270,6 +273,13 @@ def _parse(argv: Sequence[str] | None) -> argparse.Namespace:
     p.add_argument("--sigma", type=float, nargs="+", default=[0.0, 10.0, 30.0], help="Laplace σ")
     p.add_argument("--gaussian-sigma", type=float, default=20.0)
     p.add_argument("--tof-sigma", type=float, default=10.0)
+    p.add_argument(
+        "--tof-dropout",
+        type=float,
+        default=0.0,
+        help="share of the ToF pixels that return nothing (e.g. 0.01; issue #13's case: "
+        "--tof-sigma 20 --tof-dropout 0.01)",
+    )
     p.add_argument("--frames", "-t", type=int, default=None, help="frames per clip")
     p.add_argument("--n", type=int, default=9, help="UP-SR window length N")
     p.add_argument("--full-kinect", action="store_true", help="Kinect scenes at 240×320")

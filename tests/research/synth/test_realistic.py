@@ -101,6 +101,18 @@ def test_degrade_every_sensor(sensor):
         assert 0.005 < (low == 0).mean() < 0.2
 
 
+@pytest.mark.parametrize("sensor", ["laplace", "gaussian", "tof"])
+def test_degrade_drops_the_share_of_pixels_asked_for(sensor):
+    v = make_realistic("room", SMALL, scale=2, n_frames=4)
+    kept = degrade(v, sensor, np.random.default_rng(0), sigma_mm=10.0)
+    low = degrade(v, sensor, np.random.default_rng(0), sigma_mm=10.0, dropout_fraction=0.05)
+    lost = (kept > 0) & (low == 0)
+    assert 0.03 < lost.mean() < 0.07
+    np.testing.assert_array_equal(low[~lost], kept[~lost])  # the same noise, then the losses
+    with pytest.raises(InputError):
+        degrade(v, sensor, np.random.default_rng(0), dropout_fraction=1.5)
+
+
 def test_unknown_scene_and_sensor():
     with pytest.raises(InputError):
         make_realistic("castle", SMALL)

@@ -631,6 +631,7 @@ def degrade(
     rng: np.random.Generator,
     *,
     sigma_mm: float = 10.0,
+    dropout_fraction: float = 0.0,
 ) -> np.ndarray:
     """Low-res input frames of ``video`` as a sensor would deliver them.
 
@@ -647,6 +648,11 @@ def degrade(
     rng : numpy.random.Generator
     sigma_mm : float
         Noise std (mm) of the ``laplace``, ``gaussian`` and ``tof`` sensors.
+    dropout_fraction : float
+        Share of the pixels of the ``laplace``, ``gaussian`` and ``tof`` sensors that return
+        nothing (0), drawn independently after the noise
+        (:func:`~upsr.research.synth.degradation.dropout`; the ``kinect`` sensor has its own
+        1 %).
 
     Returns
     -------
@@ -654,13 +660,14 @@ def degrade(
     """
     if sensor == "clean":
         return video.lowres.copy()
-    if sensor == "laplace":
-        return _deg.add_laplacian_noise(video.lowres, sigma_mm, rng)
-    if sensor == "gaussian":
-        return _deg.add_depth_dependent_noise(video.lowres, float(sigma_mm), rng, law="gaussian")
-    if sensor == "tof":
-        low = _deg.tof_footprint(video.truth, video.scale)
-        return _deg.add_laplacian_noise(low, sigma_mm, rng)
     if sensor == "kinect":
         return _deg.kinect(video.lowres, rng, image_focal_px=video.camera.fx)
-    raise InputError(f"unknown sensor {sensor!r}; choose from {SENSORS}")
+    if sensor == "laplace":
+        low = _deg.add_laplacian_noise(video.lowres, sigma_mm, rng)
+    elif sensor == "gaussian":
+        low = _deg.add_depth_dependent_noise(video.lowres, float(sigma_mm), rng, law="gaussian")
+    elif sensor == "tof":
+        low = _deg.add_laplacian_noise(_deg.tof_footprint(video.truth, video.scale), sigma_mm, rng)
+    else:
+        raise InputError(f"unknown sensor {sensor!r}; choose from {SENSORS}")
+    return _deg.dropout(low, dropout_fraction, rng)
