@@ -375,6 +375,45 @@ def memory_benchmark(lowres: np.ndarray, n_frames: int, work: Path) -> dict[str,
     }
 
 
+#: The outputs (r, low-res shape) on which the compiled steps meet their straightforward path.
+KERNEL_SHAPES = ((4, (56, 64)), (2, (240, 320)), (2, (480, 640)))
+
+
+def kernel_benchmark(repeats: int = 15) -> list[dict[str, Any]]:
+    """The speckle removal (:func:`upsr.method.outliers.remove_speckles`) beside OpenCV's
+    speckle filter (:func:`upsr.research._oracle_speckles.remove_speckles_opencv`, the same
+    result) on a fused frame of the dense room (σ = 10 mm), alternating, median of
+    ``repeats``."""
+    from upsr.method.outliers import remove_speckles
+    from upsr.research._oracle_speckles import remove_speckles_opencv
+    from upsr.research.synth.realistic import degrade, make_realistic
+
+    rows = []
+    for r, shape in KERNEL_SHAPES:
+        video = make_realistic("room", shape, scale=r, n_frames=3)
+        low = degrade(video, "laplace", np.random.default_rng(0), sigma_mm=10.0)
+        fused = upsr.super_resolve(low, r, 3, speckle_px=0)[1]
+        paths = {"compiled": remove_speckles, "opencv": remove_speckles_opencv}
+        outs = {k: f(fused, r * r, 100.0) for k, f in paths.items()}
+        times: dict[str, list[float]] = {k: [] for k in paths}
+        for _ in range(repeats):
+            for k, f in paths.items():
+                start = time.perf_counter()
+                f(fused, r * r, 100.0)
+                times[k].append(time.perf_counter() - start)
+        ms = {k: 1e3 * float(np.median(v)) for k, v in times.items()}
+        rows.append(
+            {
+                "step": "speckle removal",
+                "shape": list(fused.shape),
+                "ms": ms,
+                "speedup": ms["opencv"] / ms["compiled"],
+                "same_output": bool(np.array_equal(outs["compiled"], outs["opencv"])),
+            }
+        )
+    return rows
+
+
 # --------------------------------------------------------------------------------------------
 def _print_results(res: dict[str, Any]) -> None:
     print("\nToF 64×56 → 256×224, r = 4, N = 9, streaming (after warm-up)")
@@ -425,6 +464,15 @@ def _print_results(res: dict[str, Any]) -> None:
         )
     if "dense" in res:
         _print_dense(res["dense"])
+    if "kernels" in res:
+        print("\ncompiled steps beside their straightforward path (ms, median, alternating)")
+        for row in res["kernels"]:
+            h, w = row["shape"]
+            print(
+                f"  {row['step']} {w}×{h}: {row['ms']['compiled']:.2f} against "
+                f"{row['ms']['opencv']:.2f} (OpenCV), ×{row['speedup']:.1f}, "
+                f"same output: {row['same_output']}"
+            )
     if "memory" in res:
         m = res["memory"]
         print(
@@ -454,6 +502,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     if not args.skip_dense:
         print("dense scenes ...", flush=True)
         res["dense"] = dense_benchmark(args.quick, not args.skip_straightforward)
+    res["kernels"] = kernel_benchmark()
     samba_ok = (Path(args.data) / "samba" / "mesh_0000.obj").is_file()
     if not samba_ok:
         print(f"Samba meshes not found under {args.data}: Samba, speed-up and memory skipped")

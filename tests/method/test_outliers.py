@@ -6,6 +6,7 @@ import pytest
 import upsr
 from upsr.errors import InputError
 from upsr.method.outliers import remove_speckles
+from upsr.research._oracle_speckles import remove_speckles_opencv
 
 
 def _scene() -> np.ndarray:
@@ -40,6 +41,21 @@ def test_regions_larger_than_the_size_or_joined_by_small_steps_stay():
     z2[4, 4] += 90.0  # within 100 mm of its neighbours: part of the wall
     assert np.array_equal(remove_speckles(z2, 4, 100.0), z2)
     assert np.array_equal(remove_speckles(z2, 0, 100.0), z2)  # 0: keep everything
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_the_same_regions_as_opencvs_speckle_filter(seed):
+    # random depth maps: surfaces, holes, islands of every size, near the int16 range too
+    rng = np.random.default_rng(seed)
+    for _ in range(250):
+        h, w = rng.integers(1, 40, 2)
+        levels = rng.choice([1000.0, 1060.0, 1200.0, 3000.0, 40000.0], size=3)
+        z = rng.choice(levels, size=(h, w)) + rng.normal(0.0, 25.0, (h, w))
+        z[rng.random((h, w)) < rng.uniform(0.0, 0.4)] = 0.0
+        size, diff = int(rng.integers(0, 20)), float(rng.choice([30.0, 100.0, 400.0]))
+        np.testing.assert_array_equal(
+            remove_speckles(z, size, diff), remove_speckles_opencv(z, size, diff)
+        )
 
 
 def test_unknown_pixels_and_far_depths():

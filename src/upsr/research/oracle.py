@@ -6,6 +6,8 @@ These are "the straightforward path": vectorised NumPy versions of
 * :func:`upsr.method.deblurring.btv_subgradient` (:func:`btv_subgradient_numpy`),
 * :func:`upsr.method.noise.estimate_noise_mm` (:func:`estimate_noise_mm_numpy`),
 * :func:`upsr.method.deblurring.deblur` with B = I (:func:`deblur_numpy`),
+* :func:`upsr.method.outliers.remove_speckles` (OpenCV's speckle filter:
+  :func:`upsr.research._oracle_speckles.remove_speckles_opencv`),
 * :func:`upsr.super_resolve` with nothing shared between windows, flows at the full r and
   the kernels above (:func:`super_resolve_straightforward`),
 
@@ -24,9 +26,9 @@ import numpy.typing as npt
 
 from upsr.method.config import DeblurConfig, UPSRConfig
 from upsr.method.noise import noise_at_depth
-from upsr.method.outliers import remove_speckles
 from upsr.method.smoothing import smooth_surfaces
 from upsr.research._oracle_edges import edge_votes_numpy
+from upsr.research._oracle_speckles import remove_speckles_opencv
 
 __all__ = [
     "btv_subgradient_numpy",
@@ -685,7 +687,7 @@ def super_resolve_straightforward(frames: npt.ArrayLike, config: UPSRConfig) -> 
             fused, lowres[ref], measured[ref], anchor, caps, cfg, edge_mm=edge_mm,
             keep_mean=stats.remove_mixed,
         )  # fmt: skip
-        res = remove_speckles(
+        res = remove_speckles_opencv(
             deblur_numpy(fused, cfg.deblur, scale=r, noise_profile=stats.trust_noise_profile),
             cfg.speckle_size_px,
             cfg.edge_mm,
