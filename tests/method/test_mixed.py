@@ -449,6 +449,24 @@ def test_a_mix_between_an_edge_and_a_slope_is_not_a_pixel_of_the_slope():
     assert (out[6] == 0).all()
 
 
+def test_a_mix_beside_a_steep_floor_does_not_start_its_run():
+    """The realistic ToF room (σ = 20 mm, 1 % dropouts, seed 1, frame 7, column 9 from row
+    47): a floor seen at a grazing angle steps 170–180 mm per pixel, then a pixel mostly
+    floor, partly the nearer surface below it, 334 mm, 1.83 times the floor's next step: a
+    mix, not the first pixel of the floor's steep run (`slopes.STEEP_FIRST_RATIO`); the
+    floor's own pixels, each stepping evenly into the next, stay."""
+    col = np.array([3982, 3779, 3610, 3427, 3093, 2310, 2211, 2134, 2048], np.float32)
+    z = np.repeat(col[:, None], 6, axis=1)
+    out = remove_mixed_pixels(z, 100.0)
+    assert (out[4] == 0).all()
+    np.testing.assert_array_equal(out[:4], z[:4])
+    np.testing.assert_array_equal(out[5:], z[5:])
+    # the floor's last pixel stepping on at its own pace (1.3 times) to a nearer surface
+    col = np.array([3982, 3779, 3610, 3427, 3189, 2589, 2580, 2571, 2562], np.float32)
+    z = np.repeat(col[:, None], 6, axis=1)
+    np.testing.assert_array_equal(remove_mixed_pixels(z, 100.0), z)
+
+
 def test_the_decision_from_the_frames_so_far_turns_off_only_clearly():
     from upsr.method.mixed import MIXED_SHARE, MIXED_SHARE_HYSTERESIS, has_mixed_pixels
 
