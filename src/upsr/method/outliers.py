@@ -55,18 +55,12 @@ def _speckle_kernel(depth, unit, max_size, max_diff):  # pragma: no cover - numb
             if v0 == 0 or state[i0, j0] != 0:
                 continue
             # (the common case, a pixel of a large surface: joined to its left or upper
-            # neighbour, already known to be large; a neighbour done and joined to the pixel
-            # is never a speckle, which would have taken the pixel in)
+            # neighbour, already known to be large; a neighbour done, which has depth, and
+            # joined to the pixel is never a speckle, which would have taken the pixel in)
             if (
-                j0 > 0
-                and state[i0, j0 - 1] == 1
-                and q[i0, j0 - 1] != 0
-                and abs(np.int32(q[i0, j0 - 1]) - v0) <= max_diff
+                j0 > 0 and state[i0, j0 - 1] == 1 and abs(np.int32(q[i0, j0 - 1]) - v0) <= max_diff
             ) or (
-                i0 > 0
-                and state[i0 - 1, j0] == 1
-                and q[i0 - 1, j0] != 0
-                and abs(np.int32(q[i0 - 1, j0]) - v0) <= max_diff
+                i0 > 0 and state[i0 - 1, j0] == 1 and abs(np.int32(q[i0 - 1, j0]) - v0) <= max_diff
             ):
                 state[i0, j0] = 1
                 continue
