@@ -278,6 +278,29 @@ def test_the_anchor_ignores_a_lone_outlier_and_keeps_a_thin_line():
     np.testing.assert_array_equal(anchor[:, 4], 1500.0)
 
 
+def test_an_outlier_with_one_noisy_neighbour_on_its_side_gets_no_anchor():
+    """Samba, r = 2, Laplacian σ = 50 mm (edge threshold 141 mm): a +5σ outlier (3111 mm on a
+    surface at about 2850) had one neighbour within the edge threshold, itself a +2.7σ sample
+    (2987) whose own anchor is the surface's; the pair's median (3049) became the outlier's
+    anchor, rejected every other frame's sample and was the output over its whole block.
+    Now an anchor that no neighbour's anchor shares is none (the other frames decide), while
+    a real part of two pixels and the tip of a line one pixel wide keep theirs."""
+    z = np.array(
+        [[2816, 2864, 2865, 2871], [2802, 3111, 2987, 2850], [2818, 2845, 2841, 2833]],
+        np.float32,
+    )
+    anchor, tol = reference_anchor(z, 50.0, 3.0, 141.0, own_surface="except_rims")
+    assert anchor[1, 1] == 0.0 and tol[1, 1] == 0.0
+    assert abs(anchor[1, 2] - 2850.0) < 30.0
+    part = np.full((7, 7), 3000.0, np.float32)
+    part[3, 3:5] = 1500.0  # a part two pixels wide
+    part[0:3, 1] = 1200.0  # a line one pixel wide, its tip at row 2
+    for mode in ("never", "always", "except_rims"):
+        anchor, _ = reference_anchor(part, 10.0, 3.0, 100.0, own_surface=mode)
+        np.testing.assert_array_equal(anchor[3, 3:5], 1500.0)
+        np.testing.assert_array_equal(anchor[0:3, 1], 1200.0)
+
+
 def test_the_anchor_stays_on_the_pixels_own_surface_where_a_wall_meets_a_slope():
     """A ToF frame of the approaching camera (Gaussian noise σ ≈ 21 mm): a box side sloping
     away from the wall begins inside the centre pixel's block. The two-step median over the
@@ -440,6 +463,64 @@ def test_alternatives_are_on_the_side_of_their_neighbour_only():
     np.testing.assert_array_equal(grid_far[:, 12:16] == WALL, np.tile([0, 0, 1, 1], (28, 1)) == 1)
     np.testing.assert_array_equal(
         grid_near[:, 16:20] == 1000.0, np.tile([1, 1, 0, 0], (28, 1)) == 1
+    )
+
+
+def test_two_noise_outliers_side_by_side_are_outvoted_a_near_speck_is_not():
+    """Samba, r = 2, Laplacian σ = 50: two reference pixels side by side 3.5σ nearer than the
+    surface around (each other's surface, beyond the edge threshold of the rest) rejected the
+    other frames' samples of the surface and gave their own depth to their blocks. A speck (at
+    most 2 px along x, y and both diagonals) next to a surface within the noise of both
+    (|Δanchor| ≤ the sum of their tolerances) now lets that surface's samples compete; a
+    speck far in front of the wall (a small part the flow did not follow) keeps its own."""
+    rng = np.random.default_rng(3)
+    sigma, edge = 50.0, 141.0
+    frames = (WALL + rng.laplace(0, sigma / np.sqrt(2), (9, 9, 9))).astype(np.float32)
+    frames[:, 4, 4] = frames[:, 3, 5] = WALL  # (the speck's own samples, then its depth)
+    speck = frames.copy()
+    speck[4, 4, 4] = speck[4, 3, 5] = WALL - 175.0  # the reference's two outliers
+    out = _fuse_trusted(speck, 4, sigma=sigma, edge=edge)
+    block = out[4 * R : 5 * R, 4 * R : 5 * R]
+    assert np.all(np.abs(block - WALL) < 2 * sigma)
+    far = frames.copy()
+    far[4, 4, 4] = far[4, 3, 5] = BAR  # a real speck: 1500 mm in front of the wall
+    out = _fuse_trusted(far, 4, sigma=sigma, edge=edge)
+    np.testing.assert_array_equal(out[4 * R : 5 * R, 4 * R : 5 * R], BAR)
+
+
+def test_a_thin_outlier_within_the_noise_of_the_surface_on_one_side_is_outvoted():
+    """Samba, r = 4, Laplacian σ = 30 (edge threshold 102 mm): the same pair of outliers
+    (2997 / 3000 mm on a surface at about 2870), but the anchor of the pixel beside one of
+    them (2897, 101 mm from the pair's 2998) continues their surface along the diagonal, so
+    it passed for a thin line and kept its block against every other frame. A thin part
+    whose every neighbour off its surface lies on one side of it (a ridge, a speck) lets a
+    surface within the noise of both compete; one between a nearer and a farther surface (a
+    floor at a grazing angle, steeper per pixel than the edge threshold) does not."""
+    rng = np.random.default_rng(4)
+    sigma, edge = 30.0, 102.0
+    ref = np.array(
+        [
+            [2824, 2885, 2897, 2875, 2915, 2885, 2963],
+            [2850, 2841, 2828, 2868, 2905, 2908, 2905],
+            [2842, 2886, 2850, 2858, 3000, 2868, 2937],
+            [2887, 2840, 2890, 2997, 2889, 2897, 2906],
+            [2848, 2845, 2849, 2853, 2873, 2899, 2937],
+            [2839, 2846, 2857, 2870, 2884, 2916, 2906],
+            [2847, 2882, 2891, 2833, 2921, 2906, 2960],
+        ],
+        np.float32,
+    )
+    frames = (2870.0 + rng.laplace(0, sigma / np.sqrt(2), (9, 7, 7))).astype(np.float32)
+    frames[4] = ref
+    out = _fuse_trusted(frames, 4, sigma=sigma, edge=edge)
+    assert np.all(np.abs(out[3 * R : 4 * R, 3 * R : 4 * R] - 2870.0) < 2 * sigma)
+    from upsr.method.trust import surface_alternatives
+
+    floor = np.repeat(np.arange(2000.0, 2000.0 + 7 * 130.0, 130.0)[:, None], 7, 1)
+    anchor, tol = reference_anchor(floor.astype(np.float32), sigma, 3.0, edge)
+    assert anchor[3, 3] > 0 and tol[3, 3] + tol[2, 3] > 130.0  # within the noise of both
+    assert all(
+        (alt[:, :, 1:-1, 1:-1] == 0).all() for alt in surface_alternatives(anchor, tol, edge)
     )
 
 

@@ -131,6 +131,18 @@ def _within(z, i, j, centre, limit, buf):  # pragma: no cover - numba
     return m
 
 
+@nb.njit(cache=True, nogil=True, inline="always")
+def _shared(anchor, i, j, a0, edge):  # pragma: no cover - numba
+    """Whether an 8-neighbour of (i, j) has an anchor within ``edge`` of ``a0``."""
+    h, w = anchor.shape
+    for a in range(max(i - 1, 0), min(i + 2, h)):
+        for b in range(max(j - 1, 0), min(j + 2, w)):
+            u = anchor[a, b]
+            if (a != i or b != j) and u > 0 and abs(u - a0) <= edge:
+                return True
+    return False
+
+
 @nb.njit(cache=True, nogil=True, parallel=True)
 def _anchor_kernel(
     z, edge, sigma, power, k, floor, own_surface, anchor, tol
@@ -160,6 +172,18 @@ def _anchor_kernel(
                 c = _median_inplace(buf, m)
             if m > 1:
                 anchor[i, j] = _own_surface(z, i, j, c, sigma, power, edge, buf, own_surface)
+    # an anchor that no 8-neighbour's anchor shares is a noise outlier after all: one noisy
+    # neighbour within the edge threshold of it, itself on the surface around (its anchor
+    # far from this one), made the two a surface of their own
+    shared = np.empty((h, w), np.bool_)
+    for i in nb.prange(h):
+        for j in range(w):
+            a0 = anchor[i, j]
+            shared[i, j] = not a0 > 0 or _shared(anchor, i, j, a0, edge)
+    for i in nb.prange(h):
+        for j in range(w):
+            if not shared[i, j]:
+                anchor[i, j] = 0.0
     for i in nb.prange(h):
         for j in range(w):
             a0 = anchor[i, j]
@@ -222,9 +246,13 @@ def reference_anchor(
     anchor : ndarray float32 (h, w)
         Median of the pixel's 3×3 neighbours (itself included) within ``edge_mm`` of the
         median of those within ``edge_mm`` of it (two steps: an outlier at the pixel does not
-        choose its neighbours); 0 where the reference has no depth, and where no 8-neighbour
+        choose its neighbours); 0 where the reference has no depth, where no 8-neighbour
         lies on its surface (a lone outlier, which the other frames then outvote; a thin
-        part one pixel wide still has neighbours along it). With ``own_surface`` (not
+        part one pixel wide still has neighbours along it), and where no 8-neighbour's
+        anchor lies within ``edge_mm`` of the pixel's (an outlier whose one neighbour within
+        the edge threshold is a noisy pixel of the surface around: Samba, r = 2, Laplacian
+        σ = 50 mm, a +5σ sample and a +2.7σ neighbour whose median rejected every other
+        frame's samples of that block). With ``own_surface`` (not
         ``"never"``), where that median lies more than :data:`OWN_SURFACE_SIGMAS`·σ from the
         pixel's own measurement and a neighbour within that of the measurement lies beyond it
         of the median (the pixel on a surface of its own: a slope beginning inside its block

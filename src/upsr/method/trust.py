@@ -109,6 +109,22 @@ def _run(anchor, i, j, di, dj, a0, edge, reach):  # pragma: no cover - numba
     return reach
 
 
+@nb.njit(cache=True, nogil=True, inline="always")
+def _two_sided(anchor, i, j, a0, edge):  # pragma: no cover - numba
+    """Whether (i, j) has 8-neighbours off its surface (beyond ``edge`` of ``a0``) both
+    nearer and farther than it."""
+    h, w = anchor.shape
+    near = False
+    far = False
+    for a in range(max(i - 1, 0), min(i + 2, h)):
+        for b in range(max(j - 1, 0), min(j + 2, w)):
+            u = anchor[a, b]
+            if u > 0 and abs(u - a0) > edge:
+                near |= u < a0
+                far |= u > a0
+    return near and far
+
+
 @nb.njit(cache=True, nogil=True)
 def _alternatives_kernel(anchor, tol, edge, lo, tlo, hi, thi):  # pragma: no cover - numba
     h, w = anchor.shape
@@ -122,13 +138,16 @@ def _alternatives_kernel(anchor, tol, edge, lo, tlo, hi, thi):  # pragma: no cov
             if not a0 > 0:
                 continue
             # a thin part (its surface at most 2 px wide across x, y or a diagonal: a neck
-            # seen at 45°) keeps its own samples
+            # seen at 45°) keeps its own samples against a surface beyond the tolerances of
+            # both; within them, and every neighbour off its surface on one side of it (a
+            # ridge, a speck: noise outliers side by side, not a floor at a grazing angle),
+            # the samples of that surface compete
             thin = False
             for di, dj in ((0, 1), (1, 0), (1, 1), (1, -1)):
                 wd = _run(anchor, i, j, -di, -dj, a0, edge, 2)
                 wd += 1 + _run(anchor, i, j, di, dj, a0, edge, 2)
                 thin = thin or wd < 3
-            if thin:
+            if thin and _two_sided(anchor, i, j, a0, edge):
                 continue
             # per side (sy, sx) of the pixel's centre: the neighbours on that side only
             for qy in range(3):
@@ -141,6 +160,8 @@ def _alternatives_kernel(anchor, tol, edge, lo, tlo, hi, thi):  # pragma: no cov
                                 continue
                             u = anchor[a, b]
                             if not (u > 0 and abs(u - a0) > edge):
+                                continue
+                            if thin and abs(u - a0) > tol[i, j] + tol[a, b]:
                                 continue
                             if u < best_lo:
                                 best_lo = u
@@ -165,7 +186,13 @@ def surface_alternatives(
     a sub-pixel position. Never on the far side of the centre (a surface that only reaches
     one side of the pixel cannot cover the other), and not for thin parts: a pixel whose
     surface is at most 2 low-res px wide across x, y or a diagonal keeps only its own
-    samples (a thin fast leg the flow did not follow is not voted away by the wall behind it).
+    samples (a thin fast leg the flow did not follow is not voted away by the wall behind it),
+    except against a neighbour whose anchor lies within the two tolerances added up, when
+    every neighbour off the part's surface lies on one side of it (a ridge or a speck, not a
+    floor at a grazing angle, steeper per pixel than the edge threshold): noise outliers side
+    by side (Samba, Laplacian σ = 50 mm: two pixels 3.5σ nearer than the surface, each the
+    other's surface) kept their blocks against every other frame; now that surface's
+    samples compete. A small part far in front of the wall still keeps its own.
 
     Parameters
     ----------
