@@ -28,7 +28,7 @@ import numpy.typing as npt
 
 from upsr.errors import InputError
 
-__all__ = ["remove_speckles"]
+__all__ = ["INT16_MAX", "remove_speckles", "speckle_units"]
 
 #: The largest depth in whole units of the removal (int16, as OpenCV's speckle filter).
 INT16_MAX = 32767
@@ -133,7 +133,14 @@ def remove_speckles(
     depth[~valid] = 0.0
     if max_size_px == 0 or not valid.any():
         return depth
-    # (as cv2.filterSpeckles, on int16): whole units of `unit` mm (1 mm up to 32.7 m)
-    unit = max(1.0, math.ceil(float(depth.max()) / INT16_MAX))
-    _speckle_kernel(depth, np.float32(unit), int(max_size_px), max(int(max_diff_mm / unit), 1))
+    unit, max_diff = speckle_units(depth, max_diff_mm)
+    _speckle_kernel(depth, np.float32(unit), int(max_size_px), max_diff)
     return depth
+
+
+def speckle_units(depth_mm: np.ndarray, max_diff_mm: float) -> tuple[float, int]:
+    """The unit (mm) of the int16 depths the speckle removal compares, as OpenCV's speckle
+    filter does (whole mm up to 32.7 m, coarser beyond), and ``max_diff_mm`` in that unit
+    (at least 1)."""
+    unit = max(1.0, math.ceil(float(depth_mm.max()) / INT16_MAX))
+    return unit, max(int(max_diff_mm / unit), 1)

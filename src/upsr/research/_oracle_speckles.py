@@ -5,13 +5,11 @@ straightforward path of :mod:`upsr.research.oracle`, the same result (the tests 
 
 from __future__ import annotations
 
-import math
-
 import cv2
 import numpy as np
 import numpy.typing as npt
 
-from upsr.method.outliers import INT16_MAX
+from upsr.method.outliers import speckle_units
 
 __all__ = ["remove_speckles_opencv"]
 
@@ -26,10 +24,10 @@ def remove_speckles_opencv(
     depth[~valid] = 0.0
     if max_size_px == 0 or not valid.any():
         return depth
-    unit = max(1.0, math.ceil(float(depth.max()) / INT16_MAX))
+    unit, max_diff = speckle_units(depth, max_diff_mm)
     q = np.rint(depth / np.float32(unit))
     np.maximum(q, 1.0, out=q, where=valid)
     q = q.astype(np.int16)
-    cv2.filterSpeckles(q, 0, int(max_size_px), max(int(max_diff_mm / unit), 1))
+    cv2.filterSpeckles(q, 0, int(max_size_px), max_diff)
     depth[q == 0] = 0.0
     return depth
