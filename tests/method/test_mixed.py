@@ -90,6 +90,29 @@ def test_footprint_share_counts_against_what_a_footprint_would_mix():
     assert footprint_share(point, 100.0) == 0.0
 
 
+def test_one_straight_edge_weighs_as_the_root_of_its_length():
+    """A long straight edge decides the share no more than √(its length) pixels would: a
+    point sampler's box side seen edge-on (one pixel between the surfaces all along, a
+    pixel-by-pixel share of 0.63; 0.32 with the runs) is not a mixing sensor; a ToF sensor
+    whose long edges happen to lie on its pixels' boundaries (no mix along them, a
+    pixel-by-pixel share of 0.49; 0.79 with the runs) still is, from the short edges at other
+    places that mix."""
+    from upsr.method.mixed import footprint_share, has_mixed_pixels
+    from upsr.research.synth.degradation import tof_footprint
+
+    point = np.full((1, 32, 40), WALL, np.float32)
+    point[:, :, :10] = 1000.0
+    point[:, :, 10] = 2000.0  # the side, edge-on
+    point[:, 20:23, 25:28] = 1000.0  # a small box: eight short edges, none with a mix
+    assert not has_mixed_pixels(footprint_share(point, 100.0))
+    r = 4
+    hr = np.full((1, 32 * r, 40 * r), WALL, np.float32)
+    hr[:, :, : 10 * r] = 1000.0  # on a boundary
+    for k, (i, j) in enumerate(((4, 20), (14, 30), (24, 20))):
+        hr[:, i * r + 1 + k : (i + 3) * r + 1 + k, j * r + 2 : (j + 3) * r + 2] = 1000.0
+    assert has_mixed_pixels(footprint_share(tof_footprint(hr, r), 100.0))
+
+
 def test_remove_mixed_auto_follows_the_sensor():
     from upsr.method.frontend import MotionFrontEnd
     from upsr.method.windowed import fix_video_statistics

@@ -379,16 +379,16 @@ def test_auto_mixed_removal_pools_the_first_frames():
 
 
 def test_auto_mixed_removal_turns_off_only_clearly_below_the_threshold():
-    """Pooled over the frames so far, the share hovers near the threshold (the ToF room of
-    seed 3: 0.58 / 0.54 / 0.62): once on, the removal stays on down to MIXED_SHARE minus
-    MIXED_SHARE_HYSTERESIS, and turns off below it."""
+    """Pooled over the frames so far, the share may hover near the threshold: once on, the
+    removal stays on down to MIXED_SHARE minus MIXED_SHARE_HYSTERESIS, and turns off below
+    it."""
     from upsr.method.mixed import MIXED_SHARE, MIXED_SHARE_HYSTERESIS, footprint_counts
     from upsr.research.synth.degradation import tof_footprint
 
     r = 4
     hr = np.full((3, 12 * r, 16 * r), 3000.0, np.float32)
     hr[0, :, : 7 * r + 2] = 1000.0  # a ToF edge inside the 8th column: 12 mixes
-    hr[1, : 3 * r, : 4 * r] = 1000.0  # edges on the pixels' boundaries: none
+    hr[1, : 2 * r, : 3 * r] = 1000.0  # edges on the pixels' boundaries: none
     hr[2, :, : 7 * r] = 1000.0
     frames = tof_footprint(hr, r)
     counts = np.cumsum([footprint_counts(f, 100.0) for f in frames], axis=0)

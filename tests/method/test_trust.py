@@ -278,6 +278,47 @@ def test_the_anchor_ignores_a_lone_outlier_and_keeps_a_thin_line():
     np.testing.assert_array_equal(anchor[:, 4], 1500.0)
 
 
+def _box_side_edge_on(h: int = 16, w: int = 20) -> np.ndarray:
+    """A wall (left), a box front (right) and between them the box's side seen edge-on, one
+    pixel wide, 150 mm deeper per row: none of its pixels within 100 mm of another (the
+    room of seed 6, point-sampled, steps of 130–160 mm down such a column)."""
+    z = np.full((h, w), WALL, np.float32)
+    z[:, 11:] = 1922.0
+    z[3:12, 10] = WALL + 150.0 * np.arange(9, 0, -1)
+    return z
+
+
+def test_a_surface_one_pixel_wide_seen_edge_on_is_a_steep_run_not_an_outlier():
+    from upsr.method.anchor import steep_runs
+
+    z = _box_side_edge_on()
+    steep = steep_runs(z, 100.0)
+    assert steep[3:12, 10].all() and not steep[:, 11:].any() and not steep[:, :9].any()
+    anchor, tol = reference_anchor(z, 10.0, 3.0, 100.0)
+    np.testing.assert_array_equal(anchor[3:12, 10], z[3:12, 10])  # its own measurement
+    assert (tol[3:12, 10] > 0).all()
+    plane = np.full((9, 9), 2000.0, np.float32)
+    plane[4, 4] = 2300.0  # a noise outlier steps out and back
+    assert not steep_runs(plane, 100.0).any()
+    plane[:, 4] = 2400.0
+    plane[:, 5:] = 3000.0  # a column of mixes between two flat surfaces: one step each side
+    assert not steep_runs(plane, 100.0).any()
+    floor = np.repeat((1000.0 + 150.0 * np.arange(9.0))[:, None], 9, axis=1).astype(np.float32)
+    assert steep_runs(floor, 100.0).all()  # a floor at a grazing angle
+
+
+@pytest.mark.parametrize("mode", ["windowed", "recursive"])
+def test_a_box_side_seen_edge_on_keeps_its_depth(mode):
+    """Without a neighbour on its surface, each of its pixels was a lone outlier: blanked by
+    the speckle filter in the recursive mode (108 px of holes here), given the wall's or the
+    box's depth in the windowed mode."""
+    z = _box_side_edge_on()
+    out = upsr.super_resolve(np.repeat(z[None], 3, axis=0), 2, 3, mode=mode)
+    side = out[:, 8:22, 20:22]
+    assert (np.abs(side - np.repeat(z[4:11, 10], 2)[None, :, None]) < 100).all()
+    assert not (out == 0).any()
+
+
 def test_an_outlier_with_one_noisy_neighbour_on_its_side_gets_no_anchor():
     """Samba, r = 2, Laplacian σ = 50 mm (edge threshold 141 mm): a +5σ outlier (3111 mm on a
     surface at about 2850) had one neighbour within the edge threshold, itself a +2.7σ sample

@@ -8,11 +8,21 @@ of that surface, against which each registered sample is trusted or not.
 
 from __future__ import annotations
 
+import itertools
+
 import numba as nb
 import numpy as np
 import numpy.typing as npt
 
-__all__ = ["OWN_SURFACE", "OWN_SURFACE_SIGMAS", "TOLERANCE_FLOOR_MM", "reference_anchor"]
+from upsr.method.slopes import STEEP_RUN_RATIO
+
+__all__ = [
+    "OWN_SURFACE",
+    "OWN_SURFACE_SIGMAS",
+    "TOLERANCE_FLOOR_MM",
+    "reference_anchor",
+    "steep_runs",
+]
 
 #: Smallest trust tolerance (mm): noiseless or coarsely quantised data still trust their own
 #: surface's samples.
@@ -145,7 +155,7 @@ def _shared(anchor, i, j, a0, edge):  # pragma: no cover - numba
 
 @nb.njit(cache=True, nogil=True, parallel=True)
 def _anchor_kernel(
-    z, edge, sigma, power, k, floor, own_surface, anchor, tol
+    z, steep, edge, sigma, power, k, floor, own_surface, anchor, tol
 ):  # pragma: no cover - numba
     h, w = z.shape
     net = _MEDIAN9
@@ -172,6 +182,8 @@ def _anchor_kernel(
                 c = _median_inplace(buf, m)
             if m > 1:
                 anchor[i, j] = _own_surface(z, i, j, c, sigma, power, edge, buf, own_surface)
+            elif steep[i, j]:
+                anchor[i, j] = v  # a steep surface one pixel wide: its own measurement
     # an anchor that no 8-neighbour's anchor shares is a noise outlier after all: one noisy
     # neighbour within the edge threshold of it, itself on the surface around (its anchor
     # far from this one), made the two a surface of their own
@@ -179,7 +191,7 @@ def _anchor_kernel(
     for i in nb.prange(h):
         for j in range(w):
             a0 = anchor[i, j]
-            shared[i, j] = not a0 > 0 or _shared(anchor, i, j, a0, edge)
+            shared[i, j] = not a0 > 0 or steep[i, j] or _shared(anchor, i, j, a0, edge)
     for i in nb.prange(h):
         for j in range(w):
             if not shared[i, j]:
@@ -202,6 +214,48 @@ def _anchor_kernel(
             tol[i, j] = max(k * sig + relief, floor)
 
 
+def steep_runs(z: npt.ArrayLike, edge_mm: float) -> np.ndarray:
+    """Pixels on a steep run: along a row, column or diagonal, three consecutive steps
+    beyond ``edge_mm`` through the pixel or ending at it agree (same sign, within
+    :data:`upsr.method.slopes.STEEP_RUN_RATIO`). A surface one pixel wide seen at a grazing
+    angle (a box side edge-on beside a wall: the room of seed 6 at Laplace σ = 0, steps of
+    130–160 mm per pixel down a column), none of whose pixels lies within the edge
+    threshold of another, is one; a noise outlier (a step out and one back) and a mixed
+    pixel between two flat surfaces (one step across the edge) are not.
+
+    Parameters
+    ----------
+    z : array_like (h, w)
+        Depth (mm), 0 or NaN = no measurement.
+    edge_mm : float
+        Depth step that separates two surfaces.
+
+    Returns
+    -------
+    ndarray bool (h, w)
+    """
+    z = np.asarray(z, np.float32)
+    z = np.where(np.isnan(z), np.float32(0.0), z)
+    h, w = z.shape
+    pad = np.zeros((h + 6, w + 6), np.float32)
+    pad[3:-3, 3:-3] = z
+    ratio = np.float32(STEEP_RUN_RATIO)
+    found = np.zeros((h, w), np.bool_)
+    for di, dj in ((0, 1), (1, 0), (1, 1), (1, -1)):
+        run = [pad[3 + k * di : 3 + k * di + h, 3 + k * dj : 3 + k * dj + w] for k in range(-3, 4)]
+        steps = [
+            np.where((a > 0) & (b > 0) & (np.abs(b - a) > edge_mm), b - a, np.float32(0.0))
+            for a, b in itertools.pairwise(run)
+        ]
+        agree = [
+            (s * t > 0) & (np.maximum(abs(s), abs(t)) <= ratio * np.minimum(abs(s), abs(t)))
+            for s, t in itertools.pairwise(steps)
+        ]
+        for m in range(len(agree) - 1):  # three steps: pixels -3..0, -2..1, -1..2, 0..3
+            found |= agree[m] & agree[m + 1]
+    return found & (z > 0)
+
+
 def _sigma_and_power(
     sigma_mm: float, noise_profile: tuple[float, float] | None
 ) -> tuple[float, float]:
@@ -220,6 +274,7 @@ def reference_anchor(
     *,
     noise_profile: tuple[float, float] | None = None,
     own_surface: str = "never",
+    keep_steep: bool = True,
 ) -> tuple[np.ndarray, np.ndarray]:
     """The reference's own depth, robustly, and how far a trusted sample may lie from it.
 
@@ -240,6 +295,10 @@ def reference_anchor(
     edge_mm : float
         Depth step that separates two surfaces: only the neighbours within it of a pixel take
         part in its anchor and relief (never across a depth edge).
+    keep_steep : bool
+        A pixel on a steep run (:func:`steep_runs`) without a neighbour on its surface is
+        anchored at its own measurement, not a lone outlier. Off where the sensor mixes
+        (ToF: a line of mixes its removal left, along a slope, steps like one).
 
     Returns
     -------
@@ -248,7 +307,9 @@ def reference_anchor(
         median of those within ``edge_mm`` of it (two steps: an outlier at the pixel does not
         choose its neighbours); 0 where the reference has no depth, where no 8-neighbour
         lies on its surface (a lone outlier, which the other frames then outvote; a thin
-        part one pixel wide still has neighbours along it), and where no 8-neighbour's
+        part one pixel wide still has neighbours along it) unless it lies on a steep run
+        (``keep_steep``: a surface one pixel wide seen at a grazing angle, whose anchor is
+        its own measurement), and where no 8-neighbour's
         anchor lies within ``edge_mm`` of the pixel's (an outlier whose one neighbour within
         the edge threshold is a noisy pixel of the surface around: Samba, r = 2, Laplacian
         σ = 50 mm, a +5σ sample and a +2.7σ neighbour whose median rejected every other
@@ -276,5 +337,6 @@ def reference_anchor(
     sigma, power = _sigma_and_power(sigma_mm, noise_profile)
     floor = TOLERANCE_FLOOR_MM
     mode = OWN_SURFACE.index(own_surface)
-    _anchor_kernel(z, float(edge_mm), sigma, power, float(k), floor, mode, anchor, tol)
+    steep = steep_runs(z, edge_mm) if keep_steep else np.zeros(z.shape, np.bool_)
+    _anchor_kernel(z, steep, float(edge_mm), sigma, power, float(k), floor, mode, anchor, tol)
     return anchor, tol

@@ -269,8 +269,9 @@ class UPSRConfig:
         its first N frames (the recursive mode: pooled as they arrive), on when its edges
         between flat surfaces have a pixel between them at least
         :data:`~upsr.method.mixed.MIXED_SHARE` times as often as a footprint sensor's would
-        (:func:`upsr.method.mixed.footprint_share`; a point-sampling sensor only on steep
-        slopes, which would be taken for mixed).
+        (:func:`upsr.method.mixed.footprint_share`, each straight run of edge pixels
+        weighing √ its length; a point-sampling sensor only on steep slopes and surfaces
+        seen edge-on, which would be taken for mixed).
     radial_compensation : bool
         Subtract from each frame's samples its depth offset to the reference (motion along
         the viewing ray, a masked median over (2·radial_radius_px+1)² low-res px of one

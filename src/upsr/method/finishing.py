@@ -113,6 +113,7 @@ def finish_frame(
     edge_mm: float,
     noise_mm: float,
     measured: np.ndarray | None = None,
+    keep_steep: bool = True,
 ) -> np.ndarray:
     """The steps beyond the paper after :func:`finish_fused`, for one output frame.
 
@@ -139,6 +140,9 @@ def finish_frame(
         The video's edge threshold and noise std (mm).
     measured : ndarray float32 (h, w), optional
         The reference as measured, before its mixed pixels and lone outliers were removed.
+    keep_steep : bool
+        The speckle filter keeps the reference's steep runs too
+        (:func:`upsr.method.trust.surface_support`); off where the sensor mixes.
 
     Returns
     -------
@@ -146,7 +150,7 @@ def finish_frame(
     """
     r = cfg.scale
     if anchor is not None:
-        keep = surface_support(reference, edge_mm)
+        keep = surface_support(reference, edge_mm, keep_steep=keep_steep)
         lost = np.repeat(np.repeat(keep, r, axis=0), r, axis=1) & (out == 0) & (fused > 0)
         if lost.any():
             out = np.where(lost, fused, out)

@@ -584,13 +584,9 @@ class RecursiveUPSR(TwoStagePipeline):
             k = cfg.trust_k
             # (on its own surface: a pixel restarts from it)
             anchor, tol = reference_anchor(
-                meas,
-                noise,
-                k if k is not None else 1.0,
-                front.edge_mm,
-                noise_profile=self._profile,
-                own_surface="always",
-            )
+                meas, noise, k if k is not None else 1.0, front.edge_mm,
+                noise_profile=self._profile, own_surface="always", keep_steep=not remove_mixed,
+            )  # fmt: skip
             if k is None:
                 tol = np.zeros_like(tol)  # every state sample is trusted
             if flow is None or self._depth is None:
@@ -677,6 +673,7 @@ class RecursiveUPSR(TwoStagePipeline):
                 edge_mm=self._front.edge_mm,  # type: ignore[union-attr]
                 noise_mm=noise,
                 measured=f,
+                keep_steep=not remove_mixed,
             )
 
     def feed(self, frame: npt.ArrayLike) -> list[np.ndarray]:

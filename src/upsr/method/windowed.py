@@ -378,6 +378,7 @@ class UPSR:
                 anchor, tolerance = reference_anchor(
                     lowres[ref], noise, cfg.trust_k, self._front.edge_mm,
                     noise_profile=stats.trust_noise_profile, own_surface="except_rims",
+                    keep_steep=not stats.remove_mixed,
                 )  # fmt: skip
                 # how many frames each pixel's estimate may draw on (the reach, the level)
                 caps = state_caps(
@@ -458,6 +459,7 @@ class UPSR:
                 edge_mm=self._front.edge_mm,  # type: ignore[union-attr]
                 noise_mm=noise,
                 measured=measured[ref],
+                keep_steep=not stats.remove_mixed,
             )
 
     def _cleaned(self, k: int) -> tuple[np.ndarray, ThinParts | None]:

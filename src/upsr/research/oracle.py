@@ -329,7 +329,7 @@ def _abstaining(
         return lowres, None, None
     anchor, tol = reference_anchor(
         lowres[ref], noise_mm, cfg.trust_k, edge_mm, noise_profile=profile,
-        own_surface="except_rims",
+        own_surface="except_rims", keep_steep=not mixed,
     )  # fmt: skip
     return abstain_lone_outliers(lowres, ref, anchor), anchor, tol
 
@@ -695,6 +695,6 @@ def super_resolve_straightforward(frames: npt.ArrayLike, config: UPSRConfig) -> 
         # the rules beyond the paper after the deblurring, as the engine applies them
         out[t] = finish_frame(
             res, fused, lowres[ref], anchor, cfg, edge_mm=edge_mm, noise_mm=trust_mm,
-            measured=measured[ref],
+            measured=measured[ref], keep_steep=not stats.remove_mixed,
         )  # fmt: skip
     return out
