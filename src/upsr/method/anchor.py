@@ -8,8 +8,6 @@ of that surface, against which each registered sample is trusted or not.
 
 from __future__ import annotations
 
-import itertools
-
 import numba as nb
 import numpy as np
 import numpy.typing as npt
@@ -234,26 +232,68 @@ def steep_runs(z: npt.ArrayLike, edge_mm: float) -> np.ndarray:
     -------
     ndarray bool (h, w)
     """
-    z = np.asarray(z, np.float32)
+    z = np.ascontiguousarray(z, np.float32)
     z = np.where(np.isnan(z), np.float32(0.0), z)
+    out = np.empty(z.shape, np.bool_)
+    _steep_kernel(z, np.float32(edge_mm), np.float32(STEEP_RUN_RATIO), out)
+    return out
+
+
+@nb.njit(cache=True, nogil=True, inline="always")
+def _run_step(z, i, j, di, dj, k, edge):  # pragma: no cover - numba
+    """The step from pixel k to pixel k + 1 along (di, dj) from (i, j) where both have depth
+    and it exceeds ``edge``, else 0."""
     h, w = z.shape
-    pad = np.zeros((h + 6, w + 6), np.float32)
-    pad[3:-3, 3:-3] = z
-    ratio = np.float32(STEEP_RUN_RATIO)
-    found = np.zeros((h, w), np.bool_)
-    for di, dj in ((0, 1), (1, 0), (1, 1), (1, -1)):
-        run = [pad[3 + k * di : 3 + k * di + h, 3 + k * dj : 3 + k * dj + w] for k in range(-3, 4)]
-        steps = [
-            np.where((a > 0) & (b > 0) & (np.abs(b - a) > edge_mm), b - a, np.float32(0.0))
-            for a, b in itertools.pairwise(run)
-        ]
-        agree = [
-            (s * t > 0) & (np.maximum(abs(s), abs(t)) <= ratio * np.minimum(abs(s), abs(t)))
-            for s, t in itertools.pairwise(steps)
-        ]
-        for m in range(len(agree) - 1):  # three steps: pixels -3..0, -2..1, -1..2, 0..3
-            found |= agree[m] & agree[m + 1]
-    return found & (z > 0)
+    a0, b0, a1, b1 = i + k * di, j + k * dj, i + (k + 1) * di, j + (k + 1) * dj
+    if not (0 <= a0 < h and 0 <= b0 < w and 0 <= a1 < h and 0 <= b1 < w):
+        return np.float32(0.0)
+    u, v = z[a0, b0], z[a1, b1]
+    if not (u > 0 and v > 0) or abs(v - u) <= edge:
+        return np.float32(0.0)
+    return v - u
+
+
+@nb.njit(cache=True, nogil=True, parallel=True)
+def _steep_kernel(z, edge, ratio, out):  # pragma: no cover - numba
+    h, w = z.shape
+    for i in nb.prange(h):
+        steps = np.empty(6, np.float32)
+        for j in range(w):
+            out[i, j] = False
+            v = z[i, j]
+            if not v > 0:
+                continue
+            if 0 < i < h - 1 and 0 < j < w - 1:
+                # (the common case: no step beyond the edge threshold to any neighbour)
+                beyond = False
+                for a in range(i - 1, i + 2):
+                    for b in range(j - 1, j + 2):
+                        u = z[a, b]
+                        beyond |= u > 0 and abs(u - v) > edge
+                if not beyond:
+                    continue
+            for di, dj in ((0, 1), (1, 0), (1, 1), (1, -1)):
+                # (a run of three steps through the pixel takes one of its own two)
+                if (
+                    _run_step(z, i, j, di, dj, -1, edge) == 0
+                    and _run_step(z, i, j, di, dj, 0, edge) == 0
+                ):
+                    continue
+                for k in range(6):
+                    steps[k] = _run_step(z, i, j, di, dj, k - 3, edge)
+                run = 0  # consecutive agreeing pairs of steps
+                for k in range(5):
+                    s, t = steps[k], steps[k + 1]
+                    a, b = abs(s), abs(t)
+                    if s * t > 0 and max(a, b) <= ratio * min(a, b):
+                        run += 1
+                        if run >= 2:  # three steps: pixels -3..0, -2..1, -1..2 or 0..3
+                            out[i, j] = True
+                            break
+                    else:
+                        run = 0
+                if out[i, j]:
+                    break
 
 
 def _sigma_and_power(

@@ -113,13 +113,14 @@ def finish_frame(
     edge_mm: float,
     noise_mm: float,
     measured: np.ndarray | None = None,
-    keep_steep: bool = True,
 ) -> np.ndarray:
     """The steps beyond the paper after :func:`finish_fused`, for one output frame.
 
     With an ``anchor`` (the trust rules are on), the speckle filter never erases what the
-    reference measured on a surface (a thin fast part kept by its anchor is an island, not
-    noise: there ``fused`` comes back); the blocks of the reference's removed pixels (mixed,
+    reference measured on a surface (:func:`upsr.method.trust.surface_support`; or where a
+    steep surface one pixel wide has an anchor of its own,
+    :func:`upsr.method.anchor.steep_runs`: a thin fast part kept by its anchor is an island,
+    not noise: there ``fused`` comes back); the blocks of the reference's removed pixels (mixed,
     lone outliers) that it emptied are split between their neighbours again
     (:func:`upsr.method.mixed.split_mixed_pixels`: never a hole where the camera measured
     something); with ``cfg.follow_slopes`` the blocks on one surface
@@ -140,9 +141,6 @@ def finish_frame(
         The video's edge threshold and noise std (mm).
     measured : ndarray float32 (h, w), optional
         The reference as measured, before its mixed pixels and lone outliers were removed.
-    keep_steep : bool
-        The speckle filter keeps the reference's steep runs too
-        (:func:`upsr.method.trust.surface_support`); off where the sensor mixes.
 
     Returns
     -------
@@ -150,7 +148,8 @@ def finish_frame(
     """
     r = cfg.scale
     if anchor is not None:
-        keep = surface_support(reference, edge_mm, keep_steep=keep_steep)
+        # (and the steep surfaces one pixel wide that have an anchor of their own)
+        keep = surface_support(reference, edge_mm) | (np.asarray(anchor) > 0)
         lost = np.repeat(np.repeat(keep, r, axis=0), r, axis=1) & (out == 0) & (fused > 0)
         if lost.any():
             out = np.where(lost, fused, out)

@@ -673,7 +673,6 @@ class RecursiveUPSR(TwoStagePipeline):
                 edge_mm=self._front.edge_mm,  # type: ignore[union-attr]
                 noise_mm=noise,
                 measured=f,
-                keep_steep=not remove_mixed,
             )
 
     def feed(self, frame: npt.ArrayLike) -> list[np.ndarray]:

@@ -30,7 +30,6 @@ from upsr.method.anchor import (
     _median_inplace,
     _sigma_and_power,
     reference_anchor,
-    steep_runs,
 )
 from upsr.method.consistency import maps_at_centres, registered_samples
 from upsr.method.mixed import ABSTAIN
@@ -552,14 +551,11 @@ def trust_arrays(
     return anc, tol, offs
 
 
-def surface_support(
-    reference: npt.ArrayLike, edge_mm: float, *, keep_steep: bool = True
-) -> np.ndarray:
-    """Pixels of the reference with depth and at least one 8-neighbour within ``edge_mm``
-    (part of a surface the camera saw, a thin part one pixel wide included), or, with
-    ``keep_steep``, on a steep run (:func:`upsr.method.anchor.steep_runs`: a surface one
-    pixel wide seen at a grazing angle), not a lone pixel. Their output is kept by the
-    speckle filter (the fusion never erases what the reference measured on a surface)."""
+def surface_support(reference: npt.ArrayLike, edge_mm: float) -> np.ndarray:
+    """Pixels of the reference with depth and at least one 8-neighbour within ``edge_mm``:
+    part of a surface the camera saw (a thin part one pixel wide included), not a lone
+    pixel. Their output is kept by the speckle filter (the fusion never erases what the
+    reference measured on a surface)."""
     z = np.asarray(reference, np.float32)
     z = np.where(np.isnan(z), np.float32(0.0), z)
     h, w = z.shape
@@ -571,6 +567,4 @@ def surface_support(
             if di or dj:
                 u = pad[1 + di : 1 + di + h, 1 + dj : 1 + dj + w]
                 found |= (u > 0) & (np.abs(u - z) <= edge_mm)
-    if keep_steep:
-        found |= steep_runs(z, edge_mm)
     return found & (z > 0)

@@ -459,7 +459,6 @@ class UPSR:
                 edge_mm=self._front.edge_mm,  # type: ignore[union-attr]
                 noise_mm=noise,
                 measured=measured[ref],
-                keep_steep=not stats.remove_mixed,
             )
 
     def _cleaned(self, k: int) -> tuple[np.ndarray, ThinParts | None]:
