@@ -297,6 +297,8 @@ def test_a_surface_one_pixel_wide_seen_edge_on_is_a_steep_run_not_an_outlier():
     anchor, tol = reference_anchor(z, 10.0, 3.0, 100.0)
     np.testing.assert_array_equal(anchor[3:12, 10], z[3:12, 10])  # its own measurement
     assert (tol[3:12, 10] > 0).all()
+    # where the sensor mixes, a line of mixes along a slope steps like one: no anchor
+    assert not reference_anchor(z, 10.0, 3.0, 100.0, keep_steep=False)[0][3:12, 10].any()
     plane = np.full((9, 9), 2000.0, np.float32)
     plane[4, 4] = 2300.0  # a noise outlier steps out and back
     assert not steep_runs(plane, 100.0).any()
