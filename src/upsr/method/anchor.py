@@ -12,7 +12,7 @@ import numba as nb
 import numpy as np
 import numpy.typing as npt
 
-from upsr.method.slopes import STEEP_RUN_RATIO
+from upsr.method.slopes import STEEP_RUN_RATIO, _steps_agree
 
 __all__ = [
     "OWN_SURFACE",
@@ -283,9 +283,7 @@ def _steep_kernel(z, edge, ratio, out):  # pragma: no cover - numba
                     steps[k] = _run_step(z, i, j, di, dj, k - 3, edge)
                 run = 0  # consecutive agreeing pairs of steps
                 for k in range(5):
-                    s, t = steps[k], steps[k + 1]
-                    a, b = abs(s), abs(t)
-                    if s * t > 0 and max(a, b) <= ratio * min(a, b):
+                    if _steps_agree(steps[k], steps[k + 1], ratio):
                         run += 1
                         if run >= 2:  # three steps: pixels -3..0, -2..1, -1..2 or 0..3
                             out[i, j] = True
