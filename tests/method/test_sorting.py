@@ -23,3 +23,22 @@ def test_median_beyond_decides_as_the_median_does():
             assert median_beyond(values, limit) == want
             decided[want] += 1
     assert min(decided.values()) > 20
+
+
+def test_the_small_medians_are_the_median_ties_included():
+    """The medians of the anchor and the radial offsets (``anchor._median_inplace``, m ≤ 25
+    by rank counting; ``trust._select_median``, quickselect beyond) give numpy's median for
+    every count, odd and even, with and without ties."""
+    from upsr.method.anchor import _median_inplace
+    from upsr.method.trust import _select_median
+
+    rng = np.random.default_rng(3)
+    for m in range(1, 41):
+        for draw in range(6):
+            values = rng.normal(0.0, 50.0, m).astype(np.float32)
+            if draw % 2:
+                values = np.round(values / 40.0).astype(np.float32)  # many ties
+            want = np.float32(np.median(values.astype(np.float64)))
+            if m <= 25:
+                assert np.float32(_median_inplace(values.copy(), m)) == want
+            assert np.float32(_select_median(values.copy(), m)) == want

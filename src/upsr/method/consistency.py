@@ -314,15 +314,27 @@ def _block_side(y, scale):  # pragma: no cover - numba
     return i, (0 if (scale % 2 == 1 and s == half) else (-1 if s < half else 1))
 
 
+@nb.njit(cache=True, nogil=True)
+def _block_sides(n, scale):  # pragma: no cover - numba
+    """:func:`_block_side` of the indices 0 … n − 1: (low-res indices, sides), int64 (n,)."""
+    low = np.empty(n, np.int64)
+    side = np.empty(n, np.int64)
+    for y in range(n):
+        low[y], side[y] = _block_side(y, scale)
+    return low, side
+
+
 @nb.njit(cache=True, nogil=True, parallel=True)
 def _stale_kernel(fused, ref, scale, edge, out):  # pragma: no cover - numba
     hh, ww = fused.shape
+    js, djs = _block_sides(ww, scale)  # (not an integer division per pixel)
     for y in nb.prange(hh):
         i, di = _block_side(y, scale)
         for x in range(ww):
             v = fused[y, x]
             out[y, x] = v
-            j, dj = _block_side(x, scale)
+            j = js[x]
+            dj = djs[x]
             if ref[i, j] != 0.0 or not v > 0:
                 continue
             if _nearer_beside(ref, i, j, di, dj, v - edge):

@@ -229,10 +229,11 @@ def _state_vote_kernel(
     r = scale
     gap = SURFACE_GAP * edge_mm
     inv_r = 1.0 / r
+    low_of = np.arange(ww) // r  # (each column's block once: not a division per pixel)
     for y in nb.prange(hh):
         i = y // r
         for x in range(ww):
-            j = x // r
+            j = low_of[x]
             v = out_d[y, x]
             if not (v > 0 and band[i, j]):
                 share[y, x] = 1.0 if v > 0 else 0.0

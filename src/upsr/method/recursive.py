@@ -98,7 +98,7 @@ from upsr._numba import SAFE_FASTMATH
 from upsr.errors import InputError
 from upsr.method._parallel import resolve_workers
 from upsr.method.config import UPSRConfig
-from upsr.method.consistency import _block_side, _nearer_beside, hole_backgrounds
+from upsr.method.consistency import _block_side, _block_sides, _nearer_beside, hole_backgrounds
 from upsr.method.edges import _centre_agrees, state_votes
 from upsr.method.finishing import finish_frame, finish_fused
 from upsr.method.frontend import MotionFrontEnd
@@ -215,10 +215,12 @@ def _update_kernel(
 ):  # pragma: no cover - numba
     hh, ww = out_d.shape
     h, w = meas.shape
+    js, djs = _block_sides(ww, scale)  # (not an integer division per pixel)
     for y in nb.prange(hh):
         i, di = _block_side(y, scale)
         for x in range(ww):
-            j, dj = _block_side(x, scale)
+            j = js[x]
+            dj = djs[x]
             m = meas[i, j]
             a = anchor[i, j]
             tl = tol[i, j]
