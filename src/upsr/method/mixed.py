@@ -28,7 +28,7 @@ import numpy as np
 import numpy.typing as npt
 
 from upsr.method.slopes import STEEP_RUN_RATIO, _on_slope, _steps_agree
-from upsr.method.thin import ThinParts, _thin_parts, split_thin_parts
+from upsr.method.thin import ThinParts, _gap_bottom, _thin_parts, split_thin_parts
 
 __all__ = [
     "ABSTAIN",
@@ -151,6 +151,9 @@ def _mixed_kernel(z, edge, marker, out):  # pragma: no cover - numba
             v = z[i, j]
             out[i, j] = v
             s = strength[i, j]
+            if v > 0 and _gap_bottom(z, i, j, edge):
+                out[i, j] = marker  # (between no two surfaces beside it, a mix all the same)
+                continue
             if not (v > 0 and s > 0):
                 continue
             if _on_slope(z, i, j, edge) or _ramp_along_the_edge(z, i, j, edge):
@@ -348,14 +351,15 @@ def remove_mixed_pixels(
     pixel whose footprint straddles a depth edge returns a depth between the two surfaces,
     which belongs to neither. So do the pixels of a part narrower than a pixel, mixed along
     its whole length (:func:`upsr.method.thin.thin_parts`: nothing nearer beside them but
-    the surface the part grows out of). The other frames of the window fill them (their
-    samples there are not mixed), or :func:`split_mixed_pixels` splits them between the
-    surfaces around them. At the image's border a footprint may straddle an edge whose other
-    side lies beyond the image: a pixel of the border that steps by more than ``edge_mm``
-    from the surface inward of it (a flat one, not a slope tapering into it), with none of
-    its inward neighbours on its own surface, is mixed when the line it belongs to, followed
-    along the border (:data:`BORDER_REACH_PX`), steps on to a surface beyond it (seen where
-    the edge leaves the border).
+    the surface the part grows out of), and the bottom of a gap narrower than a pixel
+    between two nearer parts (:func:`upsr.method.thin._gap_bottom`). The other frames of
+    the window fill them (their samples there are not mixed), or :func:`split_mixed_pixels`
+    splits them between the surfaces around them. At the image's border a footprint may
+    straddle an edge whose other side lies beyond the image: a pixel of the border that steps
+    by more than ``edge_mm`` from the surface inward of it (a flat one, not a slope tapering
+    into it), with none of its inward neighbours on its own surface, is mixed when the line
+    it belongs to, followed along the border (:data:`BORDER_REACH_PX`), steps on to a surface
+    beyond it (seen where the edge leaves the border).
 
     Parameters
     ----------

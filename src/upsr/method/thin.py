@@ -64,6 +64,7 @@ from upsr.method.slopes import _on_slope
 
 __all__ = [
     "GAP_AXES",
+    "GAP_BOTTOM_STEPS",
     "REACH_PX",
     "SURFACE_NEIGHBOURS",
     "ThinParts",
@@ -96,6 +97,49 @@ AXES = ((0, 1), (1, 0), (1, 1), (1, -1))
 #: flying pixels up to +0.17 points, 0.52 % on seed 0; the deforming body gained about as
 #: much).
 GAP_AXES = 2
+#: The bottom of a gap that the mirror image misses (:func:`_gap_bottom`) lies behind both
+#: sides of the gap by more than this many edge thresholds: a slope that steps by about the
+#: edge threshold per pixel (a floor or wall at a grazing angle) has no gap. Realistic ToF
+#: scenes, seeds 0–3 at 64×56, σ = 10, 36 frames each: with 1, 22 of the room's pixels whose
+#: footprint saw one surface were taken for gap bottoms (and 4 mixes); with 2, 6 (and none),
+#: while 15 of the galloping animal's mixes still are (26 with 1), none of its pure pixels.
+GAP_BOTTOM_STEPS = 2.0
+
+
+@nb.njit(cache=True, nogil=True, inline="always")
+def _gap_bottom(z, i, j, edge):  # pragma: no cover - numba
+    """The pixel (i, j) lies more than :data:`GAP_BOTTOM_STEPS` · ``edge`` behind both of its
+    neighbours along a row, column or diagonal, none of its 8-neighbours lies more than half
+    of ``edge`` behind it, and a pixel two steps away lies more than ``edge`` behind it: the
+    bottom of a gap narrower than a pixel between two nearer parts (two legs crossing), a mix
+    of them and of the surface seen through the gap, whose depth only pixels beyond the
+    parts show. :func:`upsr.method.mixed.remove_mixed_pixels` removes it where the thin
+    parts' mirror image misses it (the gap opens onto nothing within reach, or its sides are
+    mixes themselves): realistic ToF galloping animal, seeds 0–7, σ = 10 and σ = 20 with 1 %
+    dropouts, flying pixels 0.30 → 0.15 % on average, rmse +0.4 % (windowed), +1.3 %
+    (recursive); at 128×112, seeds 0–2: 2.0–2.5 → 1.4–2.0 %, rmse +3 to +4 % (a block split
+    between the sides takes their depth where the truth also shows the wall)."""
+    h, w = z.shape
+    v = z[i, j]
+    for a in range(max(i - 1, 0), min(i + 2, h)):
+        for b in range(max(j - 1, 0), min(j + 2, w)):
+            if z[a, b] > v + 0.5 * edge:
+                return False
+    depth = GAP_BOTTOM_STEPS * edge
+    sides = False
+    for di, dj in AXES:
+        ia, ja, ib, jb = i - di, j - dj, i + di, j + dj
+        if min(ia, ib) < 0 or max(ia, ib) >= h or min(ja, jb) < 0 or max(ja, jb) >= w:
+            continue
+        p, q = z[ia, ja], z[ib, jb]
+        sides = sides or (0 < p < v - depth and 0 < q < v - depth)
+    if not sides:
+        return False
+    for a in range(max(i - 2, 0), min(i + 3, h)):
+        for b in range(max(j - 2, 0), min(j + 3, w)):
+            if max(abs(a - i), abs(b - j)) == 2 and z[a, b] > v + edge:
+                return True
+    return False
 
 
 class ThinParts(NamedTuple):
