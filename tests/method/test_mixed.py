@@ -549,3 +549,30 @@ def test_a_slope_stepping_by_about_the_edge_threshold_is_no_gap():
     )
     out = remove_mixed_pixels(z, 100.0, -1.0)
     assert out[2, 2] == z[2, 2]
+
+
+def test_a_mix_whose_only_neighbours_on_its_depth_are_mixes_is_mixed():
+    """Beside two legs of the realistic galloping animal (128×112 ToF, seed 0, frame 1), the
+    pixel at the centre (2127 mm: a quarter wall at 3000, three quarters leg at 1852) has
+    three 8-neighbours within the edge threshold of it, the mixes of the legs' edges (2145,
+    2064, 2126 mm): on no surface of its own, it is mixed. The legs and the wall are kept."""
+    patch = np.array(
+        [
+            [2596, 1886, 1893, 1866, 1861, 1840, 1831, 1821, 1816, 1806, 1831],
+            [3009, 2819, 2053, 1889, 1875, 1872, 1848, 1839, 1850, 1822, 1804],
+            [2998, 3009, 2996, 2621, 2072, 1886, 1852, 1882, 1860, 1843, 1835],
+            [3002, 3003, 2992, 3013, 3007, 2316, 1846, 1918, 1899, 1881, 1869],
+            [2999, 3000, 3001, 3011, 3003, 2145, 1923, 2124, 2443, 2333, 2067],
+            [3001, 2997, 3018, 3003, 2993, 2127, 1920, 2126, 2735, 2998, 2995],
+            [2999, 3022, 3020, 3005, 3000, 2064, 2215, 2124, 2579, 2996, 2994],
+            [3000, 3000, 3004, 3003, 2987, 1854, 2421, 2078, 2577, 3007, 3005],
+            [3001, 2996, 2994, 3017, 3003, 1873, 2426, 2166, 2458, 3015, 2991],
+            [3009, 3006, 2997, 3002, 2841, 1835, 2561, 2329, 2348, 2978, 2998],
+            [2999, 3000, 3000, 2988, 2728, 1848, 2717, 2348, 2337, 2992, 3005],
+        ],
+        np.float32,
+    )
+    out = remove_mixed_pixels(patch, 100.0, -1.0)
+    assert out[5, 5] < 0
+    assert (out[5:7, 6] == patch[5:7, 6]).all() and (out[7:11, 5] == patch[7:11, 5]).all()
+    assert (out[3:9, 0:4] == patch[3:9, 0:4]).all()

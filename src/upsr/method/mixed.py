@@ -135,12 +135,17 @@ def _between(z, i, j, edge, strength, own):  # pragma: no cover - numba
 @nb.njit(cache=True, nogil=True)
 def _mixed_kernel(z, edge, marker, out):  # pragma: no cover - numba
     h, w = z.shape
-    # first: how clearly each pixel lies between two surfaces (−1: not at all)
+    # first: how clearly each pixel lies between two surfaces (−1: not at all), then again
+    # for those on a surface only through neighbours between two surfaces themselves (the
+    # mixes of two legs side by side fall within the edge threshold of each other)
     strength = np.full((h, w), -1.0)
-    for i in range(h):
-        for j in range(w):
-            if z[i, j] > 0:
-                strength[i, j] = _between(z, i, j, edge, strength, np.inf)
+    for own in (np.inf, 0.0):
+        again = strength.copy()
+        for i in range(h):
+            for j in range(w):
+                if z[i, j] > 0 and strength[i, j] <= 0:
+                    again[i, j] = _between(z, i, j, edge, strength, own)
+        strength = again
     # then each such pixel again without its more clearly mixed neighbours: the first pixel
     # of a steep slope (a box top seen at a grazing angle) beside the line of mixed pixels
     # that separates it from the wall behind lies between that line and its own slope, but
@@ -337,7 +342,8 @@ def remove_mixed_pixels(
     A pixel is mixed when its depth lies more than ``edge_mm`` behind its nearest valid
     8-neighbour and more than ``edge_mm`` in front of its farthest one, and at most 2 of its
     8-neighbours lie within ``edge_mm`` of it (a mixed pixel belongs to no surface; a line of
-    them along an edge still counts; a genuine surface between two others does not), also
+    them along an edge still counts; a genuine surface between two others does not), or
+    without the neighbours between two surfaces themselves (two legs' mixes side by side), also
     without those of its neighbours that lie more clearly between two surfaces (a larger
     min(v − lo, hi − v)): the first pixel of a steep slope (a box top at a grazing angle)
     lies between the line of mixed pixels in front of the wall and its own slope, not between
