@@ -26,10 +26,10 @@ def test_median_beyond_decides_as_the_median_does():
 
 
 def test_the_small_medians_are_the_median_ties_included():
-    """The medians of the anchor and the radial offsets (``anchor._median_inplace``, m ≤ 25
+    """The medians of the anchor and the radial offsets (``anchor._small_median``, m ≤ 25
     by rank counting; ``trust._select_median``, quickselect beyond) give numpy's median for
     every count, odd and even, with and without ties."""
-    from upsr.method.anchor import _median_inplace
+    from upsr.method.anchor import _small_median
     from upsr.method.trust import _select_median
 
     rng = np.random.default_rng(3)
@@ -40,5 +40,5 @@ def test_the_small_medians_are_the_median_ties_included():
                 values = np.round(values / 40.0).astype(np.float32)  # many ties
             want = np.float32(np.median(values.astype(np.float64)))
             if m <= 25:
-                assert np.float32(_median_inplace(values.copy(), m)) == want
+                assert np.float32(_small_median(values.copy(), m)) == want
             assert np.float32(_select_median(values.copy(), m)) == want

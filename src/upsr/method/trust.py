@@ -27,8 +27,8 @@ import numpy.typing as npt
 from upsr.method.anchor import (
     OWN_SURFACE_SIGMAS,
     TOLERANCE_FLOOR_MM,
-    _median_inplace,
     _sigma_and_power,
+    _small_median,
     reference_anchor,
 )
 from upsr.method.consistency import maps_at_centres, registered_samples
@@ -242,7 +242,7 @@ def _select_median(buf, m):  # pragma: no cover - numba
     """Median of buf[:m] by quickselect (in place, O(m)); the mean of the two middle values
     for an even m."""
     if m <= 25:
-        return _median_inplace(buf, m)
+        return _small_median(buf, m)
     hi_k = m // 2
     lo, hi = 0, m - 1
     while lo < hi:  # Hoare partition around the middle element until buf[hi_k] is in place
