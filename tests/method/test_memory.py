@@ -216,3 +216,30 @@ def test_a_moving_slopes_state_summarises_about_half_its_frames():
     np.testing.assert_array_equal(moving_caps(caps, flow, 9, grid_scale=2.0), caps)
     flow[:, 4:, 1] = -2.0  # the motion's length counts, in either direction
     assert moving_caps(caps, flow, 9, grid_scale=2.0)[0, 2] == 2.0
+
+
+def test_the_motion_at_the_centres_is_read_from_centres_when_given():
+    """beyond_reach and moving_caps take the maps at the pixel centres the caller computed
+    once (the recursive and windowed engines share them with the radial test): the same
+    result as from the maps, and the centres, not the maps, are what they read."""
+    from upsr.method.consistency import maps_at_centres
+    from upsr.method.memory import beyond_reach, moving_caps
+
+    caps = np.array([[9.0, 7.0, 5.0, 3.0, 1.5]], np.float32)
+    flow = np.zeros((1, 2, 10, 2), np.float32)
+    flow[..., 0] = 2.0
+    at = maps_at_centres(flow, caps.shape)
+    np.testing.assert_array_equal(
+        moving_caps(caps, flow[0], 9, grid_scale=2.0, centres=at),
+        moving_caps(caps, flow[0], 9, grid_scale=2.0),
+    )
+    still = np.zeros_like(at)
+    np.testing.assert_array_equal(
+        moving_caps(caps, flow[0], 9, grid_scale=2.0, centres=still), caps
+    )
+    maps = np.repeat(flow, 9, axis=0)
+    at9 = maps_at_centres(maps, caps.shape)
+    far = beyond_reach(maps, caps, 8, grid_scale=2.0)
+    assert far.any()
+    np.testing.assert_array_equal(beyond_reach(maps, caps, 8, grid_scale=2.0, centres=at9), far)
+    assert not beyond_reach(maps, caps, 8, grid_scale=2.0, centres=np.zeros_like(at9)).any()

@@ -246,6 +246,16 @@ def test_a_frame_that_moved_has_its_offsets_measured_at_a_lower_significance():
     np.testing.assert_allclose(got[:, :18], 8.0 * se, rtol=1e-5)
     static = radial_offsets(frames, still, 1, 1, **kw)[0]
     np.testing.assert_allclose(static[stripe], 8.0 * se, rtol=1e-5)
+    # the motion at the pixel centres, when the caller has it, is read instead of the maps
+    from upsr.method.consistency import maps_at_centres
+
+    at = maps_at_centres(moved, (40, 48))
+    np.testing.assert_array_equal(significance(moved, (40, 48), centres=at), sig)
+    np.testing.assert_array_equal(radial_offsets(frames, moved, 1, 1, **kw, centres=at)[0], got)
+    at_still = maps_at_centres(still, (40, 48))
+    np.testing.assert_array_equal(
+        radial_offsets(frames, moved, 1, 1, **kw, centres=at_still)[0], static
+    )
 
 
 def test_a_slow_radial_motion_under_strong_noise_is_found_on_a_wider_neighbourhood():
@@ -619,3 +629,24 @@ def test_the_ends_of_a_clip_approaching_a_wall_under_strong_noise_are_not_biased
     bias = np.mean(out - upsample_nearest(truth, 2), axis=(1, 2))
     assert np.abs(bias).max() < 12.0  # 18.7 mm before
     assert far_offsets(np.array([10.0, -70.0, 130.0]), 120.0).tolist() == [False, True, True]
+
+
+def test_a_state_that_moved_along_the_ray_as_a_whole_is_tested_at_the_lower_significance():
+    """state_significance: a state everywhere 3 standard errors nearer than the frame (a camera
+    walking towards a wall, zero flow) is `along`, its significance capped; a state that
+    agrees with the frame, or has too few samples within the edge threshold, is not."""
+    from upsr.method.trust import OFFSET_SIGNIFICANCE, state_significance
+
+    rng = np.random.default_rng(0)
+    frame = (2000.0 + rng.normal(0, 10.0, (20, 24))).astype(np.float32)
+    flow = np.zeros((40, 48, 2), np.float32)
+    kw = dict(sigma_mm=10.0, edge_mm=100.0, radius_px=2, noise_factor=0.75)
+    se = 1.2533 * np.sqrt(2.0) * 0.75 * 10.0 / 5
+    nearer = (frame - 3.0 * se)[None]
+    sig, along = state_significance(flow, nearer, frame, **kw, along_significance=3.0)
+    assert along and (sig == 3.0).all()
+    same = frame[None].copy()
+    sig, along = state_significance(flow, same, frame, **kw, along_significance=3.0)
+    assert not along and (sig == OFFSET_SIGNIFICANCE).all()
+    beyond = (frame - 150.0)[None]  # beyond the edge threshold: another surface, no evidence
+    assert not state_significance(flow, beyond, frame, **kw, along_significance=3.0)[1]

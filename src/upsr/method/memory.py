@@ -210,7 +210,14 @@ def level_to_reference(
     return out
 
 
-def beyond_reach(maps: np.ndarray, caps: np.ndarray, ref: int, *, grid_scale: float) -> np.ndarray:
+def beyond_reach(
+    maps: np.ndarray,
+    caps: np.ndarray,
+    ref: int,
+    *,
+    grid_scale: float,
+    centres: np.ndarray | None = None,
+) -> np.ndarray:
     """The samples of a window farther in time than its pixel's estimate may reach.
 
     A pixel whose cap n* (:func:`state_caps`) is below N summarises about n* frames before
@@ -235,6 +242,8 @@ def beyond_reach(maps: np.ndarray, caps: np.ndarray, ref: int, *, grid_scale: fl
         Index of the reference in the window.
     grid_scale : float
         s, flow-grid pixels per low-res pixel.
+    centres : ndarray (N, h, w, 2), optional
+        :func:`upsr.method.consistency.maps_at_centres` of ``maps``, when already computed.
 
     Returns
     -------
@@ -246,12 +255,17 @@ def beyond_reach(maps: np.ndarray, caps: np.ndarray, ref: int, *, grid_scale: fl
     if n <= 2 * REACH_MIN_FRAMES + 1:
         return out
     far = np.abs(np.arange(n) - int(ref))[:, None, None] > _reach(caps, n)[None]
-    np.logical_and(_moved(maps, caps.shape, grid_scale), far, out=out)
+    np.logical_and(_moved(maps, caps.shape, grid_scale, centres), far, out=out)
     return out
 
 
 def moving_caps(
-    caps: np.ndarray, flow: np.ndarray, n_frames: int, *, grid_scale: float
+    caps: np.ndarray,
+    flow: np.ndarray,
+    n_frames: int,
+    *,
+    grid_scale: float,
+    centres: np.ndarray | None = None,
 ) -> np.ndarray:
     """The recursive mode's :func:`state_caps` where the pixel moved since the last frame.
 
@@ -278,12 +292,15 @@ def moving_caps(
         N, the largest cap.
     grid_scale : float
         s, flow-grid pixels per low-res pixel.
+    centres : ndarray (1, h, w, 2), optional
+        :func:`upsr.method.consistency.maps_at_centres` of ``flow[None]``, when already
+        computed.
 
     Returns
     -------
     ndarray float32 (h, w): ``caps``, lowered where the pixel moved.
     """
-    moved = _moved(flow[None], caps.shape, grid_scale)[0]
+    moved = _moved(flow[None], caps.shape, grid_scale, centres)[0]
     reach = np.minimum(np.minimum(caps, _reach(caps, n_frames)), MOVING_STATE_FRAMES)
     return np.where(moved, reach, caps).astype(np.float32)
 
@@ -295,7 +312,10 @@ def _reach(caps: np.ndarray, n_frames: int) -> np.ndarray:
     return reach
 
 
-def _moved(maps: np.ndarray, shape: tuple[int, int], grid_scale: float) -> np.ndarray:
-    """Where each map moves the low-res pixel centre by more than :data:`MOVED_PX`."""
-    at = maps_at_centres(maps, shape) / float(grid_scale)
+def _moved(
+    maps: np.ndarray, shape: tuple[int, int], grid_scale: float, centres: np.ndarray | None
+) -> np.ndarray:
+    """Where each map moves the low-res pixel centre by more than :data:`MOVED_PX`
+    (``centres``: :func:`maps_at_centres` of ``maps``, or None)."""
+    at = (maps_at_centres(maps, shape) if centres is None else centres) / float(grid_scale)
     return at[..., 0] ** 2 + at[..., 1] ** 2 > MOVED_PX**2

@@ -98,7 +98,13 @@ from upsr._numba import SAFE_FASTMATH
 from upsr.errors import InputError
 from upsr.method._parallel import resolve_workers
 from upsr.method.config import UPSRConfig
-from upsr.method.consistency import _block_side, _block_sides, _nearer_beside, hole_backgrounds
+from upsr.method.consistency import (
+    _block_side,
+    _block_sides,
+    _nearer_beside,
+    hole_backgrounds,
+    maps_at_centres,
+)
 from upsr.method.edges import _centre_agrees, state_votes
 from upsr.method.finishing import finish_frame, finish_fused
 from upsr.method.frontend import MotionFrontEnd
@@ -114,7 +120,6 @@ from upsr.method.motion import FlowBackend, make_flow_backend
 from upsr.method.noise import noise_shape
 from upsr.method.pipeline import TwoStagePipeline
 from upsr.method.registration import _registered_state_kernel, flow_positions
-from upsr.method.sorting import median_beyond
 from upsr.method.thin import ThinParts
 from upsr.method.trust import (
     OFFSET_GRID,
@@ -122,7 +127,7 @@ from upsr.method.trust import (
     _sigma_and_power,
     _with_wide_offsets,
     reference_anchor,
-    significance,
+    state_significance,
 )
 from upsr.method.validation import as_depth_frame
 from upsr.method.windowed import STAGES, trust_profile
@@ -316,6 +321,7 @@ def recursive_update(
     noise_profile: tuple[float, float] | None = None,
     holes: np.ndarray | None = None,
     share: np.ndarray | None = None,
+    centres: np.ndarray | None = None,
 ) -> tuple[np.ndarray, ...]:
     """One step of the recursive fusion (see the module): the state (``depth``, ``count``) of
     the previous frame, registered and updated with the current frame's ``measurement``.
@@ -353,6 +359,9 @@ def recursive_update(
     share : ndarray float32 (r·h, r·w), optional
         The previous state's surface shares: with it, the sub-pixel edge votes
         (:func:`upsr.method.edges.state_votes`) follow the update.
+    centres : ndarray (1, h, w, 2), optional
+        :func:`upsr.method.consistency.maps_at_centres` of ``flow[None]``, when already
+        computed.
 
     Returns
     -------
@@ -376,7 +385,11 @@ def recursive_update(
         # (-1: no frame of reg is the reference)
         args = (reg, meas, anchor, -1, float(edge_mm), STATE_NOISE_FACTOR * sigma, power)
         radius = int(radial_radius_px)
-        signif, along = _state_significance(fl, reg, meas, sigma_mm, edge_mm, radius)
+        signif, along = state_significance(
+            fl, reg, meas, sigma_mm=sigma_mm, edge_mm=edge_mm, radius_px=radius,
+            noise_factor=STATE_NOISE_FACTOR, along_significance=STATE_SIGNIFICANCE,
+            centres=centres,
+        )  # fmt: skip
         _offset_kernel(*args, signif, radius, off, *OFFSET_GRID)
         if along:
             # the state as a whole moved along the viewing ray (a camera walking): where the
@@ -400,30 +413,6 @@ def recursive_update(
     edge = float(edge_mm)
     votes = state_votes(out_d, out_n, previous, (qx, qy), meas, offsets, scale=scale, edge_mm=edge)
     return out_d, out_n, votes
-
-
-def _state_significance(
-    flow: np.ndarray,
-    reg: np.ndarray,
-    meas: np.ndarray,
-    sigma_mm: float,
-    edge_mm: float,
-    radius: int,
-) -> tuple[np.ndarray, bool]:
-    """:func:`~upsr.method.trust.significance` of the state's offsets (1, h, w), at most
-    :data:`STATE_SIGNIFICANCE` where the state as a whole lies nearer or farther than the
-    frame (the median of their differences within ``edge_mm`` beyond the standard error of
-    one offset's window of (2·radius + 1)² samples): the camera moves along its axis; and
-    whether it does."""
-    sig = significance(flow[None], meas.shape)
-    valid = (reg[0] > 0) & (meas > 0)
-    diff = (reg[0] - meas)[valid]
-    diff = diff[np.abs(diff) <= edge_mm]
-    se = 1.2533 * math.sqrt(2.0) * STATE_NOISE_FACTOR * sigma_mm / (2 * radius + 1)
-    along = diff.size >= 25 and median_beyond(diff, se)
-    if along:
-        sig = np.minimum(sig, np.float32(STATE_SIGNIFICANCE))
-    return sig, along
 
 
 # ---------------------------------------------------------------------------------------------
@@ -604,9 +593,15 @@ class RecursiveUPSR(TwoStagePipeline):
             caps = state_caps(
                 anchor, tol, float(cfg.n_frames), noise, k or 0.0, noise_profile=self._profile
             )
-            if self._depth is not None and k:
+            # the flow at the low-res pixel centres (read by the caps and the radial test)
+            moved = self._depth is not None
+            centres = None
+            if moved and (k or cfg.radial_compensation):
+                centres = maps_at_centres(flow[None], f.shape)
+            if moved and k:
                 # (a moving slope's state: fewer frames)
-                caps = moving_caps(caps, flow, cfg.n_frames, grid_scale=flow.shape[1] / f.shape[1])
+                s = flow.shape[1] / f.shape[1]
+                caps = moving_caps(caps, flow, cfg.n_frames, grid_scale=s, centres=centres)
             fused, conf, *share = recursive_update(
                 depth,
                 conf,  # type: ignore[arg-type]
@@ -628,6 +623,7 @@ class RecursiveUPSR(TwoStagePipeline):
                 # (the holes of the frame as measured: its removed mixed pixels are not holes)
                 holes=np.where(f > 0, np.float32(0.0), hole_backgrounds(meas)),
                 share=self._share,
+                centres=centres,
             )
         self._depth, self._conf = fused, conf
         self._share = share[0] if share else None

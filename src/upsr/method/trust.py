@@ -33,7 +33,7 @@ from upsr.method.anchor import (
 )
 from upsr.method.consistency import maps_at_centres, registered_samples
 from upsr.method.mixed import ABSTAIN
-from upsr.method.sorting import _twice_beyond
+from upsr.method.sorting import _twice_beyond, median_beyond
 
 __all__ = [
     "OFFSET_SIGNIFICANCE",
@@ -48,6 +48,7 @@ __all__ = [
     "reference_anchor",
     "side_of_centre",
     "significance",
+    "state_significance",
     "surface_alternatives",
     "surface_support",
     "trust_arrays",
@@ -381,6 +382,7 @@ def radial_offsets(
     registered: npt.ArrayLike | None = None,
     anchor: npt.ArrayLike | None = None,
     noise_profile: tuple[float, float] | None = None,
+    centres: np.ndarray | None = None,
 ) -> np.ndarray:
     """Depth offset of each frame registered to the reference (motion along the viewing ray).
 
@@ -422,6 +424,8 @@ def radial_offsets(
     noise_profile : (float, float), optional
         (σ₁, p) of :func:`upsr.method.noise.noise_profile`: with p > 0 the significance test
         takes σ₁·(z / 1 m)^p at the neighbourhood's depth z instead of ``sigma_mm``.
+    centres : ndarray (N, h, w, 2), optional
+        :func:`upsr.method.consistency.maps_at_centres` of ``maps``, when already computed.
 
     Returns
     -------
@@ -437,7 +441,7 @@ def radial_offsets(
     if anchor is None:
         anchor = reference_anchor(lr[ref], sigma_mm, 1.0, edge_mm)[0]
     anc = np.ascontiguousarray(anchor, np.float32)
-    signif = significance(maps, (h, w))
+    signif = significance(maps, (h, w), centres=centres)
     sigma, power = _sigma_and_power(sigma_mm, noise_profile)
     args = (reg, lr[ref], anc, int(ref), float(edge_mm), sigma, power, signif)
     out = np.empty((n, h, w), np.float32)
@@ -459,7 +463,9 @@ def _with_wide_offsets(offsets: np.ndarray, args: tuple, radius_px: int) -> np.n
     return np.where(offsets != 0, offsets, wide)
 
 
-def significance(maps: npt.ArrayLike, lowres_shape: tuple[int, int]) -> np.ndarray:
+def significance(
+    maps: npt.ArrayLike, lowres_shape: tuple[int, int], *, centres: np.ndarray | None = None
+) -> np.ndarray:
     """Per frame and low-res pixel, the standard errors beyond which a radial offset is kept:
     :data:`OFFSET_SIGNIFICANCE_MOVED` where the motion
     (:func:`upsr.method.consistency.maps_at_centres`) is not zero,
@@ -471,14 +477,71 @@ def significance(maps: npt.ArrayLike, lowres_shape: tuple[int, int]) -> np.ndarr
         Motion of each frame on the flow grid (flow px).
     lowres_shape : (int, int)
         (h, w).
+    centres : ndarray (N, h, w, 2), optional
+        :func:`~upsr.method.consistency.maps_at_centres` of ``maps``, when already computed.
 
     Returns
     -------
     ndarray float32 (N, h, w)
     """
-    at = maps_at_centres(maps, lowres_shape)
+    at = maps_at_centres(maps, lowres_shape) if centres is None else centres
     moved = (np.abs(at[..., 0]) > 1e-3) | (np.abs(at[..., 1]) > 1e-3)
     return np.where(moved, np.float32(OFFSET_SIGNIFICANCE_MOVED), np.float32(OFFSET_SIGNIFICANCE))
+
+
+def state_significance(
+    flow: np.ndarray,
+    registered: np.ndarray,
+    measurement: np.ndarray,
+    *,
+    sigma_mm: float,
+    edge_mm: float,
+    radius_px: int,
+    noise_factor: float,
+    along_significance: float,
+    centres: np.ndarray | None = None,
+) -> tuple[np.ndarray, bool]:
+    """:func:`significance` of a recursive state's radial offsets against the current frame,
+    at most ``along_significance`` where the state as a whole lies nearer or farther than
+    the frame (the camera moves along its axis), and whether it does.
+
+    The state moved along the viewing ray when the median of its differences to the frame
+    within ``edge_mm`` (at least 25 of them) lies beyond the standard error of one offset's
+    window of (2·``radius_px`` + 1)² differences of std ``noise_factor``·``sigma_mm``.
+
+    Parameters
+    ----------
+    flow : ndarray float32 (s·h, s·w, 2)
+        Motion from the current frame to the previous one on the flow grid (flow px).
+    registered : ndarray float32 (1, h, w)
+        The state registered to the frame's low-res pixel centres (mm, 0 = none).
+    measurement : ndarray float32 (h, w)
+        The current frame (mm, 0 = none).
+    sigma_mm, edge_mm : float
+        Noise std and the depth step that separates two surfaces (mm).
+    radius_px : int
+        Half-size of the offsets' neighbourhood (low-res px).
+    noise_factor : float
+        Std of (sample − state) in units of σ (the state is less noisy than a frame).
+    along_significance : float
+        The standard errors kept where the state moved along the ray.
+    centres : ndarray (1, h, w, 2), optional
+        :func:`~upsr.method.consistency.maps_at_centres` of ``flow[None]``, when already
+        computed.
+
+    Returns
+    -------
+    (ndarray float32 (1, h, w), bool)
+    """
+    sig = significance(flow[None], measurement.shape, centres=centres)
+    valid = (registered[0] > 0) & (measurement > 0)
+    diff = (registered[0] - measurement)[valid]
+    diff = diff[np.abs(diff) <= edge_mm]
+    se = 1.2533 * math.sqrt(2.0) * noise_factor * sigma_mm / (2 * radius_px + 1)
+    along = diff.size >= 25 and median_beyond(diff, se)
+    if along:
+        sig = np.minimum(sig, np.float32(along_significance))
+    return sig, along
 
 
 def far_offsets(offsets: npt.ArrayLike, edge_mm: float) -> np.ndarray:

@@ -41,7 +41,7 @@ import numpy.typing as npt
 from upsr.errors import InputError
 from upsr.method._parallel import WINDOWED_WORKERS, resolve_workers, window_pool
 from upsr.method.config import UPSRConfig
-from upsr.method.consistency import misregistered, registered_samples
+from upsr.method.consistency import maps_at_centres, misregistered, registered_samples
 from upsr.method.finishing import finish_frame, finish_fused, settle_fused
 from upsr.method.frontend import MotionFrontEnd
 from upsr.method.fusion import register_and_fuse, splat_points
@@ -387,21 +387,17 @@ class UPSR:
                 )  # fmt: skip
                 lowres = abstain_lone_outliers(lowres, ref, anchor)
             offsets = untrusted = None
+            # each frame's motion at the low-res pixel centres (the radial test, the reach)
+            needed = cfg.n_frames > 1 and (cfg.radial_compensation or caps is not None)
+            centres = maps_at_centres(maps, (h, w)) if needed else None
             if cfg.n_frames > 1 and (cfg.radial_compensation or cfg.check_registration):
                 registered = registered_samples(lowres, maps, r)
                 if cfg.radial_compensation:
                     offsets = radial_offsets(
-                        lowres,
-                        maps,
-                        r,
-                        ref,
-                        sigma_mm=noise,
-                        edge_mm=self._front.edge_mm,
-                        radius_px=cfg.radial_radius_px,
-                        registered=registered,
-                        anchor=anchor,
-                        noise_profile=stats.trust_noise_profile,
-                    )
+                        lowres, maps, r, ref, sigma_mm=noise, edge_mm=self._front.edge_mm,
+                        radius_px=cfg.radial_radius_px, registered=registered, anchor=anchor,
+                        noise_profile=stats.trust_noise_profile, centres=centres,
+                    )  # fmt: skip
                 if cfg.check_registration:
                     untrusted = misregistered(
                         registered, lowres[ref], ref, edge_mm=self._front.edge_mm, offsets=offsets
@@ -412,7 +408,7 @@ class UPSR:
                     far = far_offsets(offsets, self._front.edge_mm)
                     untrusted = far if untrusted is None else untrusted | far
             if caps is not None:
-                far = beyond_reach(maps, caps, ref, grid_scale=self._s)
+                far = beyond_reach(maps, caps, ref, grid_scale=self._s, centres=centres)
                 untrusted = far if untrusted is None else untrusted | far
             guide = None
             if cfg.splat_radius_px and cfg.n_frames > 1:
