@@ -80,3 +80,62 @@ def test_the_noise_shape_keeps_the_tails_of_strong_laplacian_noise():
     frames = (2000.0 + rng.laplace(0, 50 / np.sqrt(2), (9, 60, 80))).astype(np.float32)
     kurtosis, std = noise_shape(frames, 141.0)  # the edge threshold at 50 mm of noise
     assert choose_estimator(kurtosis) == "median" and std == pytest.approx(50.0, rel=0.05)
+
+
+def _kinect_floor(seed: int = 0, n: int = 9) -> tuple[np.ndarray, np.ndarray]:
+    """A floor from 1.2 to 3 m and a box at 1.5 m seen by a Kinect-like sensor: quantised
+    disparity whose noise grows with depth (a mixture of scales: a heavy-tailed kurtosis)."""
+    clean = np.broadcast_to(np.linspace(1200.0, 3000.0, 64)[:, None], (n, 64, 80)).copy()
+    clean[:, 20:40, 30:50] = 1500.0
+    return clean, kinect(clean, np.random.default_rng(seed), image_focal_px=580.0)
+
+
+def test_quantised_depth_is_seen_in_the_steps_between_its_levels():
+    from upsr.method.noise import QUANTISED_STEPS, quantisation_step
+
+    _, frames = _kinect_floor()
+    sigma_1m, power = noise_profile(frames, 100.0)
+    assert quantisation_step(frames, 10.0, (sigma_1m, power)) > 2 * QUANTISED_STEPS
+    assert quantisation_step(frames, 10.0) > 2 * QUANTISED_STEPS  # one σ for all depths
+    rng = np.random.default_rng(1)
+    floor = np.linspace(1200.0, 3000.0, 64)[:, None] * np.ones((9, 1, 80))
+    noisy = floor + rng.normal(0, 10.0, floor.shape)
+    assert quantisation_step(noisy, 10.0) < 0.01  # continuous: as many levels as samples
+    assert quantisation_step(np.round(noisy), 10.0) <= 0.2 * QUANTISED_STEPS  # whole mm
+    noisy[0, 0, :3] = [0.0, np.nan, -5.0]  # no measurement: not a level
+    assert quantisation_step(noisy, 10.0) < 0.01
+    assert np.isnan(quantisation_step(np.full((4, 4), 2000.0), 10.0))
+
+
+def test_quantised_depth_is_fused_by_the_mean_whatever_its_kurtosis():
+    """The depth-dependent noise of a Kinect makes the temporal differences heavy-tailed
+    (kurtosis above KURTOSIS_MEDIAN: the median was chosen), but the median of quantised
+    samples is a quantisation level: two static walls at 1.8 and 3 m came out 2.6× worse
+    than with the mean (measured 2.0 against 0.8 mm; the temporal mean of the raw frames 3.9)."""
+    import upsr
+    from upsr.method.config import UPSRConfig
+    from upsr.method.frontend import MotionFrontEnd
+    from upsr.method.noise import KURTOSIS_MEDIAN
+    from upsr.method.windowed import fix_video_statistics
+    from upsr.research.peers import temporal_mean
+
+    clean = np.where(np.arange(96)[None, :] < 48, 1800.0, 3000.0) * np.ones((9, 72, 1))
+    frames = kinect(clean, np.random.default_rng(0), image_focal_px=580.0)
+    assert noise_shape(frames, 100.0)[0] > KURTOSIS_MEDIAN
+    cfg = UPSRConfig(scale=2, n_frames=9)
+    assert fix_video_statistics(MotionFrontEnd(cfg, 96), frames, cfg).estimator == "mean"
+    rng = np.random.default_rng(3)
+    laplace = (clean + rng.laplace(0, 10 / np.sqrt(2), clean.shape)).astype(np.float32)
+    assert fix_video_statistics(MotionFrontEnd(cfg, 96), laplace, cfg).estimator == "median"
+    truth = np.repeat(np.repeat(clean[4], 2, axis=0), 2, axis=1)
+    inner = np.zeros(truth.shape, bool)
+    inner[6:-6, 6:-6] = True
+    inner[:, 80:112] = False  # away from the edge between the walls
+
+    def rmse(out):
+        assert (out[inner] > 0).all()
+        return float(np.sqrt(np.mean((out - truth)[inner] ** 2)))
+
+    auto = rmse(upsr.super_resolve(frames, 2, 9)[4])
+    assert auto < 0.5 * rmse(upsr.super_resolve(frames, 2, 9, fusion_estimator="median")[4])
+    assert auto < 0.5 * rmse(temporal_mean(frames, 2, 9)[4])

@@ -53,7 +53,13 @@ from upsr.method.mixed import (
     remove_mixed_pixels,
 )
 from upsr.method.motion import FlowBackend, flow_backend_is_thread_safe, make_flow_backend
-from upsr.method.noise import choose_estimator, noise_profile, noise_shape
+from upsr.method.noise import (
+    QUANTISED_STEPS,
+    choose_estimator,
+    noise_profile,
+    noise_shape,
+    quantisation_step,
+)
 from upsr.method.registration import (
     advance_positions,
     cumulative_flows,
@@ -104,13 +110,13 @@ def fix_video_statistics(
     The front-end's depth range and noise estimate (:meth:`MotionFrontEnd.fix_statistics`),
     the fusion's estimator and trust noise from the shape of the temporal noise
     (:func:`upsr.method.noise.noise_shape`): the median for Laplacian noise, the mean of the
-    trusted samples for Gaussian or quantised noise; and whether the sensor mixes depths at
+    trusted samples for Gaussian noise or depth quantised in steps of at least
+    :data:`~upsr.method.noise.QUANTISED_STEPS` noise stds
+    (:func:`upsr.method.noise.quantisation_step`); and whether the sensor mixes depths at
     edges (:func:`upsr.method.mixed.footprint_share`) for ``remove_mixed="auto"``.
     """
     front.fix_statistics(first_frames)
     kurtosis, temporal_mm = noise_shape(first_frames, front.edge_mm)
-    est = cfg.fusion_estimator
-    estimator = choose_estimator(kurtosis) if est == "auto" else est
     if cfg.trust_noise_mm is not None:
         trust_mm = cfg.trust_noise_mm
     elif cfg.noise_mm is not None:  # a given noise is the noise
@@ -121,6 +127,10 @@ def fix_video_statistics(
     if mixed == "auto":
         mixed = has_mixed_pixels(footprint_share(first_frames, front.edge_mm))
     profile = trust_profile(first_frames, cfg, front.edge_mm)
+    estimator = cfg.fusion_estimator
+    if estimator == "auto":
+        step = quantisation_step(first_frames, trust_mm, profile)
+        estimator = choose_estimator(kurtosis, quantised=step >= QUANTISED_STEPS)
     return VideoStatistics(estimator, trust_mm, bool(mixed), profile)
 
 
