@@ -7,14 +7,15 @@ import pytest
 import upsr
 from upsr.errors import InputError
 from upsr.method.config import UPSRConfig
+from upsr.method.frontend import MotionFrontEnd
 from upsr.method.fusion import register_and_fuse
-from upsr.method.noise import choose_estimator, noise_shape
 from upsr.method.trust import (
     fill_holes,
     radial_offsets,
     reference_anchor,
 )
 from upsr.method.upsampling import upsample_nearest
+from upsr.method.windowed import fix_video_statistics
 
 R = 2
 WALL = 3000.0
@@ -430,10 +431,11 @@ def test_the_estimator_follows_the_shape_of_the_noise(kind):
     else:
         frames = _kinect(truth, rng)
     frames = frames.astype(np.float32)
-    kurt, std = noise_shape(frames, 100.0)
-    estimator = choose_estimator(kurt)
+    cfg = UPSRConfig(scale=R, n_frames=n)
+    stats = fix_video_statistics(MotionFrontEnd(cfg, w), frames, cfg)
+    estimator = stats.estimator
     assert estimator == ("median" if kind == "laplace" else "mean")
-    sigma = max(std, upsr.method.deblurring.estimate_noise_mm(frames[4]))
+    sigma = stats.trust_noise_mm
     anchor, tol = reference_anchor(frames[4], sigma, 3.0, 100.0)
     maps = np.zeros((n, h * R, w * R, 2), np.float32)
     fused = register_and_fuse(

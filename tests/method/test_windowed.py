@@ -148,7 +148,12 @@ def test_streaming_bad_input():
 
 def test_chunk_with_the_videos_statistics_equals_the_whole_run():
     from upsr.method.motion import depth_range
-    from upsr.method.noise import choose_estimator, estimate_noise_mm, noise_shape
+    from upsr.method.noise import (
+        choose_estimator,
+        estimate_noise_mm,
+        tail_ratio,
+        temporal_noise_mm,
+    )
     from upsr.method.windowed import window_start
 
     scene = dynamic_scene(n_frames=14, lowres_shape=(16, 20), scale=2, noise_sigma_mm=20, seed=4)
@@ -161,9 +166,10 @@ def test_chunk_with_the_videos_statistics_equals_the_whole_run():
         n_frames=n,
         depth_range_mm=tuple(float(v) for v in depth_range(first)),
         noise_mm=noise,
-        # what "auto" picks from the video's first window: the estimator, the trust's noise
-        fusion_estimator=choose_estimator(noise_shape(first, 100.0)[0]),
-        trust_noise_mm=max(noise, noise_shape(first, 100.0)[1]),
+        # what "auto" picks from the video's first window: the estimator (continuous
+        # noise: never quantised), the trust's noise
+        fusion_estimator=choose_estimator(tail_ratio(first, 100.0, noise)),
+        trust_noise_mm=max(noise, temporal_noise_mm(first, 100.0)),
     )
     a, b = 7, 14  # output frames of the chunk; its windows need input frames [lo, b)
     lo = window_start(a, 14, cfg)

@@ -291,9 +291,10 @@ class UPSRConfig:
         noise), the mean (ML under Gaussian noise; falls between quantisation steps), or
         ``"auto"``: chosen once per video, the mean where the depth is quantised in steps of
         at least half a noise std (:func:`upsr.method.noise.quantisation_step`: structured
-        light, stereo), else from the excess kurtosis of the temporal differences of its
-        static pixels (> 0.75: median; :func:`upsr.method.noise.noise_shape`); in recursive
-        mode the mean of the trusted samples (:mod:`upsr.method.recursive`).
+        light, stereo), else from the tails of the spatial noise (the median where they are
+        heavier than halfway between Gaussian and Laplacian noise:
+        :func:`upsr.method.noise.tail_ratio`); in recursive mode the mean of the trusted
+        samples (:mod:`upsr.method.recursive`).
     follow_slopes : bool
         After the deblurring, set the linear trend of each output block that lies on one
         surface to that surface's slope, measured on the reference's anchor between the block

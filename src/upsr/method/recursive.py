@@ -117,7 +117,7 @@ from upsr.method.mixed import (
     split_mixed_pixels,
 )
 from upsr.method.motion import FlowBackend, make_flow_backend
-from upsr.method.noise import noise_shape
+from upsr.method.noise import temporal_noise_mm
 from upsr.method.pipeline import TwoStagePipeline
 from upsr.method.registration import _registered_state_kernel, flow_positions
 from upsr.method.thin import ThinParts
@@ -553,7 +553,7 @@ class RecursiveUPSR(TwoStagePipeline):
         remove_mixed = self._remove_mixed
         if t == 1 and self._first is not None:
             if cfg.noise_mm is None:
-                self._temporal_mm = noise_shape(np.stack([self._first, f]), front.edge_mm)[1]
+                self._temporal_mm = temporal_noise_mm(np.stack([self._first, f]), front.edge_mm)
             self._first = None
         with self._timed("prefilter"):
             pre = front.prefilter(f)

@@ -57,8 +57,9 @@ from upsr.method.noise import (
     QUANTISED_STEPS,
     choose_estimator,
     noise_profile,
-    noise_shape,
     quantisation_step,
+    tail_ratio,
+    temporal_noise_mm,
 )
 from upsr.method.registration import (
     advance_positions,
@@ -108,15 +109,16 @@ def fix_video_statistics(
     """Fix every choice UP-SR makes once per video from its first N low-res frames (T, h, w).
 
     The front-end's depth range and noise estimate (:meth:`MotionFrontEnd.fix_statistics`),
-    the fusion's estimator and trust noise from the shape of the temporal noise
-    (:func:`upsr.method.noise.noise_shape`): the median for Laplacian noise, the mean of the
-    trusted samples for Gaussian noise or depth quantised in steps of at least
+    the trust noise (the spatial and the temporal noise,
+    :func:`upsr.method.noise.temporal_noise_mm`), the fusion's estimator from the shape of the
+    noise (:func:`upsr.method.noise.tail_ratio`): the median for Laplacian noise, the mean of
+    the trusted samples for Gaussian noise or depth quantised in steps of at least
     :data:`~upsr.method.noise.QUANTISED_STEPS` noise stds
     (:func:`upsr.method.noise.quantisation_step`); and whether the sensor mixes depths at
     edges (:func:`upsr.method.mixed.footprint_share`) for ``remove_mixed="auto"``.
     """
     front.fix_statistics(first_frames)
-    kurtosis, temporal_mm = noise_shape(first_frames, front.edge_mm)
+    temporal_mm = temporal_noise_mm(first_frames, front.edge_mm)
     if cfg.trust_noise_mm is not None:
         trust_mm = cfg.trust_noise_mm
     elif cfg.noise_mm is not None:  # a given noise is the noise
@@ -130,7 +132,8 @@ def fix_video_statistics(
     estimator = cfg.fusion_estimator
     if estimator == "auto":
         step = quantisation_step(first_frames, trust_mm, profile)
-        estimator = choose_estimator(kurtosis, quantised=step >= QUANTISED_STEPS)
+        tail = tail_ratio(first_frames, front.edge_mm, front.noise_mm or 0.0)
+        estimator = choose_estimator(tail, quantised=step >= QUANTISED_STEPS)
     return VideoStatistics(estimator, trust_mm, bool(mixed), profile)
 
 
