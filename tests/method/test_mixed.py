@@ -115,7 +115,7 @@ def test_one_straight_edge_weighs_as_the_root_of_its_length():
 
 def test_remove_mixed_auto_follows_the_sensor():
     from upsr.method.frontend import MotionFrontEnd
-    from upsr.method.windowed import fix_video_statistics
+    from upsr.method.statistics import fix_video_statistics
 
     tof = np.repeat(_tof_edge_frames(), 3, axis=0)
     point = np.where(tof > 2000, WALL, 1000.0).astype(np.float32)

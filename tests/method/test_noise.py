@@ -10,6 +10,7 @@ from upsr.method.noise import (
     estimate_noise_mm,
     noise_at_depth,
     noise_profile,
+    second_differences,
     tail_ratio,
     temporal_noise_mm,
 )
@@ -81,8 +82,10 @@ def test_the_noise_keeps_the_tails_of_strong_laplacian_noise():
     rng = np.random.default_rng(7)
     frames = (2000.0 + rng.laplace(0, 50 / np.sqrt(2), (9, 60, 80))).astype(np.float32)
     assert temporal_noise_mm(frames, 141.0) == pytest.approx(50.0, rel=0.05)
-    assert choose_estimator(tail_ratio(frames, 141.0, 50.0)) == "median"
-    assert tail_ratio(frames, 141.0, 50.0) > tail_ratio(frames, 141.0, 1.0)  # tails cut
+    assert choose_estimator(tail_ratio(second_differences(frames, 141.0, 50.0))) == "median"
+    assert tail_ratio(second_differences(frames, 141.0, 50.0)) > tail_ratio(
+        second_differences(frames, 141.0, 1.0)
+    )  # tails cut
 
 
 @pytest.mark.parametrize("law", ["gaussian", "laplace"])
@@ -109,11 +112,15 @@ def test_the_tails_of_the_noise_are_read_in_space_not_in_time(law):
     d -= np.median(d)
     d = d[np.abs(d) <= 8 * 1.4826 * np.median(np.abs(d))]
     assert np.mean((d - d.mean()) ** 4) / d.var() ** 2 - 3 > 0.75  # "heavy tails" in time
-    tail = tail_ratio(frames, 100.0, sigma)
+    tail = tail_ratio(second_differences(frames, 100.0, sigma))
     assert (tail > TAIL_RATIO_MEDIAN) == (law == "laplace")
     assert choose_estimator(tail) == ("median" if law == "laplace" else "mean")
-    assert np.isnan(tail_ratio(clean, 100.0, 0.0))  # no noise: no shape (the median)
-    assert np.isnan(tail_ratio(frames[:, :2, :2], 100.0, sigma))  # too few triples
+    assert np.isnan(
+        tail_ratio(second_differences(clean, 100.0, 0.0))
+    )  # no noise: no shape (the median)
+    assert np.isnan(
+        tail_ratio(second_differences(frames[:, :2, :2], 100.0, sigma))
+    )  # too few triples
 
 
 def _kinect_floor(seed: int = 0, n: int = 9) -> tuple[np.ndarray, np.ndarray]:
@@ -150,12 +157,12 @@ def test_quantised_depth_is_fused_by_the_mean_whatever_its_tails():
     from upsr.method.config import UPSRConfig
     from upsr.method.frontend import MotionFrontEnd
     from upsr.method.noise import TAIL_RATIO_MEDIAN
-    from upsr.method.windowed import fix_video_statistics
+    from upsr.method.statistics import fix_video_statistics
     from upsr.research.peers import temporal_mean
 
     clean = np.where(np.arange(96)[None, :] < 48, 1800.0, 3000.0) * np.ones((9, 72, 1))
     frames = kinect(clean, np.random.default_rng(0), image_focal_px=580.0)
-    assert tail_ratio(frames, 100.0, 10.0) > TAIL_RATIO_MEDIAN
+    assert tail_ratio(second_differences(frames, 100.0, 10.0)) > TAIL_RATIO_MEDIAN
     cfg = UPSRConfig(scale=2, n_frames=9)
     assert fix_video_statistics(MotionFrontEnd(cfg, 96), frames, cfg).estimator == "mean"
     rng = np.random.default_rng(3)

@@ -9,13 +9,13 @@ from upsr.errors import InputError
 from upsr.method.config import UPSRConfig
 from upsr.method.frontend import MotionFrontEnd
 from upsr.method.fusion import register_and_fuse
+from upsr.method.statistics import fix_video_statistics
 from upsr.method.trust import (
     fill_holes,
     radial_offsets,
     reference_anchor,
 )
 from upsr.method.upsampling import upsample_nearest
-from upsr.method.windowed import fix_video_statistics
 
 R = 2
 WALL = 3000.0

@@ -147,30 +147,15 @@ def test_streaming_bad_input():
 
 
 def test_chunk_with_the_videos_statistics_equals_the_whole_run():
-    from upsr.method.motion import depth_range
-    from upsr.method.noise import (
-        choose_estimator,
-        estimate_noise_mm,
-        tail_ratio,
-        temporal_noise_mm,
-    )
+    from upsr.method.statistics import pinned_config
     from upsr.method.windowed import window_start
 
     scene = dynamic_scene(n_frames=14, lowres_shape=(16, 20), scale=2, noise_sigma_mm=20, seed=4)
     n = 5
     whole = upsr.super_resolve(scene.lowres, 2, n)
-    first = scene.lowres[:n]
-    noise = float(np.median([estimate_noise_mm(f) for f in first]))
-    cfg = upsr.UPSRConfig(
-        scale=2,
-        n_frames=n,
-        depth_range_mm=tuple(float(v) for v in depth_range(first)),
-        noise_mm=noise,
-        # what "auto" picks from the video's first window: the estimator (continuous
-        # noise: never quantised), the trust's noise
-        fusion_estimator=choose_estimator(tail_ratio(first, 100.0, noise)),
-        trust_noise_mm=max(noise, temporal_noise_mm(first, 100.0)),
-    )
+    # what "auto" picks from the video's first window: depth range, noise, estimator, trust
+    cfg = pinned_config(scene.lowres[:n], upsr.UPSRConfig(scale=2, n_frames=n))
+    assert cfg.fusion_estimator in ("mean", "median") and cfg.trust_noise_mm is not None
     a, b = 7, 14  # output frames of the chunk; its windows need input frames [lo, b)
     lo = window_start(a, 14, cfg)
     part = upsr.super_resolve(scene.lowres[lo:b], 2, config=cfg)
@@ -324,31 +309,3 @@ def test_sample_chains_kept_across_windows_equal_the_traced_ones(monkeypatch):
             t - s, [fwd.get(k) for k in idx], [bwd.get(k) for k in idx], (12, 16), 2
         )
         np.testing.assert_array_equal(positions, expected)
-
-
-def test_the_trust_profile_is_estimated_once_per_video_given_or_switched_off():
-    from upsr.method.config import UPSRConfig
-    from upsr.method.frontend import MotionFrontEnd
-    from upsr.method.windowed import fix_video_statistics, pinned_config, trust_profile
-    from upsr.research.synth.degradation import kinect
-
-    clean = np.where(np.arange(96)[None, :] < 48, 1800.0, 3000.0) * np.ones((5, 72, 1))
-    frames = kinect(clean, np.random.default_rng(2), image_focal_px=580.0)
-    cfg = UPSRConfig(scale=2, n_frames=5)
-    stats = fix_video_statistics(MotionFrontEnd(cfg, 96), frames, cfg)
-    sigma_1m, power = stats.trust_noise_profile
-    assert power > 1.0 and sigma_1m > 0
-    pinned = pinned_config(frames, cfg)
-    assert pinned.trust_noise_profile == (sigma_1m, power)
-    assert trust_profile(frames, pinned, 100.0) == (sigma_1m, power)  # a chunk: the same
-    for off in (
-        dict(trust_noise_profile="constant"),
-        dict(trust_noise_mm=10.0),  # a given noise is the noise
-        dict(noise_mm=10.0),
-        dict(trust_noise_profile=(2.0, 0.0)),
-    ):
-        assert trust_profile(frames, UPSRConfig(scale=2, **off), 100.0) is None
-    # time-of-flight or Laplacian noise: one σ per video
-    flat = (clean + np.random.default_rng(3).laplace(0, 7, clean.shape)).astype(np.float32)
-    assert fix_video_statistics(MotionFrontEnd(cfg, 96), flat, cfg).trust_noise_profile is None
-    assert pinned_config(flat, cfg).trust_noise_profile == "constant"

@@ -87,7 +87,7 @@ def prepare_recording(
             first.append(frame)
             if len(first) == cfg.n_frames:
                 break
-    from upsr.method.windowed import pinned_config
+    from upsr.method.statistics import pinned_config
 
     # the units of its first frame and the output's capacity, before any of its work
     sensor, strict, scale_given, out_scale = lim.get("units", ("default", False, False, 1000.0))

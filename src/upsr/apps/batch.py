@@ -5,7 +5,7 @@ frames its windows need (UP-SR's window for output t is the frames [s, s + N) wi
 s = clip(t − (N−1)//2, 0, T − N), :func:`upsr.method.windowed.window_start`), so
 neighbouring chunks overlap by N − 1 input frames. Every choice the engine fixes once per video
 from its first N frames (the flow images' 8-bit depth mapping, the noise estimate, the fusion's
-estimator and trust noise: :func:`upsr.method.windowed.pinned_config`) is made once per
+estimator and trust noise: :func:`upsr.method.statistics.pinned_config`) is made once per
 recording and given to every chunk: the result is identical, frame for frame, to a single run
 over the whole recording.
 

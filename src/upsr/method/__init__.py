@@ -15,6 +15,7 @@ state memory per pixel    —                      :mod:`upsr.method.memory`
 temporal median           eq. 26–28              :mod:`upsr.method.fusion`
 L1 + BTV deblurring       eq. 29–30              :mod:`upsr.method.deblurring`
 noise estimate            —                      :mod:`upsr.method.noise`
+per-video choices         —                      :mod:`upsr.method.statistics`
 surface smoothing         —                      :mod:`upsr.method.smoothing`
 speckle removal           —                      :mod:`upsr.method.outliers`
 sliding-window engine     Table 1                :mod:`upsr.method.windowed`
@@ -43,6 +44,7 @@ __getattr__, __dir__, __all__ = attach(
         "registration",
         "resources",
         "smoothing",
+        "statistics",
         "thin",
         "trust",
         "upsampling",

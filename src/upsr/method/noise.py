@@ -32,6 +32,7 @@ import numpy.typing as npt
 from upsr.errors import InputError
 
 __all__ = [
+    "NOISE_FREE_MM",
     "PROFILE_BIN_RATIO",
     "PROFILE_MAX_PX",
     "PROFILE_MIN_POWER",
@@ -45,6 +46,7 @@ __all__ = [
     "noise_at_depth",
     "noise_profile",
     "quantisation_step",
+    "second_differences",
     "tail_ratio",
     "temporal_noise_mm",
 ]
@@ -59,6 +61,10 @@ __all__ = [
 TAIL_RATIO_MEDIAN = 2.06
 #: :func:`tail_ratio`'s quantiles of the absolute second differences.
 TAIL_QUANTILES = (0.9, 0.6)
+#: Below this spatial noise (mm, :func:`estimate_noise_mm`) the frames show none: noise-free
+#: depth, or quantised depth whose neighbours mostly agree (a Kinect's 0 mm); the trust's
+#: noise then comes from the temporal differences (:func:`temporal_noise_mm`).
+NOISE_FREE_MM = 1.0
 #: Depth quantised in steps of at least this many noise stds (:func:`quantisation_step`) is
 #: fused by the mean of the trusted samples whatever its tails: the median of quantised
 #: samples is one of the levels, the mean falls between them. A Kinect-like sensor (disparity
@@ -323,15 +329,11 @@ def temporal_noise_mm(frames: npt.ArrayLike, edge_mm: float) -> float:
     return math.sqrt(float(d.var()) / 2.0)
 
 
-def tail_ratio(frames: npt.ArrayLike, edge_mm: float, noise_mm: float) -> float:
-    """How heavy the tails of the spatial noise are: the ratio of the 0.9 and 0.6 quantiles
-    (:data:`TAIL_QUANTILES`) of the absolute second differences z_c − (z_l + z_r)/2 along the
-    rows and columns of ``frames``, over the triples within max(``edge_mm``, 8·``noise_mm``)
-    of their centre (one surface; the tails of strong noise kept).
-
-    Second differences cancel slopes and camera motion, which the temporal differences read
-    as heavy tails; quantiles, unlike the kurtosis, ignore the few depth edges left in.
-    I.i.d. Gaussian noise gives 1.955, Laplacian 2.205 (:data:`TAIL_RATIO_MEDIAN` between).
+def second_differences(frames: npt.ArrayLike, edge_mm: float, noise_mm: float) -> np.ndarray:
+    """The second differences z_c − (z_l + z_r)/2 along the rows and columns of ``frames``
+    over the triples of valid pixels within max(``edge_mm``, 8·``noise_mm``) of their centre
+    (one surface; the tails of strong noise kept): slopes cancel, motion does not enter. For
+    i.i.d. noise of std σ their std is σ·√1.5.
 
     Parameters
     ----------
@@ -344,11 +346,8 @@ def tail_ratio(frames: npt.ArrayLike, edge_mm: float, noise_mm: float) -> float:
 
     Returns
     -------
-    float: NaN without noise (``noise_mm`` ≤ 0, or the 0.6 quantile 0) or with fewer than 50
-    triples.
+    ndarray float64 (n,)
     """
-    if not noise_mm > 0:
-        return math.nan
     z = np.asarray(frames, np.float64)
     z = np.where(np.isfinite(z), z, 0.0)
     z = z.reshape(-1, *z.shape[-2:])
@@ -359,8 +358,23 @@ def tail_ratio(frames: npt.ArrayLike, edge_mm: float, noise_mm: float) -> float:
         left, centre, right = a[..., :-2], a[..., 1:-1], a[..., 2:]
         ok = (left > 0) & (centre > 0) & (right > 0)
         ok &= (np.abs(left - centre) <= limit) & (np.abs(right - centre) <= limit)
-        parts.append(np.abs(centre - 0.5 * (left + right))[ok])
-    d = np.concatenate(parts)
+        parts.append((centre - 0.5 * (left + right))[ok])
+    return np.concatenate(parts)
+
+
+def tail_ratio(differences: np.ndarray) -> float:
+    """How heavy the tails of the spatial noise are: the ratio of the 0.9 and 0.6 quantiles
+    (:data:`TAIL_QUANTILES`) of the absolute :func:`second_differences`.
+
+    Second differences cancel slopes and camera motion, which the temporal differences read
+    as heavy tails; quantiles, unlike the kurtosis, ignore the few depth edges left in.
+    I.i.d. Gaussian noise gives 1.955, Laplacian 2.205 (:data:`TAIL_RATIO_MEDIAN` between).
+
+    Returns
+    -------
+    float: NaN without noise (the 0.6 quantile 0) or with fewer than 50 differences.
+    """
+    d = np.abs(np.asarray(differences, np.float64))
     if d.size < 50:
         return math.nan
     high, low = np.quantile(d, TAIL_QUANTILES)

@@ -117,9 +117,10 @@ from upsr.method.mixed import (
     split_mixed_pixels,
 )
 from upsr.method.motion import FlowBackend, make_flow_backend
-from upsr.method.noise import temporal_noise_mm
+from upsr.method.noise import NOISE_FREE_MM, temporal_noise_mm
 from upsr.method.pipeline import TwoStagePipeline
 from upsr.method.registration import _registered_state_kernel, flow_positions
+from upsr.method.statistics import trust_profile
 from upsr.method.thin import ThinParts
 from upsr.method.trust import (
     OFFSET_GRID,
@@ -130,7 +131,7 @@ from upsr.method.trust import (
     state_significance,
 )
 from upsr.method.validation import as_depth_frame
-from upsr.method.windowed import STAGES, trust_profile
+from upsr.method.windowed import STAGES
 
 __all__ = [
     "RADIAL_RADIUS_FACTOR",
@@ -517,7 +518,7 @@ class RecursiveUPSR(TwoStagePipeline):
         # the temporal differences of the first two frames also see the motion (a moving
         # camera: twice the noise), which the windowed mode's first window averages out;
         # they are the noise only where the spatial estimate sees none (quantised depth)
-        return spatial if spatial >= 1.0 else max(spatial, self._temporal_mm)
+        return spatial if spatial >= NOISE_FREE_MM else max(spatial, self._temporal_mm)
 
     def push(self, frame: npt.ArrayLike) -> np.ndarray:
         """Add the next low-res frame (h, w) in mm; return its high-res frame (r·h, r·w)."""

@@ -28,12 +28,11 @@ Complete windows are finished on ``workers`` threads side by side (same output).
 from __future__ import annotations
 
 import contextlib
-import dataclasses
 import threading
 import time
 from collections.abc import Iterable, Iterator
 from concurrent.futures import Future, wait
-from typing import Any, NamedTuple
+from typing import Any
 
 import numpy as np
 import numpy.typing as npt
@@ -46,27 +45,15 @@ from upsr.method.finishing import finish_frame, finish_fused, settle_fused
 from upsr.method.frontend import MotionFrontEnd
 from upsr.method.fusion import register_and_fuse, splat_points
 from upsr.method.memory import beyond_reach, state_caps
-from upsr.method.mixed import (
-    ABSTAIN,
-    footprint_share,
-    has_mixed_pixels,
-    remove_mixed_pixels,
-)
+from upsr.method.mixed import ABSTAIN, remove_mixed_pixels
 from upsr.method.motion import FlowBackend, flow_backend_is_thread_safe, make_flow_backend
-from upsr.method.noise import (
-    QUANTISED_STEPS,
-    choose_estimator,
-    noise_profile,
-    quantisation_step,
-    tail_ratio,
-    temporal_noise_mm,
-)
 from upsr.method.registration import (
     advance_positions,
     cumulative_flows,
     sample_centres,
     to_output_grid,
 )
+from upsr.method.statistics import VideoStatistics, fix_video_statistics
 from upsr.method.thin import ThinParts
 from upsr.method.trust import (
     abstain_lone_outliers,
@@ -79,98 +66,12 @@ from upsr.method.validation import as_depth_frame, as_depth_video
 __all__ = [
     "STAGES",
     "UPSR",
-    "fix_video_statistics",
-    "pinned_config",
     "super_resolve",
-    "trust_profile",
     "window_start",
 ]
 
 #: The stages of :attr:`UPSR.timings`.
 STAGES = ("prefilter", "flow", "registration", "fusion", "deblur")
-
-
-class VideoStatistics(NamedTuple):
-    """The choices UP-SR makes once per video (:func:`fix_video_statistics`)."""
-
-    #: Estimate of the fused samples of a surface: "median" or "mean".
-    estimator: str
-    #: σ (mm) of the trust tolerance.
-    trust_noise_mm: float
-    #: Whether the mixed input pixels are removed.
-    remove_mixed: bool
-    #: (σ₁, p) of a trust tolerance that grows with depth, or None (one σ).
-    trust_noise_profile: tuple[float, float] | None = None
-
-
-def fix_video_statistics(
-    front: MotionFrontEnd, first_frames: np.ndarray, cfg: UPSRConfig
-) -> VideoStatistics:
-    """Fix every choice UP-SR makes once per video from its first N low-res frames (T, h, w).
-
-    The front-end's depth range and noise estimate (:meth:`MotionFrontEnd.fix_statistics`),
-    the trust noise (the spatial and the temporal noise,
-    :func:`upsr.method.noise.temporal_noise_mm`), the fusion's estimator from the shape of the
-    noise (:func:`upsr.method.noise.tail_ratio`): the median for Laplacian noise, the mean of
-    the trusted samples for Gaussian noise or depth quantised in steps of at least
-    :data:`~upsr.method.noise.QUANTISED_STEPS` noise stds
-    (:func:`upsr.method.noise.quantisation_step`); and whether the sensor mixes depths at
-    edges (:func:`upsr.method.mixed.footprint_share`) for ``remove_mixed="auto"``.
-    """
-    front.fix_statistics(first_frames)
-    temporal_mm = temporal_noise_mm(first_frames, front.edge_mm)
-    if cfg.trust_noise_mm is not None:
-        trust_mm = cfg.trust_noise_mm
-    elif cfg.noise_mm is not None:  # a given noise is the noise
-        trust_mm = cfg.noise_mm
-    else:
-        trust_mm = max(front.noise_mm or 0.0, temporal_mm)
-    mixed = cfg.remove_mixed
-    if mixed == "auto":
-        mixed = has_mixed_pixels(footprint_share(first_frames, front.edge_mm))
-    profile = trust_profile(first_frames, cfg, front.edge_mm)
-    estimator = cfg.fusion_estimator
-    if estimator == "auto":
-        step = quantisation_step(first_frames, trust_mm, profile)
-        tail = tail_ratio(first_frames, front.edge_mm, front.noise_mm or 0.0)
-        estimator = choose_estimator(tail, quantised=step >= QUANTISED_STEPS)
-    return VideoStatistics(estimator, trust_mm, bool(mixed), profile)
-
-
-def trust_profile(
-    first_frames: np.ndarray, cfg: UPSRConfig, edge_mm: float
-) -> tuple[float, float] | None:
-    """The (σ₁, p) of ``cfg.trust_noise_profile``, estimated from the first frames (T, h, w)
-    for ``"auto"`` (:func:`upsr.method.noise.noise_profile`, surfaces split at ``edge_mm``)
-    unless a noise is given; None for one σ per video."""
-    profile = cfg.trust_noise_profile
-    if profile == "constant":
-        return None
-    if profile == "auto":
-        if cfg.noise_mm is not None or cfg.trust_noise_mm is not None:
-            return None  # a given noise is the noise
-        profile = noise_profile(first_frames, edge_mm)
-    sigma_1m, power = (float(v) for v in profile)  # type: ignore[misc]
-    return (sigma_1m, power) if power > 0 else None
-
-
-def pinned_config(first_frames: np.ndarray, cfg: UPSRConfig) -> UPSRConfig:
-    """``cfg`` with every per-video choice fixed from the first N frames (T, h, w) mm.
-
-    A chunk of a video run with this config gives exactly what the whole run gives for its
-    frames (``upsr batch`` splits long recordings so).
-    """
-    front = MotionFrontEnd(cfg, first_frames.shape[-1])
-    stats = fix_video_statistics(front, first_frames, cfg)
-    return dataclasses.replace(
-        cfg,
-        depth_range_mm=front.depth_range_mm,
-        noise_mm=front.noise_mm,
-        fusion_estimator=stats.estimator,
-        trust_noise_mm=stats.trust_noise_mm,
-        remove_mixed=stats.remove_mixed,
-        trust_noise_profile=stats.trust_noise_profile or "constant",
-    )
 
 
 def window_start(t: int, n_total: int, cfg: UPSRConfig) -> int:

@@ -613,9 +613,10 @@ def super_resolve_straightforward(frames: npt.ArrayLike, config: UPSRConfig) -> 
         sample_offsets,
         warp_nearest,
     )
+    from upsr.method.statistics import fix_video_statistics
     from upsr.method.upsampling import upsample_nearest
     from upsr.method.validation import as_depth_video
-    from upsr.method.windowed import fix_video_statistics, window_start
+    from upsr.method.windowed import window_start
 
     cfg = config
     video = as_depth_video(frames)
@@ -631,7 +632,6 @@ def super_resolve_straightforward(frames: npt.ArrayLike, config: UPSRConfig) -> 
     edge_mm = front.edge_mm
     stats = fix_video_statistics(front, video[:n], cfg)
     trust_mm = stats.trust_noise_mm
-    use_mean = stats.estimator == "mean"
     out = np.empty((t_total, h * r, w * r), np.float32)
     for t in range(t_total):
         s = window_start(t, t_total, cfg)
@@ -674,7 +674,7 @@ def super_resolve_straightforward(frames: npt.ArrayLike, config: UPSRConfig) -> 
             )
         fuse = functools.partial(
             temporal_median_numpy, stack, ref, weights=weights, guide=guide,
-            min_valid_fraction=cfg.min_valid_fraction, use_mean=use_mean,
+            min_valid_fraction=cfg.min_valid_fraction, use_mean=stats.estimator == "mean",
         )  # fmt: skip
         fused = fuse(edge_mm=edge_mm)
         if fallback is not None:

@@ -1,0 +1,120 @@
+"""The choices UP-SR makes once per video, from its first N frames (beyond the paper).
+
+The windowed engine fixes them with the N-th frame, before its first window, and never
+changes them (a chunk of a video run with :func:`pinned_config` gives exactly what the whole
+run gives): the front-end's depth range and noise (:class:`~upsr.method.frontend.MotionFrontEnd`),
+the trust's noise and its profile over depth, the fusion's estimator, and whether the sensor
+mixes depths at edges. The recursive engine takes the noise profile from its first frame.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from typing import NamedTuple
+
+import numpy as np
+
+from upsr.method.config import UPSRConfig
+from upsr.method.frontend import MotionFrontEnd
+from upsr.method.mixed import footprint_share, has_mixed_pixels
+from upsr.method.noise import (
+    QUANTISED_STEPS,
+    choose_estimator,
+    noise_profile,
+    quantisation_step,
+    second_differences,
+    tail_ratio,
+    temporal_noise_mm,
+)
+
+__all__ = ["VideoStatistics", "fix_video_statistics", "pinned_config", "trust_profile"]
+
+
+class VideoStatistics(NamedTuple):
+    """The choices UP-SR makes once per video (:func:`fix_video_statistics`)."""
+
+    #: Estimate of the fused samples of a surface: "median" or "mean".
+    estimator: str
+    #: σ (mm) of the trust tolerance.
+    trust_noise_mm: float
+    #: Whether the mixed input pixels are removed.
+    remove_mixed: bool
+    #: (σ₁, p) of a trust tolerance that grows with depth, or None (one σ).
+    trust_noise_profile: tuple[float, float] | None = None
+
+
+def fix_video_statistics(
+    front: MotionFrontEnd, first_frames: np.ndarray, cfg: UPSRConfig
+) -> VideoStatistics:
+    """Fix every choice UP-SR makes once per video from its first N low-res frames (T, h, w).
+
+    The front-end's depth range and noise estimate (:meth:`MotionFrontEnd.fix_statistics`),
+    the trust noise (at least the temporal noise, :func:`upsr.method.noise.temporal_noise_mm`),
+    the fusion's estimator from
+    the shape of the noise (:func:`upsr.method.noise.tail_ratio`): the median for Laplacian
+    noise, the mean of
+    the trusted samples for Gaussian noise or depth quantised in steps of at least
+    :data:`~upsr.method.noise.QUANTISED_STEPS` noise stds
+    (:func:`upsr.method.noise.quantisation_step`); and whether the sensor mixes depths at
+    edges (:func:`upsr.method.mixed.footprint_share`) for ``remove_mixed="auto"``.
+    """
+    front.fix_statistics(first_frames)
+    spatial = front.noise_mm or 0.0
+    if cfg.trust_noise_mm is not None:
+        trust_mm = cfg.trust_noise_mm
+    elif cfg.noise_mm is not None:  # a given noise is the noise
+        trust_mm = cfg.noise_mm
+    else:
+        # (the temporal differences also see the motion: a moving camera's slanted surfaces
+        # read as 3× the noise, which loosens the trust; the spatial noise alone was measured
+        # and not taken, see docs/notes/depth-rules.md)
+        trust_mm = max(spatial, temporal_noise_mm(first_frames, front.edge_mm))
+    mixed = cfg.remove_mixed
+    if mixed == "auto":
+        mixed = has_mixed_pixels(footprint_share(first_frames, front.edge_mm))
+    profile = trust_profile(first_frames, cfg, front.edge_mm)
+    estimator = cfg.fusion_estimator
+    if estimator == "auto":
+        step = quantisation_step(first_frames, trust_mm, profile)
+        tail = math.nan  # (noise-free: no shape to read)
+        if spatial > 0:
+            tail = tail_ratio(second_differences(first_frames, front.edge_mm, spatial))
+        estimator = choose_estimator(tail, quantised=step >= QUANTISED_STEPS)
+    return VideoStatistics(estimator, trust_mm, bool(mixed), profile)
+
+
+def trust_profile(
+    first_frames: np.ndarray, cfg: UPSRConfig, edge_mm: float
+) -> tuple[float, float] | None:
+    """The (σ₁, p) of ``cfg.trust_noise_profile``, estimated from the first frames (T, h, w)
+    for ``"auto"`` (:func:`upsr.method.noise.noise_profile`, surfaces split at ``edge_mm``)
+    unless a noise is given; None for one σ per video."""
+    profile = cfg.trust_noise_profile
+    if profile == "constant":
+        return None
+    if profile == "auto":
+        if cfg.noise_mm is not None or cfg.trust_noise_mm is not None:
+            return None  # a given noise is the noise
+        profile = noise_profile(first_frames, edge_mm)
+    sigma_1m, power = (float(v) for v in profile)  # type: ignore[misc]
+    return (sigma_1m, power) if power > 0 else None
+
+
+def pinned_config(first_frames: np.ndarray, cfg: UPSRConfig) -> UPSRConfig:
+    """``cfg`` with every per-video choice fixed from the first N frames (T, h, w) mm.
+
+    A chunk of a video run with this config gives exactly what the whole run gives for its
+    frames (``upsr batch`` splits long recordings so).
+    """
+    front = MotionFrontEnd(cfg, first_frames.shape[-1])
+    stats = fix_video_statistics(front, first_frames, cfg)
+    return dataclasses.replace(
+        cfg,
+        depth_range_mm=front.depth_range_mm,
+        noise_mm=front.noise_mm,
+        fusion_estimator=stats.estimator,
+        trust_noise_mm=stats.trust_noise_mm,
+        remove_mixed=stats.remove_mixed,
+        trust_noise_profile=stats.trust_noise_profile or "constant",
+    )
