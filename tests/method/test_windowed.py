@@ -309,3 +309,20 @@ def test_sample_chains_kept_across_windows_equal_the_traced_ones(monkeypatch):
             t - s, [fwd.get(k) for k in idx], [bwd.get(k) for k in idx], (12, 16), 2
         )
         np.testing.assert_array_equal(positions, expected)
+
+
+def test_the_videos_statistics_stay_readable_after_flush():
+    """UPSR.statistics: None before the first window, the video's choices from its N-th
+    frame on, and still those after flush() (which resets the engine for the next video)."""
+    scene = dynamic_scene(n_frames=6, lowres_shape=(12, 16), scale=2, noise_sigma_mm=10, seed=3)
+    engine = upsr.UPSR(2, 3)
+    assert engine.statistics is None
+    engine.push(scene.lowres[0])
+    assert engine.statistics is None
+    for f in scene.lowres[1:]:
+        engine.push(f)
+    during = engine.statistics
+    assert during is not None and during.estimator in ("mean", "median")
+    assert during.trust_noise_mm > 0
+    engine.flush()
+    assert engine.statistics == during

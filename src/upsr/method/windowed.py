@@ -157,6 +157,8 @@ class UPSR:
         #: eq. 19), "fusion" (forward splat, registration of the samples and median), "deblur"
         #: (deblurring and speckle removal). With ``workers``, the time of all threads.
         self.timings: dict[str, float] = dict.fromkeys(STAGES, 0.0)
+        self._stats: VideoStatistics | None = None
+        self._last_stats: VideoStatistics | None = None  # (of the video before a reset)
         self.reset()
         # windows in the background only with a built-in (thread-safe) flow backend
         self._pool = window_pool(workers) if self._parallel else None
@@ -184,7 +186,9 @@ class UPSR:
         self._next_submit = 0
         self._any_valid = False
         # the per-video choices, fixed from the first window (fix_video_statistics)
-        self._stats: VideoStatistics | None = None
+        if self._stats is not None:
+            self._last_stats = self._stats
+        self._stats = None
         self._lowres: dict[int, np.ndarray] = {}
         self._clean: dict[int, tuple] = {}  # (_cleaned)
         self._pre: dict[int, np.ndarray] = {}
@@ -198,6 +202,13 @@ class UPSR:
     def frames_seen(self) -> int:
         """Number of frames pushed since the last reset/flush."""
         return self._count
+
+    @property
+    def statistics(self) -> VideoStatistics | None:
+        """The choices made once per video (estimator, trust noise, mixed-pixel removal, noise
+        profile: :func:`~upsr.method.statistics.fix_video_statistics`) from its first N frames:
+        those of the current video, else of the last one (after :meth:`flush`); None before."""
+        return self._stats or self._last_stats
 
     @property
     def output_shape(self) -> tuple[int, int] | None:

@@ -480,3 +480,17 @@ def test_run_bag_intrinsics(tmp_path: Path) -> None:
     assert io.probe(out).shape == (3, 12, 16)
     d = json.loads((tmp_path / "o.intrinsics.json").read_text())
     assert (d["fx"], d["cx"], d["cy"]) == (1000, 7.5, 5.5)
+
+
+def test_run_reports_the_per_video_choices(
+    capsys: pytest.CaptureFixture[str], tmp_path: Path, video_input: Path
+) -> None:
+    """Without --quiet, what ``fusion_estimator="auto"`` and the trust chose for the video
+    (upsr.method.statistics) is one line on stderr; with --quiet nothing."""
+    out = tmp_path / "out.npy"
+    rc, stdout, stderr = run_cli(capsys, "run", video_input, "-o", out, "-r", 2, "-n", 3)
+    assert rc == 0, stderr
+    line = [s for s in stderr.replace("\r", "\n").splitlines() if "fused by the" in s]
+    assert len(line) == 1 and line[0].startswith("upsr: fused by the m")
+    assert "mm" in line[0] and "mixed pixels" in line[0]
+    assert len(stdout.strip().splitlines()) == 1

@@ -213,6 +213,9 @@ def run(
             else (color, color_dest, names if keep_names else None),
         )
     _summary(info.shape, cfg, time.perf_counter() - start, output)
+    stats = getattr(engine, "statistics", None)  # (the windowed mode's, of this video)
+    if stats is not None and not quiet:
+        typer.echo(f"upsr: {_choices(stats)}", err=True)
 
 
 def _summary(shape: tuple[int, int, int], cfg: Any, elapsed: float, output: Path) -> None:
@@ -225,6 +228,19 @@ def _summary(shape: tuple[int, int, int], cfg: Any, elapsed: float, output: Path
         f"upsr: {t_n} frames {w}x{h} -> {w * r}x{h * r} (r={r}, N={cfg.n_frames}{mode}) in "
         f"{elapsed:.1f} s ({rate:.1f} frames/s) -> {output}"
     )
+
+
+def _choices(stats: Any) -> str:
+    """The per-video choices of ``fusion_estimator``, the trust and the mixed-pixel test, in
+    one line (``upsr.method.statistics.VideoStatistics``)."""
+    profile = stats.trust_noise_profile
+    noise = (
+        f"noise σ(z) = {profile[0]:.1f} mm·(z/1 m)^{profile[1]:.2f}"
+        if profile is not None
+        else f"trust noise {stats.trust_noise_mm:.1f} mm"
+    )
+    mixed = "mixed pixels removed" if stats.remove_mixed else "no mixed pixels"
+    return f"fused by the {stats.estimator}, {noise}, {mixed}"
 
 
 def _sidecar(camera: Any, scale: int, stamps: Any, names: list[str] | None) -> str | None:
