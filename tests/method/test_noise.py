@@ -14,7 +14,7 @@ from upsr.method.noise import (
     tail_ratio,
     temporal_noise_mm,
 )
-from upsr.research.synth.degradation import kinect
+from upsr.research.synth.degradation import add_depth_dependent_noise, kinect
 
 
 def test_noise_estimate():
@@ -103,11 +103,7 @@ def test_the_tails_of_the_noise_are_read_in_space_not_in_time(law):
     box = (np.abs(x - (30 + 2 * t)) < 6) & (np.abs(y - 24) < 8)  # 150 mm off the wall
     clean = np.where(box, 2350.0, clean)
     sigma = 20.0
-    if law == "gaussian":
-        noise = rng.normal(0, sigma, clean.shape)
-    else:
-        noise = rng.laplace(0, sigma / np.sqrt(2), clean.shape)
-    frames = (clean + noise).astype(np.float32)
+    frames = add_depth_dependent_noise(clean, sigma, rng, law=law)
     d = np.diff(frames, axis=0).ravel().astype(np.float64)
     d -= np.median(d)
     d = d[np.abs(d) <= 8 * 1.4826 * np.median(np.abs(d))]

@@ -6,7 +6,7 @@ import pytest
 from upsr.method.config import UPSRConfig
 from upsr.method.frontend import MotionFrontEnd
 from upsr.method.statistics import fix_video_statistics, pinned_config, trust_profile
-from upsr.research.synth.degradation import kinect
+from upsr.research.synth.degradation import add_depth_dependent_noise, kinect
 
 
 def test_the_trust_profile_is_estimated_once_per_video_given_or_switched_off():
@@ -44,11 +44,7 @@ def test_the_estimator_follows_the_noise_not_the_motion_of_the_camera(law):
     # slopes of 8 mm per pixel, the camera moving 6 px per frame
     clean = np.where(x < 32, 1500.0 + 8.0 * (y + 6 * t), 2500.0 + 8.0 * (x - 6 * t))
     sigma = 10.0
-    if law == "gaussian":
-        noise = rng.normal(0, sigma, clean.shape)
-    else:
-        noise = rng.laplace(0, sigma / np.sqrt(2), clean.shape)
-    frames = (clean + noise).astype(np.float32)
+    frames = add_depth_dependent_noise(clean, sigma, rng, law=law)
     cfg = UPSRConfig(scale=2, n_frames=9)
     assert temporal_noise_mm(frames, 100.0) > 3 * sigma  # the motion, read as noise
     stats = fix_video_statistics(MotionFrontEnd(cfg, 64), frames, cfg)

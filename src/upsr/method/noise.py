@@ -62,8 +62,8 @@ TAIL_RATIO_MEDIAN = 2.06
 #: :func:`tail_ratio`'s quantiles of the absolute second differences.
 TAIL_QUANTILES = (0.9, 0.6)
 #: Below this spatial noise (mm, :func:`estimate_noise_mm`) the frames show none: noise-free
-#: depth, or quantised depth whose neighbours mostly agree (a Kinect's 0 mm); the trust's
-#: noise then comes from the temporal differences (:func:`temporal_noise_mm`).
+#: depth, or quantised depth whose neighbours mostly agree (a Kinect's 0 mm); the recursive
+#: mode's trust noise then comes from the temporal differences (:func:`temporal_noise_mm`).
 NOISE_FREE_MM = 1.0
 #: Depth quantised in steps of at least this many noise stds (:func:`quantisation_step`) is
 #: fused by the mean of the trusted samples whatever its tails: the median of quantised

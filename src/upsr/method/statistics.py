@@ -2,9 +2,10 @@
 
 The windowed engine fixes them with the N-th frame, before its first window, and never
 changes them (a chunk of a video run with :func:`pinned_config` gives exactly what the whole
-run gives): the front-end's depth range and noise (:class:`~upsr.method.frontend.MotionFrontEnd`),
-the trust's noise and its profile over depth, the fusion's estimator, and whether the sensor
-mixes depths at edges. The recursive engine takes the noise profile from its first frame.
+run gives): the front-end's depth range and noise
+(:class:`~upsr.method.frontend.MotionFrontEnd`), the trust's noise and its profile over
+depth, the fusion's estimator, and whether the sensor mixes depths at edges. The recursive
+engine takes the noise profile from its first frame.
 """
 
 from __future__ import annotations
@@ -49,14 +50,12 @@ def fix_video_statistics(
 ) -> VideoStatistics:
     """Fix every choice UP-SR makes once per video from its first N low-res frames (T, h, w).
 
-    The front-end's depth range and noise estimate (:meth:`MotionFrontEnd.fix_statistics`),
-    the trust noise (at least the temporal noise, :func:`upsr.method.noise.temporal_noise_mm`),
-    the fusion's estimator from
-    the shape of the noise (:func:`upsr.method.noise.tail_ratio`): the median for Laplacian
-    noise, the mean of
-    the trusted samples for Gaussian noise or depth quantised in steps of at least
-    :data:`~upsr.method.noise.QUANTISED_STEPS` noise stds
-    (:func:`upsr.method.noise.quantisation_step`); and whether the sensor mixes depths at
+    The front-end's depth range and noise estimate (:meth:`MotionFrontEnd.fix_statistics`);
+    the trust noise (at least the temporal noise, :func:`upsr.method.noise.temporal_noise_mm`);
+    the fusion's estimator from the shape of the noise (:func:`upsr.method.noise.tail_ratio`):
+    the median for Laplacian noise, the mean of the trusted samples for Gaussian noise or
+    depth quantised in steps of at least :data:`~upsr.method.noise.QUANTISED_STEPS` noise
+    stds (:func:`upsr.method.noise.quantisation_step`); and whether the sensor mixes depths at
     edges (:func:`upsr.method.mixed.footprint_share`) for ``remove_mixed="auto"``.
     """
     front.fix_statistics(first_frames)
