@@ -348,17 +348,18 @@ def second_differences(frames: npt.ArrayLike, edge_mm: float, noise_mm: float) -
     -------
     ndarray float64 (n,)
     """
-    z = np.asarray(frames, np.float64)
-    z = np.where(np.isfinite(z), z, 0.0)
+    z = np.asarray(frames)
     z = z.reshape(-1, *z.shape[-2:])
     limit = max(float(edge_mm), 8.0 * float(noise_mm))
-    parts = []
-    for axis in (1, 2):
-        a = np.moveaxis(z, axis, -1)
-        left, centre, right = a[..., :-2], a[..., 1:-1], a[..., 2:]
-        ok = (left > 0) & (centre > 0) & (right > 0)
-        ok &= (np.abs(left - centre) <= limit) & (np.abs(right - centre) <= limit)
-        parts.append((centre - 0.5 * (left + right))[ok])
+    parts = [np.empty(0)]
+    for frame in z:  # (one frame's temporaries at a time)
+        f = np.asarray(frame, np.float64)
+        f = np.where(np.isfinite(f), f, 0.0)
+        for a in (f, f.T):
+            left, centre, right = a[:, :-2], a[:, 1:-1], a[:, 2:]
+            ok = (left > 0) & (centre > 0) & (right > 0)
+            ok &= (np.abs(left - centre) <= limit) & (np.abs(right - centre) <= limit)
+            parts.append((centre - 0.5 * (left + right))[ok])
     return np.concatenate(parts)
 
 
