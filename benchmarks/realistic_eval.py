@@ -142,7 +142,9 @@ def _sensors(args: argparse.Namespace) -> list[tuple[str, str, float]]:
     out = [(f"laplace{s:g}", "laplace", s) for s in args.sigma]
     out.append((f"gauss{args.gaussian_sigma:g}", "gaussian", args.gaussian_sigma))
     drop = f"drop{100 * args.tof_dropout:g}" if args.tof_dropout else ""
-    out.append((f"tof{args.tof_sigma:g}{drop}", "tof", args.tof_sigma))
+    law = "g" if args.tof_law == "gaussian" else ""
+    sensor = "tof_gaussian" if law else "tof"
+    out.append((f"tof{law}{args.tof_sigma:g}{drop}", sensor, args.tof_sigma))
     out.append(("kinect", "kinect", 0.0))
     return out
 
@@ -151,7 +153,7 @@ def _run_case(
     video: RealisticVideo, label: str, sensor: str, sigma: float, args: argparse.Namespace
 ) -> list[dict[str, Any]]:
     rng = np.random.default_rng([args.seed, zlib.crc32(f"{video.name}/{label}".encode())])
-    drop = args.tof_dropout if sensor == "tof" else 0.0
+    drop = args.tof_dropout if sensor.startswith("tof") else 0.0
     low = degrade(video, sensor, rng, sigma_mm=sigma, dropout_fraction=drop)
     n = min(args.n, video.n_frames)
     oracle = (not args.quick and args.oracle) or (args.quick and label == "laplace10")
@@ -279,6 +281,12 @@ def _parse(argv: Sequence[str] | None) -> argparse.Namespace:
         default=0.0,
         help="share of the ToF pixels that return nothing (e.g. 0.01; issue #13's case: "
         "--tof-sigma 20 --tof-dropout 0.01)",
+    )
+    p.add_argument(
+        "--tof-law",
+        choices=("laplace", "gaussian"),
+        default="laplace",
+        help="noise of the ToF sensor (gaussian: rows labelled tofg…)",
     )
     p.add_argument("--frames", "-t", type=int, default=None, help="frames per clip")
     p.add_argument("--n", type=int, default=9, help="UP-SR window length N")

@@ -120,3 +120,18 @@ def test_unknown_scene_and_sensor():
         degrade(
             make_realistic("room", SMALL, n_frames=1, scale=1), "lidar", np.random.default_rng(0)
         )
+
+
+def test_the_gaussian_tof_sensor_mixes_like_the_tof_sensor_with_gaussian_noise():
+    from upsr.research.synth.degradation import tof_footprint
+    from upsr.research.synth.realistic import degrade, make_realistic
+
+    video = make_realistic("room", (28, 32), scale=4, n_frames=3)
+    rng = np.random.default_rng(0)
+    low = degrade(video, "tof_gaussian", rng, sigma_mm=10.0)
+    clean = tof_footprint(video.truth, 4)
+    np.testing.assert_array_equal(low > 0, clean > 0)
+    noise = (low - clean)[clean > 0]
+    assert abs(noise.std() - 10.0) < 1.0
+    # Gaussian, not Laplacian: excess kurtosis near 0 (Laplace: 3)
+    assert abs(np.mean(noise**4) / noise.var() ** 2 - 3.0) < 0.5

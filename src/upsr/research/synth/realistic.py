@@ -51,8 +51,8 @@ __all__ = [
 ]
 
 Mesh = tuple[np.ndarray, np.ndarray]
-Sensor = Literal["clean", "laplace", "gaussian", "tof", "kinect"]
-SENSORS: tuple[str, ...] = ("clean", "laplace", "gaussian", "tof", "kinect")
+Sensor = Literal["clean", "laplace", "gaussian", "tof", "tof_gaussian", "kinect"]
+SENSORS: tuple[str, ...] = ("clean", "laplace", "gaussian", "tof", "tof_gaussian", "kinect")
 
 
 @dataclass(frozen=True, eq=False)
@@ -638,16 +638,17 @@ def degrade(
     Parameters
     ----------
     video : RealisticVideo
-    sensor : {"clean", "laplace", "gaussian", "tof", "kinect"}
+    sensor : {"clean", "laplace", "gaussian", "tof", "tof_gaussian", "kinect"}
         ``clean``: the point samples; ``laplace`` / ``gaussian``: i.i.d. noise of std
         ``sigma_mm`` on them; ``tof``: :func:`~upsr.research.synth.degradation.tof_footprint`
         of the truth (mixed pixels at edges, no return where the block is mostly empty) plus
-        Laplacian noise of std ``sigma_mm``; ``kinect``:
+        Laplacian noise of std ``sigma_mm``; ``tof_gaussian``: the same with Gaussian noise
+        (a ToF camera's shot noise); ``kinect``:
         :func:`~upsr.research.synth.degradation.kinect` with the image focal length of
         ``video.camera`` (shadows, Nguyen et al. noise, 1/8 px disparity, 1 % dropouts).
     rng : numpy.random.Generator
     sigma_mm : float
-        Noise std (mm) of the ``laplace``, ``gaussian`` and ``tof`` sensors.
+        Noise std (mm) of the ``laplace``, ``gaussian``, ``tof`` and ``tof_gaussian`` sensors.
     dropout_fraction : float
         Share of the pixels of the ``laplace``, ``gaussian`` and ``tof`` sensors that return
         nothing (0), drawn independently after the noise
@@ -668,6 +669,9 @@ def degrade(
         low = _deg.add_depth_dependent_noise(video.lowres, float(sigma_mm), rng, law="gaussian")
     elif sensor == "tof":
         low = _deg.add_laplacian_noise(_deg.tof_footprint(video.truth, video.scale), sigma_mm, rng)
+    elif sensor == "tof_gaussian":
+        footprint = _deg.tof_footprint(video.truth, video.scale)
+        low = _deg.add_depth_dependent_noise(footprint, float(sigma_mm), rng, law="gaussian")
     else:
         raise InputError(f"unknown sensor {sensor!r}; choose from {SENSORS}")
     return _deg.dropout(low, dropout_fraction, rng)
