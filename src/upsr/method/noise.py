@@ -236,22 +236,10 @@ def noise_profile(
     if z.ndim != 3:
         raise InputError(f"noise_profile expects (T, h, w) depth frames, got shape {z.shape}")
     z = np.nan_to_num(z[: max(int(max_frames), 1)].astype(np.float64), nan=0.0)
-    edge = float(edge_mm)
     # the triples centred on every k-th row, about PROFILE_MAX_PX centres in all (k = 1:
     # every row, and every vertical triple)
     k = max(1, math.ceil(z.size / PROFILE_MAX_PX))
-    along = z[:, ::k]
-    rows = np.arange(1, z.shape[1] - 1, k)
-    diffs, depths = [], []
-    for a, b, c in (
-        (along[:, :, :-2], along[:, :, 1:-1], along[:, :, 2:]),
-        (z[:, rows - 1], z[:, rows], z[:, rows + 1]),
-    ):
-        ok = (a > 0) & (b > 0) & (c > 0) & (np.abs(a - b) <= edge) & (np.abs(c - b) <= edge)
-        diffs.append((a - 2.0 * b + c)[ok])
-        depths.append(((a + b + c) / 3.0)[ok])
-    d2 = np.concatenate(diffs)
-    zm = np.concatenate(depths)
+    d2, zm = second_differences(z, float(edge_mm), row_step=k, depths=True)
     if d2.size == 0:
         return 0.0, 0.0
     which = np.floor(np.log(zm) / math.log(PROFILE_BIN_RATIO)).astype(np.int64)
@@ -329,11 +317,19 @@ def temporal_noise_mm(frames: npt.ArrayLike, edge_mm: float) -> float:
     return math.sqrt(float(d.var()) / 2.0)
 
 
-def second_differences(frames: npt.ArrayLike, edge_mm: float, noise_mm: float) -> np.ndarray:
-    """The second differences z_c − (z_l + z_r)/2 along the rows and columns of ``frames``
-    over the triples of valid pixels within max(``edge_mm``, 8·``noise_mm``) of their centre
-    (one surface; the tails of strong noise kept): slopes cancel, motion does not enter. For
-    i.i.d. noise of std σ their std is σ·√1.5.
+def second_differences(
+    frames: npt.ArrayLike,
+    edge_mm: float,
+    noise_mm: float = 0.0,
+    *,
+    row_step: int = 1,
+    depths: bool = False,
+) -> np.ndarray | tuple[np.ndarray, np.ndarray]:
+    """The second differences z_l − 2·z_c + z_r of three consecutive valid pixels along the
+    rows and columns of ``frames``, over the triples whose outer pixels lie within
+    max(``edge_mm``, 8·``noise_mm``) of their centre (one surface; with a noise, the tails of
+    strong noise kept): slopes cancel, motion does not enter. For i.i.d. noise of std σ their
+    std is σ·√6.
 
     Parameters
     ----------
@@ -343,24 +339,39 @@ def second_differences(frames: npt.ArrayLike, edge_mm: float, noise_mm: float) -
         Depth step that separates two surfaces.
     noise_mm : float
         Noise std (mm).
+    row_step : int
+        Only the triples centred on every ``row_step``-th row (along the rows from row 0,
+        along the columns from row 1): a sample of large frames.
+    depths : bool
+        Also return each triple's mean depth.
 
     Returns
     -------
-    ndarray float64 (n,)
+    ndarray float64 (n,), and with ``depths`` the (n,) mean depths: all frames' triples along
+    the rows, then all frames' triples along the columns, each frame's one frame at a time.
     """
     z = np.asarray(frames)
     z = z.reshape(-1, *z.shape[-2:])
     limit = max(float(edge_mm), 8.0 * float(noise_mm))
-    parts = [np.empty(0)]
+    rows = np.arange(1, z.shape[1] - 1, row_step)
+    along_rows: list[np.ndarray] = [np.empty(0)]
+    along_cols: list[np.ndarray] = [np.empty(0)]
+    means_rows: list[np.ndarray] = [np.empty(0)]
+    means_cols: list[np.ndarray] = [np.empty(0)]
     for frame in z:  # (one frame's temporaries at a time)
         f = np.asarray(frame, np.float64)
         f = np.where(np.isfinite(f), f, 0.0)
-        for a in (f, f.T):
-            left, centre, right = a[:, :-2], a[:, 1:-1], a[:, 2:]
-            ok = (left > 0) & (centre > 0) & (right > 0)
-            ok &= (np.abs(left - centre) <= limit) & (np.abs(right - centre) <= limit)
-            parts.append((centre - 0.5 * (left + right))[ok])
-    return np.concatenate(parts)
+        h = f[::row_step]
+        for (a, b, c), diffs, means in (
+            ((h[:, :-2], h[:, 1:-1], h[:, 2:]), along_rows, means_rows),
+            ((f[rows - 1], f[rows], f[rows + 1]), along_cols, means_cols),
+        ):
+            ok = (a > 0) & (b > 0) & (c > 0) & (np.abs(a - b) <= limit) & (np.abs(c - b) <= limit)
+            diffs.append((a - 2.0 * b + c)[ok])
+            if depths:
+                means.append(((a + b + c) / 3.0)[ok])
+    d2 = np.concatenate(along_rows + along_cols)
+    return (d2, np.concatenate(means_rows + means_cols)) if depths else d2
 
 
 def tail_ratio(differences: np.ndarray) -> float:

@@ -208,7 +208,7 @@ class UPSR:
         """The choices made once per video (estimator, trust noise, mixed-pixel removal, noise
         profile: :func:`~upsr.method.statistics.fix_video_statistics`) from its first N frames:
         those of the current video, else of the last one (after :meth:`flush`); None before."""
-        return self._stats or self._last_stats
+        return self._stats if self._stats is not None else self._last_stats
 
     @property
     def output_shape(self) -> tuple[int, int] | None:
