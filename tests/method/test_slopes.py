@@ -171,3 +171,47 @@ def test_a_face_the_anchor_flattens_follows_the_frames_slope():
         follow_slopes(_blocks(flat, 4), anchor, frame=flat, **kw),
         follow_slopes(_blocks(flat, 4), anchor, **kw),
     )
+
+
+def test_a_pixel_where_its_surface_bends_steeply_keeps_its_depth_for_the_slopes():
+    """Steps of 150 mm per pixel (a surface seen at a grazing angle, beyond the edge threshold)
+    bending into steps of 50 mm: the anchor's 3×3 median at the bend drops the steep side and
+    leans towards the gentle one (1475 for 1450 mm), so the next block's slope was 37.5 mm per
+    pixel instead of 50; over a symmetric neighbourhood it keeps 1450 and the blocks follow the
+    truth."""
+    from upsr.method.slopes import plane_anchor
+    from upsr.method.trust import reference_anchor
+
+    col = 1000.0 + np.array([0, 150, 300, 450, 500, 550, 600, 650], np.float64)
+    low = np.repeat(col[:, None], 5, axis=1).astype(np.float32)
+    anchor = reference_anchor(low, 1.0, 3.0, 100.0)[0]
+    assert anchor[3, 2] == pytest.approx(1475.0)
+    plane = plane_anchor(low, anchor, 100.0)
+    assert plane[3, 2] == pytest.approx(1450.0)
+    r = 4
+    truth_rows = 1500.0 + 50.0 * ((np.arange(4 * r, 5 * r) + 0.5) / r - 4.5)  # block of row 4
+    kw = dict(sigma_mm=0.0, edge_mm=100.0)
+    out = follow_slopes(_blocks(low, r), anchor, frame=low, **kw)
+    np.testing.assert_allclose(out[4 * r : 5 * r, 2 * r], truth_rows, atol=0.01)
+    old = follow_slopes(_blocks(low, r), anchor, **kw)  # slopes on the anchor alone
+    assert np.abs(old[4 * r : 5 * r, 2 * r] - truth_rows).max() > 2.0
+
+
+def test_the_rims_of_a_surface_keep_their_anchor():
+    """Beside a depth edge, a pixel without depth or the border of the image, the anchor is
+    left as it is (a curved body's silhouette: its one-sided median keeps the slopes of the
+    blocks beside it gentler, as the body's blocks are); inside a surface without steep bends
+    the symmetric median is the anchor."""
+    from upsr.method.slopes import plane_anchor
+    from upsr.method.trust import reference_anchor
+
+    low = np.tile(2000.0 + 40.0 * np.arange(10, dtype=np.float32), (9, 1))  # along x
+    low[:, 7:] = 4000.0  # a depth edge
+    low[:, 2] = 0.0  # a column without depth
+    anchor = reference_anchor(low, 1.0, 3.0, 100.0)[0]
+    # one-sided beside the edge and the hole
+    assert anchor[4, 6] == pytest.approx(low[4, 6] - 20.0)
+    assert anchor[4, 3] == pytest.approx(low[4, 3] + 20.0)
+    np.testing.assert_array_equal(plane_anchor(low, anchor, 100.0), anchor)
+    with pytest.raises(ValueError, match="shape"):
+        plane_anchor(low, anchor[:-1], 100.0)

@@ -21,6 +21,11 @@ block and its 4-neighbours on the same surface (a first-order, plane-wise recons
   factor :data:`FACE_RATIO` (the middle of a box's side seen obliquely, two or three pixels
   wide, whose end steps into the flat surfaces around it are partial; an occlusion edge has
   a flat side);
+* the depths those differences are taken on are the anchor's, except inside a surface
+  (all 8 neighbours measured, no depth edge beside the pixel), where the median is taken over
+  a centrally symmetric neighbourhood (:func:`plane_anchor`): a surface that bends steeply on
+  one side of a pixel (a box's top seen at a grazing angle meeting its front) would pull a
+  one-sided median towards the other side;
 * the slope is used only where it is significant (beyond :data:`SIGNIFICANCE` σ); elsewhere
   the block keeps its own trend (the sub-pixel detail the fusion found);
 * only blocks whose every pixel lies on the block's surface are changed (within 3σ + 2 mm of
@@ -39,6 +44,7 @@ from __future__ import annotations
 import numba as nb
 import numpy as np
 import numpy.typing as npt
+from scipy import ndimage
 
 __all__ = [
     "FACE_RATIO",
@@ -47,6 +53,7 @@ __all__ = [
     "STEEP_RATIO",
     "edge_ends",
     "follow_slopes",
+    "plane_anchor",
     "surface_slopes",
 ]
 
@@ -367,9 +374,11 @@ def follow_slopes(
     edge_mm : float
         Depth step that separates two surfaces.
     frame : array_like (h, w), optional
-        The reference frame itself (mm, ≤ 0 = none): where the anchor gives a pixel no slope,
-        the frame's slope when steeper than :data:`MEASURED_SLOPE_SHARE` · ``edge_mm`` and 4σ per
-        low-res px (a face seen at a grazing angle).
+        The reference frame itself (mm, ≤ 0 = none): the slopes are taken on
+        :func:`plane_anchor` (the pixels inside their surface over a symmetric neighbourhood),
+        and where that gives a pixel no slope, the frame's slope when steeper than
+        :data:`MEASURED_SLOPE_SHARE` · ``edge_mm`` and 4σ per low-res px (a face seen at a
+        grazing angle).
 
     Returns
     -------
@@ -393,9 +402,11 @@ def follow_slopes(
         raise ValueError(f"depth {z.shape} is not a whole multiple of the anchor {a.shape}")
     if z.shape[0] == h:
         return z  # r = 1: a block is one pixel, without a trend
-    sy, sx = surface_slopes(a, edge_mm)
-    if frame is not None:
+    if frame is None:
+        sy, sx = surface_slopes(a, edge_mm)
+    else:
         m = np.nan_to_num(np.asarray(frame, np.float32), nan=0.0)
+        sy, sx = surface_slopes(plane_anchor(m, a, edge_mm), edge_mm)
         my, mx = surface_slopes(np.where(m > 0, m, np.float32(0.0)), edge_mm)
         steep = max(MEASURED_SLOPE_SHARE * float(edge_mm), 4.0 * max(float(sigma_mm), 0.0))
         sy = np.where((sy == 0) & (np.abs(my) > steep), my, sy).astype(np.float32)
@@ -403,6 +414,81 @@ def follow_slopes(
     # (each block is read whole before it is written: in place is safe)
     _follow_kernel(z, a, sy, sx, z.shape[0] // h, max(float(sigma_mm), 0.0), z)
     return z
+
+
+@nb.njit(cache=True, nogil=True, parallel=True)
+def _plane_kernel(z, anchor, inside, edge, out):  # pragma: no cover - numba
+    h, w = z.shape
+    for i in nb.prange(h):
+        buf = np.empty(9, np.float32)
+        for j in range(w):
+            c = anchor[i, j]
+            out[i, j] = c
+            if not (c > 0 and inside[i, j]):
+                continue
+            m = 0
+            if abs(z[i, j] - c) <= edge:
+                buf[0] = z[i, j]
+                m = 1
+            for di, dj in ((0, 1), (1, -1), (1, 0), (1, 1)):  # (inside: no pixel on the border)
+                a = z[i + di, j + dj]
+                b = z[i - di, j - dj]
+                if abs(a - c) <= edge and abs(b - c) <= edge:
+                    buf[m] = a
+                    buf[m + 1] = b
+                    m += 2
+            if m > 0:
+                out[i, j] = np.median(buf[:m])
+
+
+def plane_anchor(frame: npt.ArrayLike, anchor: npt.ArrayLike, edge_mm: float) -> np.ndarray:
+    """The anchor, with each pixel inside its surface taken over a symmetric neighbourhood.
+
+    The anchor (:func:`upsr.method.trust.reference_anchor`) is the median of the 3×3
+    neighbours on the pixel's surface. Where the surface bends steeply on one side, the
+    neighbours there lie beyond ``edge_mm`` and drop out: the median is then taken over one
+    side and leans towards it (a box's top seen at a grazing angle, 122 mm per pixel, meeting
+    its front face: 2267 → 2234 mm at σ = 0), and the slopes beside that pixel are wrong.
+    Here a pixel inside its surface takes the median of itself and of the pairs of opposite
+    8-neighbours that both lie within ``edge_mm`` of its anchor: a centrally symmetric
+    neighbourhood, in which a plane keeps its depth. The rims of a surface keep their anchor
+    (beside a depth edge or a pixel without depth, the symmetric neighbourhood of a curved
+    body's silhouette makes its slopes steeper than its blocks: Samba, r = 4, σ = 50,
+    rmse +0.9 %).
+
+    Parameters
+    ----------
+    frame : array_like (h, w)
+        The reference frame (mm; ≤ 0 or NaN: none).
+    anchor : array_like (h, w)
+        Its anchor (mm, 0 = none).
+    edge_mm : float
+        Depth step that separates two surfaces.
+
+    Returns
+    -------
+    ndarray float32 (h, w): the anchor, re-centred on the pixels inside their surface (all
+    8 neighbours measured, no end of a depth edge, :func:`edge_ends`); 0 where it is 0.
+
+    Examples
+    --------
+    >>> col = np.array([1000.0, 1150.0, 1300.0, 1450.0, 1500.0, 1550.0, 1600.0])
+    >>> z = np.repeat(col[:, None], 3, axis=1)  # steps of 150 mm, then of 50 mm
+    >>> from upsr.method.trust import reference_anchor
+    >>> a = reference_anchor(z, 1.0, 3.0, 100.0)[0]
+    >>> float(a[3, 1]), float(plane_anchor(z, a, 100.0)[3, 1])
+    (1475.0, 1450.0)
+    """
+    z = np.nan_to_num(np.asarray(frame, np.float32), nan=0.0)
+    a = np.nan_to_num(np.asarray(anchor, np.float32), nan=0.0)
+    if z.shape != a.shape:
+        raise ValueError(f"frame {z.shape} and anchor {a.shape} differ in shape")
+    valid = z > 0
+    inside = ndimage.binary_erosion(valid, np.ones((3, 3), bool), border_value=0)
+    inside &= ~edge_ends(z, edge_mm)
+    out = np.empty(z.shape, np.float32)
+    _plane_kernel(np.ascontiguousarray(z), np.ascontiguousarray(a), inside, float(edge_mm), out)
+    return out
 
 
 @nb.njit(cache=True, nogil=True)
