@@ -44,7 +44,6 @@ from __future__ import annotations
 import numba as nb
 import numpy as np
 import numpy.typing as npt
-from scipy import ndimage
 
 __all__ = [
     "FACE_RATIO",
@@ -417,20 +416,29 @@ def follow_slopes(
 
 
 @nb.njit(cache=True, nogil=True, parallel=True)
-def _plane_kernel(z, anchor, inside, edge, out):  # pragma: no cover - numba
+def _plane_kernel(z, anchor, ends, edge, out):  # pragma: no cover - numba
     h, w = z.shape
     for i in nb.prange(h):
         buf = np.empty(9, np.float32)
         for j in range(w):
             c = anchor[i, j]
             out[i, j] = c
-            if not (c > 0 and inside[i, j]):
+            if not (c > 0) or ends[i, j] or i == 0 or j == 0 or i == h - 1 or j == w - 1:
+                continue
+            inside = True  # all 8 neighbours measured
+            bent = False  # one beyond the edge threshold: the anchor is one-sided
+            for di in range(-1, 2):
+                for dj in range(-1, 2):
+                    v = z[i + di, j + dj]
+                    inside &= v > 0
+                    bent |= abs(v - c) > edge
+            if not (inside and bent):
                 continue
             m = 0
             if abs(z[i, j] - c) <= edge:
                 buf[0] = z[i, j]
                 m = 1
-            for di, dj in ((0, 1), (1, -1), (1, 0), (1, 1)):  # (inside: no pixel on the border)
+            for di, dj in ((0, 1), (1, -1), (1, 0), (1, 1)):
                 a = z[i + di, j + dj]
                 b = z[i - di, j - dj]
                 if abs(a - c) <= edge and abs(b - c) <= edge:
@@ -438,7 +446,15 @@ def _plane_kernel(z, anchor, inside, edge, out):  # pragma: no cover - numba
                     buf[m + 1] = b
                     m += 2
             if m > 0:
-                out[i, j] = np.median(buf[:m])
+                for p in range(1, m):  # insertion sort of at most 9 values
+                    v = buf[p]
+                    q = p - 1
+                    while q >= 0 and buf[q] > v:
+                        buf[q + 1] = buf[q]
+                        q -= 1
+                    buf[q + 1] = v
+                half = m // 2
+                out[i, j] = buf[half] if m % 2 else 0.5 * (buf[half - 1] + buf[half])
 
 
 def plane_anchor(frame: npt.ArrayLike, anchor: npt.ArrayLike, edge_mm: float) -> np.ndarray:
@@ -449,9 +465,10 @@ def plane_anchor(frame: npt.ArrayLike, anchor: npt.ArrayLike, edge_mm: float) ->
     neighbours there lie beyond ``edge_mm`` and drop out: the median is then taken over one
     side and leans towards it (a box's top seen at a grazing angle, 122 mm per pixel, meeting
     its front face: 2267 → 2234 mm at σ = 0), and the slopes beside that pixel are wrong.
-    Here a pixel inside its surface takes the median of itself and of the pairs of opposite
-    8-neighbours that both lie within ``edge_mm`` of its anchor: a centrally symmetric
-    neighbourhood, in which a plane keeps its depth. The rims of a surface keep their anchor
+    Here a pixel inside its surface with a neighbour (or itself) beyond ``edge_mm`` of its
+    anchor takes the median of itself and of the pairs of opposite 8-neighbours that both lie
+    within ``edge_mm`` of the anchor: a centrally symmetric neighbourhood, in which a plane
+    keeps its depth. The rims of a surface keep their anchor
     (beside a depth edge or a pixel without depth, the symmetric neighbourhood of a curved
     body's silhouette makes its slopes steeper than its blocks: Samba, r = 4, σ = 50,
     rmse +0.9 %).
@@ -483,11 +500,9 @@ def plane_anchor(frame: npt.ArrayLike, anchor: npt.ArrayLike, edge_mm: float) ->
     a = np.nan_to_num(np.asarray(anchor, np.float32), nan=0.0)
     if z.shape != a.shape:
         raise ValueError(f"frame {z.shape} and anchor {a.shape} differ in shape")
-    valid = z > 0
-    inside = ndimage.binary_erosion(valid, np.ones((3, 3), bool), border_value=0)
-    inside &= ~edge_ends(z, edge_mm)
+    ends = edge_ends(z, edge_mm)
     out = np.empty(z.shape, np.float32)
-    _plane_kernel(np.ascontiguousarray(z), np.ascontiguousarray(a), inside, float(edge_mm), out)
+    _plane_kernel(np.ascontiguousarray(z), np.ascontiguousarray(a), ends, float(edge_mm), out)
     return out
 
 
