@@ -48,6 +48,7 @@ from typing import Any
 import numpy as np
 
 import upsr
+from upsr.errors import InputError
 from upsr.research import baselines, peers
 from upsr.research.metrics import evaluate, near_discontinuity
 from upsr.research.synth import degradation as deg
@@ -301,9 +302,27 @@ def _parse(argv: Sequence[str] | None) -> argparse.Namespace:
         metavar=("H", "W"),
         help="ToF sensor size (low-res px, r = 4); default 56 64",
     )
+    p.add_argument(
+        "--scene-option",
+        action="append",
+        default=[],
+        metavar="NAME=VALUE",
+        help="a keyword of the scene function, a number (e.g. speed_mm=50 wall_depth_mm=4000 "
+        "for toward_wall; see upsr.research.synth.realistic); repeatable, given to every scene",
+    )
     p.add_argument("--no-oracle", dest="oracle", action="store_false")
     p.add_argument("--seed", type=int, default=0)
     args = p.parse_args(argv)
+    args.scene_kwargs = {}
+    for item in args.scene_option:
+        name, sep, value = item.partition("=")
+        try:
+            number = float(value)
+            args.scene_kwargs[name.strip()] = int(value) if value.strip().isdigit() else number
+        except ValueError:
+            sep = ""
+        if not sep or not name.strip():
+            p.error(f"--scene-option wants NAME=NUMBER, got {item!r}")
     if args.frames is None:
         args.frames = 9 if args.quick else 15
     if args.scenes is None:
@@ -327,6 +346,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         "n": args.n,
         "seed": args.seed,
         "quick": args.quick,
+        "scene_options": args.scene_kwargs,
     }
     rows: list[dict[str, Any]] = []
     t_start = time.perf_counter()
@@ -335,9 +355,13 @@ def main(argv: Sequence[str] | None = None) -> int:
         for label, sensor, sigma in _sensors(args):
             shape, r = (kin_shape, kin_r) if sensor == "kinect" else (tof_shape, tof_r)
             if shape not in videos:
-                videos[shape] = make_realistic(
-                    scene, shape, scale=r, n_frames=args.frames, seed=args.seed
-                )
+                try:
+                    videos[shape] = make_realistic(
+                        scene, shape, scale=r, n_frames=args.frames, seed=args.seed,
+                        **args.scene_kwargs,
+                    )  # fmt: skip
+                except (TypeError, InputError) as exc:  # a --scene-option the scene lacks
+                    raise SystemExit(f"realistic_eval.py: scene {scene!r}: {exc}") from None
             rows += _run_case(videos[shape], label, sensor, sigma, args)
             print(
                 f"{scene:12s} {label:10s} done ({time.perf_counter() - t_start:.0f} s)", flush=True
