@@ -18,6 +18,7 @@ import argparse
 import sys
 import zlib
 from collections.abc import Sequence
+from pathlib import Path
 
 import numpy as np
 
@@ -25,6 +26,9 @@ import upsr
 from upsr.research import baselines
 from upsr.research.metrics import EDGE_TOLERANCE_MM, near_discontinuity
 from upsr.research.synth.realistic import SCENES, degrade, make_realistic
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from realistic_eval import scene_options
 
 
 def edge_losses(out: np.ndarray, near: np.ndarray, truth: np.ndarray, r: int) -> dict:
@@ -44,14 +48,6 @@ def edge_losses(out: np.ndarray, near: np.ndarray, truth: np.ndarray, r: int) ->
     }
 
 
-def _options(items: Sequence[str]) -> dict[str, float]:
-    out = {}
-    for item in items:
-        name, _, value = item.partition("=")
-        out[name.strip()] = int(value) if value.strip().isdigit() else float(value)
-    return out
-
-
 def main(argv: Sequence[str] | None = None) -> int:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--scene", default="toward_wall", choices=list(SCENES))
@@ -65,7 +61,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     r = 4
     video = make_realistic(
         args.scene, (56, 64), scale=r, n_frames=args.frames, seed=args.seed,
-        **_options(args.scene_option),
+        **scene_options(args.scene_option),
     )  # fmt: skip
     # the same noise as realistic_eval.py's row of this sensor and σ
     label = {"laplace": "laplace", "gaussian": "gauss", "tof": "tof"}[args.sensor]

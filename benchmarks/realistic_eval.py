@@ -54,7 +54,7 @@ from upsr.research.metrics import evaluate, near_discontinuity
 from upsr.research.synth import degradation as deg
 from upsr.research.synth.realistic import RealisticVideo, degrade, make_realistic
 
-__all__ = ["main", "score"]
+__all__ = ["main", "scene_options", "score"]
 
 ALL_SCENES = ("gallop", "gallop_none", "toward_wall", "deforming", "room", "fan")
 #: Left out of --quick unless asked for: the animal without a wall, and the out-of-sample scene.
@@ -264,6 +264,22 @@ def markdown(rows: list[dict[str, Any]], config: dict[str, Any]) -> str:
     return "\n".join(lines) + "\n"
 
 
+def scene_options(items: Sequence[str]) -> dict[str, float]:
+    """``--scene-option NAME=VALUE`` items as keywords of a scene function (numbers; whole
+    numbers as int)."""
+    out: dict[str, float] = {}
+    for item in items:
+        name, sep, value = item.partition("=")
+        try:
+            number = float(value)
+        except ValueError:
+            sep = ""
+        if not sep or not name.strip():
+            raise ValueError(f"--scene-option wants NAME=NUMBER, got {item!r}")
+        out[name.strip()] = int(value) if value.strip().isdigit() else number
+    return out
+
+
 def _parse(argv: Sequence[str] | None) -> argparse.Namespace:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--out", default="docs/results/realistic", help="output folder")
@@ -313,16 +329,10 @@ def _parse(argv: Sequence[str] | None) -> argparse.Namespace:
     p.add_argument("--no-oracle", dest="oracle", action="store_false")
     p.add_argument("--seed", type=int, default=0)
     args = p.parse_args(argv)
-    args.scene_kwargs = {}
-    for item in args.scene_option:
-        name, sep, value = item.partition("=")
-        try:
-            number = float(value)
-            args.scene_kwargs[name.strip()] = int(value) if value.strip().isdigit() else number
-        except ValueError:
-            sep = ""
-        if not sep or not name.strip():
-            p.error(f"--scene-option wants NAME=NUMBER, got {item!r}")
+    try:
+        args.scene_kwargs = scene_options(args.scene_option)
+    except ValueError as exc:
+        p.error(str(exc))
     if args.frames is None:
         args.frames = 9 if args.quick else 15
     if args.scenes is None:
