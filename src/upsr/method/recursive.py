@@ -45,10 +45,6 @@ Per frame t (only frame t and the state of t − 1 are read):
      recursive median ``d += sign(m − d)·min(|m − d|, √2·σ/count)`` ("median": the stochastic
      approximation of the median, whose step √2σ/n = 1/(n·f(median)) for Laplacian noise of std σ
      reaches the variance σ²/(2n) of the sample median);
-   - a state beyond τ of the anchor, but within τ of the anchor of the low-res neighbour on
-     the pixel's half of the block, where the state has the block's surface at the block's
-     centre (the other surface at a depth edge inside the block, not a part newly seen there):
-     kept and updated with that neighbour's measurement;
    - otherwise (disagreement beyond what the noise allows: something moved, appeared, or the
      flow failed): the pixel restarts from the anchor, count 1;
    - no measurement (0, or a mixed pixel): the state is kept with its count halved, and
@@ -105,7 +101,7 @@ from upsr.method.consistency import (
     hole_backgrounds,
     maps_at_centres,
 )
-from upsr.method.edges import _centre_agrees, state_votes
+from upsr.method.edges import state_votes
 from upsr.method.finishing import finish_frame, finish_fused
 from upsr.method.frontend import MotionFrontEnd
 from upsr.method.memory import moving_caps, state_caps
@@ -220,7 +216,6 @@ def _update_kernel(
     out_n,
 ):  # pragma: no cover - numba
     hh, ww = out_d.shape
-    h, w = meas.shape
     js, djs = _block_sides(ww, scale)  # (not an integer division per pixel)
     for y in nb.prange(hh):
         i, di = _block_side(y, scale)
@@ -266,7 +261,6 @@ def _update_kernel(
                 thr = min(tl, edge)
                 if not (c0 > 0 and abs(c0 - off - a) <= tl):
                     best = tl
-                    nearest = c0
                     c0 = 0.0
                     for ya in range(y0, y0 + 2):
                         for xa in range(x0, x0 + 2):
@@ -275,22 +269,6 @@ def _update_kernel(
                                 if e <= best:
                                     best = e
                                     c0 = depth[ya, xa]
-                    if (
-                        c0 == 0.0
-                        and nearest > 0
-                        and _centre_agrees(depth, qxs, qys, i, j, scale, off, a, tl)
-                    ):
-                        # the other surface of a depth edge inside the block (the state has
-                        # the block's surface at its centre: an edge, not a part newly seen)?
-                        for ni, nj in ((i + di, j), (i, j + dj), (i + di, j + dj)):
-                            if (ni == i and nj == j) or ni < 0 or ni >= h or nj < 0 or nj >= w:
-                                continue
-                            mb = meas[ni, nj]
-                            ab = anchor[ni, nj]
-                            if mb > 0 and ab > 0 and abs(nearest - off - ab) <= tol[ni, nj]:
-                                m = mb
-                                c0 = nearest
-                                break
             if c0 > 0:
                 s, n = _same_surface(depth, count, qx, qy, x0, y0, c0, thr)
                 n = min(n + 1.0, cap[i, j])
