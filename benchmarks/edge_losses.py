@@ -16,7 +16,6 @@ from __future__ import annotations
 
 import argparse
 import sys
-import zlib
 from collections.abc import Sequence
 from pathlib import Path
 
@@ -25,10 +24,10 @@ import numpy as np
 import upsr
 from upsr.research import baselines
 from upsr.research.metrics import EDGE_TOLERANCE_MM, near_discontinuity
-from upsr.research.synth.realistic import SCENES, degrade, make_realistic
+from upsr.research.synth.realistic import SCENES, make_realistic
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from realistic_eval import scene_options
+from realistic_eval import scene_options, sensor_frames
 
 
 def edge_losses(out: np.ndarray, near: np.ndarray, truth: np.ndarray, r: int) -> dict:
@@ -66,8 +65,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     # the same noise as realistic_eval.py's row of this sensor and σ
     label = {"laplace": "laplace", "gaussian": "gauss", "tof": "tof"}[args.sensor]
     label += f"{args.sigma:g}"
-    rng = np.random.default_rng([args.seed, zlib.crc32(f"{video.name}/{label}".encode())])
-    low = degrade(video, args.sensor, rng, sigma_mm=args.sigma)
+    low = sensor_frames(video, label, args.sensor, args.sigma, args.seed)
     near = baselines.nearest(low, r)
     print(f"{args.scene} {args.scene_option}, 64×56 → 256×224, {label}, seed {args.seed}")
     for mode in ("windowed", "recursive"):

@@ -54,7 +54,7 @@ from upsr.research.metrics import evaluate, near_discontinuity
 from upsr.research.synth import degradation as deg
 from upsr.research.synth.realistic import RealisticVideo, degrade, make_realistic
 
-__all__ = ["main", "scene_options", "score"]
+__all__ = ["main", "scene_options", "score", "sensor_frames"]
 
 ALL_SCENES = ("gallop", "gallop_none", "toward_wall", "deforming", "room", "fan")
 #: Left out of --quick unless asked for: the animal without a wall, and the out-of-sample scene.
@@ -152,12 +152,25 @@ def _sensors(args: argparse.Namespace) -> list[tuple[str, str, float]]:
     return out
 
 
+def sensor_frames(
+    video: RealisticVideo,
+    label: str,
+    sensor: str,
+    sigma: float,
+    seed: int,
+    dropout_fraction: float = 0.0,
+) -> np.ndarray:
+    """The low-res input of the row ``label`` (e.g. "gauss20") of a scene: ``degrade`` with a
+    generator seeded by ``seed`` and the scene's and row's names (each row its own noise)."""
+    rng = np.random.default_rng([seed, zlib.crc32(f"{video.name}/{label}".encode())])
+    return degrade(video, sensor, rng, sigma_mm=sigma, dropout_fraction=dropout_fraction)
+
+
 def _run_case(
     video: RealisticVideo, label: str, sensor: str, sigma: float, args: argparse.Namespace
 ) -> list[dict[str, Any]]:
-    rng = np.random.default_rng([args.seed, zlib.crc32(f"{video.name}/{label}".encode())])
     drop = args.tof_dropout if sensor.startswith("tof") else 0.0
-    low = degrade(video, sensor, rng, sigma_mm=sigma, dropout_fraction=drop)
+    low = sensor_frames(video, label, sensor, sigma, args.seed, drop)
     n = min(args.n, video.n_frames)
     oracle = (not args.quick and args.oracle) or (args.quick and label == "laplace10")
     rows = []
