@@ -173,6 +173,48 @@ def test_a_face_the_anchor_flattens_follows_the_frames_slope():
     )
 
 
+def test_a_grazing_surface_whose_first_pixel_was_removed_as_mixed_follows_its_slope():
+    """A box top seen at a grazing angle behind a ToF pixel the mixed-pixel test removed (its
+    footprint is all top, but it steps 600 mm from the wall like a mix: the fan's box). Without
+    it the top's run of steep steps is too short to join (the block kept its staircase); read
+    on the frame as measured, the run joins and the block follows the top's slope."""
+    col = np.array([3133, 3133, 3133, 2531, 2387, 2264, 2177, 2200, 2200], np.float32)
+    measured = np.repeat(col[:, None], 5, axis=1)
+    cleaned = measured.copy()
+    cleaned[3] = 0.0  # removed as mixed
+    r = 4
+    kw = dict(sigma_mm=0.0, edge_mm=100.0, frame=cleaned)
+    before = follow_slopes(_blocks(cleaned, r), cleaned, **kw)[4 * r : 5 * r, 2 * r]
+    np.testing.assert_array_equal(before, 2387.0)  # the staircase
+    after = follow_slopes(_blocks(cleaned, r), cleaned, measured=measured, **kw)
+    block = after[4 * r : 5 * r, 2 * r]
+    np.testing.assert_allclose(np.diff(block), (2264.0 - 2531.0) / 2 / r, atol=0.01)
+    assert block.mean() == pytest.approx(2387.0, abs=0.01)
+    assert (after[3 * r : 4 * r] == 0).all()  # the removed pixel's block is left alone
+    with pytest.raises(ValueError, match="shape"):
+        follow_slopes(_blocks(cleaned, r), cleaned, measured=measured[:, :4], **kw)
+
+
+def test_a_staircase_of_removed_mixes_is_no_face():
+    """Across a ToF edge the mixed pixels the test removed step like the middle of a face
+    (−690, −407, −901 mm): read on the frame as measured, a link into a removed pixel joins
+    one surface only within the edge threshold or in a steep run, so the kept pixel between
+    them keeps its block (the face rule there gave it a slope of 400 mm per pixel)."""
+    col = np.array([4449, 4459, 3769, 3362, 2461, 1967, 1855, 1855], np.float32)
+    measured = np.repeat(col[:, None], 5, axis=1)
+    cleaned = measured.copy()
+    cleaned[[2, 4, 5]] = 0.0  # removed as mixed
+    sy, _ = surface_slopes(measured, 100.0)
+    assert abs(sy[3, 2]) > 400.0  # every pixel may join a face
+    kept = cleaned > 0
+    assert surface_slopes(measured, 100.0, kept=kept)[0][3, 2] == 0.0
+    up = _blocks(cleaned, 4)
+    kw = dict(sigma_mm=0.0, edge_mm=100.0, frame=cleaned)
+    out = follow_slopes(up, cleaned, measured=measured, **kw)
+    np.testing.assert_array_equal(out[12:16], 3362.0)
+    np.testing.assert_array_equal(out, follow_slopes(up, cleaned, **kw))
+
+
 def test_a_pixel_where_its_surface_bends_steeply_keeps_its_depth_for_the_slopes():
     """Steps of 150 mm per pixel (a surface seen at a grazing angle, beyond the edge threshold)
     bending into steps of 50 mm: the anchor's 3×3 median at the bend drops the steep side and

@@ -158,7 +158,9 @@ def finish_frame(
     if cfg.follow_slopes:
         if anchor is None:
             anchor = reference_anchor(reference, noise_mm, 1.0, edge_mm)[0]
-        out = follow_slopes(out, anchor, sigma_mm=noise_mm, edge_mm=edge_mm, frame=reference)
+        out = follow_slopes(
+            out, anchor, sigma_mm=noise_mm, edge_mm=edge_mm, frame=reference, measured=measured
+        )
     if cfg.fill_holes:
         out = fill_holes(out, r, iterations=64)  # invented depth (off by default)
     return out

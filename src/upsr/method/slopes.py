@@ -226,9 +226,10 @@ def _agree(s, t):  # pragma: no cover - numba
 
 
 @nb.njit(cache=True, nogil=True, inline="always")
-def _link(row, k, edge):  # pragma: no cover - numba
+def _link(row, k, edge, kept):  # pragma: no cover - numba
     """The step of link k where it joins one surface (at most ``edge``, a steep link in a
-    run of three agreeing links, or the middle of a face), else NaN."""
+    run of three agreeing links, or the middle of a face, where ``kept`` holds both its
+    pixels), else NaN."""
     s = _step(row, k)
     if s != s or abs(s) <= edge:
         return s
@@ -238,7 +239,9 @@ def _link(row, k, edge):  # pragma: no cover - numba
     if (before and after) or (before and _agree(b2, b1)) or (after and _agree(a1, a2)):
         return s
     if (
-        b1 == b1
+        kept[k]
+        and kept[k + 1]
+        and b1 == b1
         and a1 == a1
         and _steps_agree(b1, s, FACE_RATIO)
         and _steps_agree(s, a1, FACE_RATIO)
@@ -248,16 +251,17 @@ def _link(row, k, edge):  # pragma: no cover - numba
 
 
 @nb.njit(cache=True, nogil=True, parallel=True)
-def _slopes_kernel(z, edge, out):  # pragma: no cover - numba
+def _slopes_kernel(z, edge, kept, out):  # pragma: no cover - numba
     h, w = z.shape
     for i in nb.prange(h):
         row = z[i]
+        krow = kept[i]
         for j in range(w):
             if not row[j] > 0:
                 out[i, j] = 0.0
                 continue
-            left = _link(row, j - 1, edge)
-            right = _link(row, j, edge)
+            left = _link(row, j - 1, edge, krow)
+            right = _link(row, j, edge, krow)
             if left != left:
                 out[i, j] = 0.0 if right != right else right
             elif right != right:
@@ -266,14 +270,18 @@ def _slopes_kernel(z, edge, out):  # pragma: no cover - numba
                 out[i, j] = 0.5 * (left + right)
 
 
-def _slope_along_rows(z: np.ndarray, edge_mm: float) -> np.ndarray:
+def _slope_along_rows(z: np.ndarray, edge_mm: float, kept: np.ndarray) -> np.ndarray:
     """Slope (mm per px) of ``z`` along its rows, on one surface (see the module)."""
     out = np.empty(z.shape, np.float32)
-    _slopes_kernel(np.ascontiguousarray(z, np.float32), float(edge_mm), out)
+    _slopes_kernel(
+        np.ascontiguousarray(z, np.float32), float(edge_mm), np.ascontiguousarray(kept), out
+    )
     return out
 
 
-def surface_slopes(anchor: npt.ArrayLike, edge_mm: float) -> tuple[np.ndarray, np.ndarray]:
+def surface_slopes(
+    anchor: npt.ArrayLike, edge_mm: float, kept: npt.ArrayLike | None = None
+) -> tuple[np.ndarray, np.ndarray]:
     """Slopes of the reference's surfaces on the low-res grid, never across a depth edge.
 
     Parameters
@@ -282,6 +290,10 @@ def surface_slopes(anchor: npt.ArrayLike, edge_mm: float) -> tuple[np.ndarray, n
         Depth (mm, 0 = none), usually :func:`upsr.method.trust.reference_anchor`.
     edge_mm : float
         Depth step that separates two surfaces.
+    kept : array_like of bool (h, w), optional
+        The pixels a link may join as the middle of a face (:data:`FACE_RATIO`); default
+        all. A link with a pixel outside joins one surface only within ``edge_mm`` or in a
+        steep run.
 
     Returns
     -------
@@ -298,7 +310,10 @@ def surface_slopes(anchor: npt.ArrayLike, edge_mm: float) -> tuple[np.ndarray, n
     [[10.0, 10.0, 10.0, 0.0]]
     """
     z = np.nan_to_num(np.asarray(anchor, np.float32), nan=0.0)
-    return _slope_along_rows(z.T, edge_mm).T, _slope_along_rows(z, edge_mm)
+    k = np.ones(z.shape, np.bool_) if kept is None else np.asarray(kept, np.bool_)
+    if k.shape != z.shape:
+        raise ValueError(f"kept {k.shape} and anchor {z.shape} differ in shape")
+    return _slope_along_rows(z.T, edge_mm, k.T).T, _slope_along_rows(z, edge_mm, k)
 
 
 @nb.njit(cache=True, nogil=True, parallel=True)
@@ -359,6 +374,7 @@ def follow_slopes(
     sigma_mm: float,
     edge_mm: float,
     frame: npt.ArrayLike | None = None,
+    measured: npt.ArrayLike | None = None,
 ) -> np.ndarray:
     """The output frame with each block's linear trend set to its surface's slope.
 
@@ -378,6 +394,15 @@ def follow_slopes(
         and where that gives a pixel no slope, the frame's slope when steeper than
         :data:`MEASURED_SLOPE_SHARE` · ``edge_mm`` and 4σ per low-res px (a face seen at a
         grazing angle).
+    measured : array_like (h, w), optional
+        With ``frame``: the reference as measured, before its mixed pixels and lone
+        outliers were removed (mm, ≤ 0 = none). The frame's slope is read on it where it
+        gives one, with the links into a removed pixel joining one surface only within
+        ``edge_mm`` or in a steep run, never as the middle of a face (a staircase of mixes
+        across a ToF edge steps like one): a surface seen at a grazing angle whose first
+        pixel, beside the wall behind it, the mixed-pixel test removed still follows its
+        slope (:func:`upsr.method.mixed.remove_mixed_pixels` cannot tell that pixel from a
+        mix).
 
     Returns
     -------
@@ -407,6 +432,16 @@ def follow_slopes(
         m = np.nan_to_num(np.asarray(frame, np.float32), nan=0.0)
         sy, sx = surface_slopes(plane_anchor(m, a, edge_mm), edge_mm)
         my, mx = surface_slopes(np.where(m > 0, m, np.float32(0.0)), edge_mm)
+        if measured is not None:
+            full = np.nan_to_num(np.asarray(measured, np.float32), nan=0.0)
+            if full.shape != m.shape:
+                raise ValueError(f"measured {full.shape} and frame {m.shape} differ in shape")
+            extra = (full > 0) & ~(m > 0)  # the removed pixels
+            if extra.any():
+                full = np.where(full > 0, full, np.float32(0.0))
+                fy, fx = surface_slopes(full, edge_mm, kept=~extra)
+                my = np.where(fy != 0, fy, my).astype(np.float32)
+                mx = np.where(fx != 0, fx, mx).astype(np.float32)
         steep = max(MEASURED_SLOPE_SHARE * float(edge_mm), 4.0 * max(float(sigma_mm), 0.0))
         sy = np.where((sy == 0) & (np.abs(my) > steep), my, sy).astype(np.float32)
         sx = np.where((sx == 0) & (np.abs(mx) > steep), mx, sx).astype(np.float32)
@@ -509,11 +544,12 @@ def plane_anchor(frame: npt.ArrayLike, anchor: npt.ArrayLike, edge_mm: float) ->
 @nb.njit(cache=True, nogil=True)
 def _edge_ends_kernel(z, edge, out):  # pragma: no cover - numba
     h, w = z.shape
+    every = np.ones(w, np.bool_)
     for i in range(h):
         row = z[i]
         for k in range(w - 1):
             if abs(row[k + 1] - row[k]) > edge and row[k] > 0 and row[k + 1] > 0:
-                s = _link(row, k, edge)
+                s = _link(row, k, edge, every)
                 if s != s:  # NaN: no surface joins them
                     out[i, k] = True
                     out[i, k + 1] = True
