@@ -26,10 +26,10 @@ def test_median_beyond_decides_as_the_median_does():
 
 
 def test_the_small_medians_are_the_median_ties_included():
-    """The medians of the anchor and the radial offsets (``anchor._small_median``, m ≤ 25
+    """The medians of the anchor and the radial offsets (``sorting._small_median``, m ≤ 25
     by rank counting; ``trust._select_median``, quickselect beyond) give numpy's median for
     every count, odd and even, with and without ties."""
-    from upsr.method.anchor import _small_median
+    from upsr.method.sorting import _small_median
     from upsr.method.trust import _select_median
 
     rng = np.random.default_rng(3)

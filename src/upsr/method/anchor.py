@@ -13,6 +13,7 @@ import numpy as np
 import numpy.typing as npt
 
 from upsr.method.slopes import STEEP_RUN_RATIO, _steps_agree
+from upsr.method.sorting import _small_median
 
 __all__ = [
     "OWN_SURFACE",
@@ -37,29 +38,6 @@ TOLERANCE_FLOOR_MM = 2.0
 OWN_SURFACE_SIGMAS = 3.0
 #: The values of :func:`reference_anchor`'s ``own_surface``, in the kernel's code order.
 OWN_SURFACE = ("never", "always", "except_rims")
-
-
-@nb.njit(cache=True, nogil=True, inline="always")
-def _small_median(buf, m):  # pragma: no cover - numba
-    """Median of buf[:m] (m ≥ 1, at most about 25; buf is left as it is): the value whose
-    rank is the middle one, by counting the values below and up to each (O(m²) compares
-    without data-dependent branches in the inner loop: 1.4–1.9× faster than an insertion
-    sort for m = 5 … 25, and the same value, ties included)."""
-    k = m // 2
-    lower = np.float32(0.0)
-    upper = np.float32(0.0)
-    for p in range(m):
-        x = buf[p]
-        below = 0
-        up_to = 0
-        for q in range(m):
-            below += buf[q] < x
-            up_to += buf[q] <= x
-        if below <= k < up_to:
-            upper = x
-        if below <= k - 1 < up_to:
-            lower = x
-    return upper if m % 2 == 1 else 0.5 * (lower + upper)
 
 
 #: Devillard's median-of-9 network (19 compare-exchanges; the median lands in slot 4).

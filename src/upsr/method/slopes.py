@@ -45,6 +45,8 @@ import numba as nb
 import numpy as np
 import numpy.typing as npt
 
+from upsr.method.sorting import _small_median
+
 __all__ = [
     "FACE_RATIO",
     "MEASURED_SLOPE_SHARE",
@@ -481,15 +483,7 @@ def _plane_kernel(z, anchor, ends, edge, out):  # pragma: no cover - numba
                     buf[m + 1] = b
                     m += 2
             if m > 0:
-                for p in range(1, m):  # insertion sort of at most 9 values
-                    v = buf[p]
-                    q = p - 1
-                    while q >= 0 and buf[q] > v:
-                        buf[q + 1] = buf[q]
-                        q -= 1
-                    buf[q + 1] = v
-                half = m // 2
-                out[i, j] = buf[half] if m % 2 else 0.5 * (buf[half - 1] + buf[half])
+                out[i, j] = _small_median(buf, m)
 
 
 def plane_anchor(frame: npt.ArrayLike, anchor: npt.ArrayLike, edge_mm: float) -> np.ndarray:

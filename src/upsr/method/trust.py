@@ -28,12 +28,11 @@ from upsr.method.anchor import (
     OWN_SURFACE_SIGMAS,
     TOLERANCE_FLOOR_MM,
     _sigma_and_power,
-    _small_median,
     reference_anchor,
 )
 from upsr.method.consistency import maps_at_centres, registered_samples
 from upsr.method.mixed import ABSTAIN
-from upsr.method.sorting import _twice_beyond, median_beyond
+from upsr.method.sorting import _small_median, _twice_beyond, median_beyond
 
 __all__ = [
     "OFFSET_SIGNIFICANCE",
