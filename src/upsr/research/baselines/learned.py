@@ -18,6 +18,7 @@ from upsr.geometry.rendering import render_depth
 from upsr.method.upsampling import upsample_nearest
 from upsr.research.baselines._common import _as_frames, _check_scale
 from upsr.research.metrics import _check_mm
+from upsr.research.synth.primitives import box, merge
 
 __all__ = [
     "PatchSISR",
@@ -43,16 +44,6 @@ def _rotation(rng: np.random.Generator) -> np.ndarray:
             [2 * (b * d - a * c), 2 * (c * d + a * b), a * a - b * b - c * c + d * d],
         ]
     )
-
-
-_BOX_FACES = "0 1 3 0 3 2 4 6 7 4 7 5 0 4 5 0 5 1 2 3 7 2 7 6 0 2 6 0 6 4 1 5 7 1 7 3"
-
-
-def _box_mesh(size: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """An axis-aligned box centred at the origin (12 triangles)."""
-    corners = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)], float)
-    faces = np.array(_BOX_FACES.split(), np.intp).reshape(-1, 3)
-    return corners * (0.5 * size), faces
 
 
 def _sphere_mesh(n_lat: int = 12, n_lon: int = 18) -> tuple[np.ndarray, np.ndarray]:
@@ -87,8 +78,7 @@ def _training_geometry(
 
     Returns vertices (m, camera frame), triangles and the wall for :func:`render_depth`.
     """
-    verts_all, faces_all = [], []
-    n_v = 0
+    parts = []
     tan_x = (camera.width / 2.0) / camera.fx
     tan_y = (camera.height / 2.0) / camera.fy
     for _ in range(int(rng.integers(2, 7))):
@@ -96,20 +86,18 @@ def _training_geometry(
         centre = np.array([rng.uniform(-1, 1) * tan_x * z, rng.uniform(-1, 1) * tan_y * z, z])
         kind = rng.integers(3)
         if kind == 0:
-            verts, faces = _box_mesh(rng.uniform(0.08, 0.3, 3) * z)
+            verts, faces = box(np.zeros(3), 0.5 * rng.uniform(0.08, 0.3, 3) * z)
         elif kind == 1:
             verts, faces = _sphere_mesh()
             verts = verts * rng.uniform(0.04, 0.25) * z
         else:  # a thin plate: a plane patch at a random orientation
-            verts, faces = _box_mesh(np.array([*rng.uniform(0.1, 0.4, 2) * z, 0.005]))
-        verts_all.append(verts @ _rotation(rng).T + centre)
-        faces_all.append(faces + n_v)
-        n_v += len(verts)
+            verts, faces = box(np.zeros(3), 0.5 * np.array([*rng.uniform(0.1, 0.4, 2) * z, 0.005]))
+        parts.append((verts @ _rotation(rng).T + centre, faces))
     wall = None
     if rng.random() < 0.85:
         normal = np.array([rng.uniform(-0.6, 0.6), rng.uniform(-0.6, 0.6), 1.0])
         wall = (normal, float(rng.uniform(2500.0, 6000.0)))
-    return np.concatenate(verts_all), np.concatenate(faces_all), wall
+    return (*merge(parts), wall)
 
 
 def _dihedral(a: np.ndarray) -> list[np.ndarray]:
