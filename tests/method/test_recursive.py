@@ -407,7 +407,7 @@ def test_auto_mixed_removal_turns_off_only_clearly_below_the_threshold():
     """Pooled over the frames so far, the share may hover near the threshold: once on, the
     removal stays on down to MIXED_SHARE minus MIXED_SHARE_HYSTERESIS, and turns off below
     it."""
-    from upsr.method.mixed import MIXED_SHARE, MIXED_SHARE_HYSTERESIS, footprint_counts
+    from upsr.method.footprint import MIXED_SHARE, MIXED_SHARE_HYSTERESIS, footprint_counts
     from upsr.research.synth.degradation import tof_footprint
 
     r = 4

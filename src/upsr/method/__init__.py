@@ -8,8 +8,10 @@ prefilter, flow           §4, §5.2, eq. 16–17    :mod:`upsr.method.motion`
 motion front-end          §4, §5.2, eq. 16–19    :mod:`upsr.method.frontend`
 cumulative registration   eq. 18–21              :mod:`upsr.method.registration`
 registration check        —                      :mod:`upsr.method.consistency`
+footprint sensor (ToF)    —                      :mod:`upsr.method.footprint`
 mixed (flying) pixels     —                      :mod:`upsr.method.mixed`
 thin parts (ToF)          —                      :mod:`upsr.method.thin`
+clusters of like mixes    —                      :mod:`upsr.method.clusters`
 sample trust              —                      :mod:`upsr.method.trust`
 state memory per pixel    —                      :mod:`upsr.method.memory`
 temporal median           eq. 26–28              :mod:`upsr.method.fusion`
@@ -30,9 +32,11 @@ from upsr._lazy import attach
 __getattr__, __dir__, __all__ = attach(
     __name__,
     submodules=[
+        "clusters",
         "config",
         "consistency",
         "deblurring",
+        "footprint",
         "frontend",
         "fusion",
         "memory",

@@ -225,9 +225,10 @@ class UPSRConfig:
     thin_parts : bool
         Where mixed pixels are removed (``remove_mixed``), also the parts narrower than a
         pixel, mixed along their whole length, and split the reference's between the depth
-        of the surface they grow out of and what lies behind (:mod:`upsr.method.thin`):
-        fewer flying pixels and better edges, at some cost in rmse where a part's position
-        inside its pixels is uncertain.
+        of the surface they grow out of and what lies behind (:mod:`upsr.method.thin`), and
+        the small clusters of like mixes of parts one to two pixels wide
+        (:mod:`upsr.method.clusters`): fewer flying pixels and better edges, at some cost in
+        rmse where a part's position inside its pixels is uncertain.
     speckle_px : int or None
         Beyond the paper: after the deblurring, connected regions of at most this many
         high-res px that no neighbour joins within ``edge_mm`` (isolated noise outliers that
@@ -268,8 +269,8 @@ class UPSRConfig:
         :func:`~upsr.method.mixed.split_mixed_pixels`). ``"auto"``: decided per video from
         its first N frames (the recursive mode: pooled as they arrive), on when its edges
         between flat surfaces have a pixel between them at least
-        :data:`~upsr.method.mixed.MIXED_SHARE` times as often as a footprint sensor's would
-        (:func:`upsr.method.mixed.footprint_share`, each straight run of edge pixels
+        :data:`~upsr.method.footprint.MIXED_SHARE` times as often as a footprint sensor's would
+        (:func:`upsr.method.footprint.footprint_share`, each straight run of edge pixels
         weighing √ its length; a point-sampling sensor only on steep slopes and surfaces
         seen edge-on, which would be taken for mixed).
     radial_compensation : bool

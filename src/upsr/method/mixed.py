@@ -3,16 +3,14 @@
 Beyond the paper. A time-of-flight pixel integrates its footprint: where the footprint
 straddles a depth edge it returns a mix of the two depths, which nearest or bicubic
 upsampling spread over the pixel's whole high-res block (18–28 % flying pixels on the
-realistic ToF scenes of :mod:`upsr.research.synth.realistic`). This module
+realistic ToF scenes of :mod:`upsr.research.synth.realistic`). Whether a video's sensor mixes
+at all is decided once per video (:mod:`upsr.method.footprint`). This module
 
-* decides once per video whether the sensor mixes at all (:func:`footprint_share`: how often
-  an edge between two flat surfaces has a pixel between them, against how often a footprint
-  would give one; point-sampling sensors only on steep slopes, which the mixed-pixel test
-  would take for mixed);
 * finds the mixed pixels of each frame (:func:`remove_mixed_pixels`: between its nearest and
   farthest neighbour, on no surface of its own, and not on a slope, nor on a slope two pixels
-  wide along a straight edge, where a footprint would mix one; and the parts narrower
-  than a pixel, mixed along their whole length, :mod:`upsr.method.thin`), which then abstain
+  wide along a straight edge, where a footprint would mix one; the parts narrower
+  than a pixel, mixed along their whole length, :mod:`upsr.method.thin`; the clusters of like
+  mixes of parts one to two pixels wide, :mod:`upsr.method.clusters`), which then abstain
   in the fusion so that the other frames fill them;
 * splits those of the reference that no frame filled between the surfaces around them
   (:func:`split_mixed_pixels`): never a depth between two surfaces, never a hole where the
@@ -27,40 +25,21 @@ import numba as nb
 import numpy as np
 import numpy.typing as npt
 
+from upsr.method.clusters import mixed_clusters
+from upsr.method.footprint import FLAT_END_SHARE
 from upsr.method.slopes import STEEP_RUN_RATIO, _on_slope, _steps_agree
 from upsr.method.thin import ThinParts, _gap_bottom, _thin_parts, split_thin_parts
 
 __all__ = [
     "ABSTAIN",
     "BETWEEN_SHARE",
-    "FLAT_END_SHARE",
-    "MIXED_SHARE",
-    "MIXED_SHARE_HYSTERESIS",
     "RAMP_ALONG_PX",
     "RAMP_END_SHARE",
     "SPLIT_MEAN_TOLERANCE",
-    "footprint_counts",
-    "footprint_share",
-    "has_mixed_pixels",
     "mixed_pixels",
     "remove_mixed_pixels",
     "split_mixed_pixels",
 ]
-
-#: :func:`footprint_share` from which a video's sensor is taken to mix depths at edges (ToF)
-#: and its mixed pixels are removed (``remove_mixed="auto"``). On the realistic scenes (seeds
-#: 0–7 at 64×56, 0–3 at 128×112, edge_mm = max(100, 4σ)), pooled over the first 9 frames:
-#: 0.47 and 0.58–2.8 with ToF footprints at σ = 10–30 mm, 0–0.41 with point samples at
-#: σ = 0–30 mm; over the first frame alone, which the recursive mode must decide from, 9 of
-#: the 384 cases fall on the wrong side (16 with every pixel weighing alike, at 0.55).
-MIXED_SHARE = 0.5
-#: A decision taken from the frames so far (the recursive mode pools its first N frames as
-#: they arrive) turns the removal off again only below MIXED_SHARE minus this.
-MIXED_SHARE_HYSTERESIS = 0.05
-#: The ends of a run of :func:`footprint_share` are flat: each step beyond the edge (c to a,
-#: b to e) at most this share of the step across it (a to b). A steep slope under strong
-#: noise, whose steps are alike, does not pass for two flat surfaces.
-FLAT_END_SHARE = 1.0 / 6.0
 
 #: A pixel of a monotone pair between two flat surfaces across a row (column) is on a slope two
 #: pixels wide, not mixed, when the same pair lies along the edge this many pixels on either
@@ -377,7 +356,9 @@ def remove_mixed_pixels(
         What a mixed pixel becomes: 0 (no measurement: it votes "no depth") or
         :data:`ABSTAIN` (the fusion ignores it, like a sample outside the frame).
     thin_parts : bool
-        Also the pixels of parts narrower than a pixel (:func:`upsr.method.thin.thin_parts`).
+        Also the pixels of parts narrower than a pixel (:func:`upsr.method.thin.thin_parts`)
+        and the clusters of like mixes of parts one to two pixels wide
+        (:func:`upsr.method.clusters.mixed_clusters`).
     return_thin_parts : bool
         Also return the thin parts found, for :func:`split_mixed_pixels` (``thin``).
 
@@ -396,9 +377,11 @@ def remove_mixed_pixels(
         zk = np.ascontiguousarray(flat[k])
         _mixed_kernel(zk, float(edge_mm), float(marker), out[k])
         if thin_parts:
-            # (mixed along their whole length; the pixels just removed end no run)
+            # (mixed along their whole length; the pixels just removed end no run), then the
+            # clusters of like mixes of parts one to two pixels wide
             found.append(_thin_parts(zk, float(edge_mm), mixed=out[k] != zk))
             out[k][found[-1].near > 0] = marker
+            out[k][mixed_clusters(zk, out[k] == zk, edge_mm)] = marker
     out = out.reshape(z.shape)
     if not return_thin_parts:
         return out
@@ -617,84 +600,3 @@ def split_mixed_pixels(
     if keep_mean and thin_parts:
         out = split_thin_parts(out, z, edge_mm, parts=thin)  # mixed along their whole length
     return out
-
-
-def footprint_share(frames: npt.ArrayLike, edge_mm: float) -> float:
-    """How often a depth edge between two flat surfaces has a pixel between them, against how
-    often a footprint sensor would give one.
-
-    Over every run of five pixels along a row or column, c a v b e, whose ends are flat
-    (``|c − a|`` and ``|e − b|`` at most ``edge_mm`` and at most :data:`FLAT_END_SHARE` of
-    ``|b − a|``) across a large edge (``|b − a|`` more than 3·``edge_mm``): the number of those
-    whose middle v lies more than ``edge_mm`` from both a and b, divided by the number a
-    sensor that integrates each pixel's footprint (ToF) would give, an edge placed uniformly
-    in the pixel mixing beyond ``edge_mm`` of both surfaces with probability
-    1 − 2·``edge_mm``/|b − a|. About 1 for ToF; a point-sampling sensor (structured light,
-    stereo, renders) gives such pixels only on steep slopes (:data:`MIXED_SHARE`: the
-    measured ranges). Dividing by the expectation keeps a room of near surfaces (small steps,
-    few mixes beyond the threshold) from passing for a point sampler.
-
-    Parameters
-    ----------
-    frames : array_like (..., h, w)
-        Depth (mm), 0 or NaN = no measurement.
-    edge_mm : float
-        Depth step that separates two surfaces.
-
-    Returns
-    -------
-    float: the ratio (≥ 0); 0 without any such edge.
-    """
-    return _share_of(*footprint_counts(frames, edge_mm))
-
-
-def _share_of(mixes: float, expected: float) -> float:
-    """:func:`footprint_share` from :func:`footprint_counts` (summed over frames to pool them)."""
-    return mixes / expected if expected > 0 else 0.0
-
-
-def footprint_counts(frames: npt.ArrayLike, edge_mm: float) -> tuple[float, float]:
-    """The edges with a pixel between the surfaces and the number a footprint sensor would
-    give, whose ratio is :func:`footprint_share` (sums over frames pool their evidence).
-
-    Each run of such edge pixels along one edge (consecutive across the runs of five)
-    weighs √(its length) in all: a straight edge's pixels share one sub-pixel offset, so
-    its footprints mix all or none, and a box side one pixel wide seen edge-on by a point
-    sampler is between its surfaces all along; counted pixel by pixel, one such edge
-    decided a frame (a camera approaching boxes, seed 1: 31 of its 53 expected mixes)."""
-    z = np.asarray(frames, np.float32)
-    z = np.where(np.isnan(z), np.float32(0.0), z).reshape(-1, *z.shape[-2:])
-    edge = float(edge_mm)
-    expected = 0.0
-    between = 0.0
-    for axis in (1, 2):
-        n = z.shape[axis]
-        if n < 5:
-            continue
-        c, a, v, b, e = (np.take(z, range(o, n - 4 + o), axis=axis) for o in range(5))
-        with np.errstate(invalid="ignore", divide="ignore"):
-            ok = (c > 0) & (a > 0) & (v > 0) & (b > 0) & (e > 0)
-            step = np.abs(b - a)
-            outer = np.maximum(np.abs(c - a), np.abs(e - b))
-            ok &= (step > 3 * edge) & (outer <= edge) & (outer <= FLAT_END_SHARE * step)
-            mid = ok & (v - np.minimum(a, b) > edge) & (np.maximum(a, b) - v > edge)
-            # a footprint across the edge at a uniform place mixes farther than edge_mm
-            # from both surfaces with probability 1 − 2·edge_mm / step
-            chance = 1.0 - 2.0 * edge / step
-        # runs along the edge: the last axis for a profile down a column, else the rows
-        ok, mid, chance = (np.swapaxes(x, 1, 2) if axis == 2 else x for x in (ok, mid, chance))
-        ok = ok.reshape(-1, ok.shape[-1])
-        starts = ok & ~np.pad(ok[:, :-1], ((0, 0), (1, 0)))
-        run = (np.cumsum(starts) - 1).reshape(ok.shape)[ok]
-        length = np.sqrt(np.bincount(run))
-        sel = ok.reshape(mid.shape)
-        between += float(np.sum(np.bincount(run, mid[sel].astype(np.float64)) / length))
-        expected += float(np.sum(np.bincount(run, chance[sel].astype(np.float64)) / length))
-    return between, expected
-
-
-def has_mixed_pixels(share: float, *, was: bool = False) -> bool:
-    """Whether a video's :func:`footprint_share` says its sensor mixes depths at edges (ToF):
-    at least :data:`MIXED_SHARE`, or, ``was`` it said so before (a share pooled over the
-    frames so far), at least :data:`MIXED_SHARE` − :data:`MIXED_SHARE_HYSTERESIS`."""
-    return share >= MIXED_SHARE - (MIXED_SHARE_HYSTERESIS if was else 0.0)

@@ -17,8 +17,8 @@ from typing import NamedTuple
 import numpy as np
 
 from upsr.method.config import UPSRConfig
+from upsr.method.footprint import footprint_share, has_mixed_pixels
 from upsr.method.frontend import MotionFrontEnd
-from upsr.method.mixed import footprint_share, has_mixed_pixels
 from upsr.method.noise import (
     QUANTISED_STEPS,
     choose_estimator,
@@ -56,7 +56,7 @@ def fix_video_statistics(
     the median for Laplacian noise, the mean of the trusted samples for Gaussian noise or
     depth quantised in steps of at least :data:`~upsr.method.noise.QUANTISED_STEPS` noise
     stds (:func:`upsr.method.noise.quantisation_step`); and whether the sensor mixes depths at
-    edges (:func:`upsr.method.mixed.footprint_share`) for ``remove_mixed="auto"``.
+    edges (:func:`upsr.method.footprint.footprint_share`) for ``remove_mixed="auto"``.
     """
     front.fix_statistics(first_frames)
     spatial = front.noise_mm or 0.0

@@ -472,8 +472,9 @@ NoThinPartsOpt = Annotated[
     typer.Option(
         "--no-thin-parts",
         help="Where mixed pixels are removed, leave parts narrower than a pixel (legs, "
-        "cables) as measured, a mix of the part and what lies behind, instead of splitting "
-        "them (fewer flying pixels, some rmse where a part's place in its pixels is unsure).",
+        "cables) and small clusters of like mixes (legs one to two pixels wide) as "
+        "measured, a mix of the part and what lies behind, instead of splitting them "
+        "(fewer flying pixels, some rmse where a part's place in its pixels is unsure).",
     ),
 ]
 
