@@ -1,5 +1,6 @@
 """Run every benchmark (``make bench``): speed (ToF always; Samba, speed-up and memory when the
-Samba meshes are at ``--data``, default ``../shared/data``), the flow grid, the synthetic scenes,
+Samba meshes are at ``--data``, default ``../shared/data``), speed beside a busy process, the
+flow grid, the synthetic scenes,
 the realistic sensor scenes (``--out docs/results`` writes them to docs/results/realistic), thin
 parts on a ToF sensor, the deblurring iterations and speckle removal, and the Samba accuracy
 tables. Each benchmark prints its table and writes ``results.json`` under ``--out``."""
@@ -14,6 +15,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 import deblur_eval
 import flow_grid_eval
+import load_eval
 import realistic_eval
 import samba_eval
 import speed_eval
@@ -29,6 +31,8 @@ def main() -> int:
     out = Path(args.out)
     print("== speed ==", flush=True)
     speed_eval.main(["--data", args.data, "--out", str(out / "speed")])
+    print("\n== speed beside another busy process (the kernels' OpenMP wait policy) ==", flush=True)
+    load_eval.main(["--out", str(out / "load")])
     print("\n== flow grid ==", flush=True)
     flow_grid_eval.main(["--data", args.data, "--out", str(out / "flow_grid")])
     print("\n== synthetic scenes ==", flush=True)

@@ -17,9 +17,18 @@ architecture section):
 Everything here is loaded on first use (PEP 562).
 """
 
+import os
 from typing import Any
 
 from upsr._lazy import attach
+
+# The compiled kernels' OpenMP threads (numba's default threading layer on Linux) wait for
+# work passively instead of spinning: where another process takes a core, a spinning thread
+# holds it while the thread it waits for is descheduled, and every parallel kernel waits a
+# scheduler slice (the recursive ToF stream fell from 92 to 3.6 frames/s with one busy
+# process beside it on two cores, 68 with this; alone, the same rate at less CPU). Read by
+# the OpenMP runtime when numba first loads it; a value the user set is kept.
+os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
 
 _lazy_getattr, __dir__, __all__ = attach(
     __name__,
