@@ -337,7 +337,9 @@ def remove_mixed_pixels(
     which belongs to neither. So do the pixels of a part narrower than a pixel, mixed along
     its whole length (:func:`upsr.method.thin.thin_parts`: nothing nearer beside them but
     the surface the part grows out of), and the bottom of a gap narrower than a pixel
-    between two nearer parts (:func:`upsr.method.thin._gap_bottom`). The other frames of
+    between two nearer parts (:func:`upsr.method.thin._gap_bottom`), and with ``thin_parts``
+    the small clusters of like mixes of a part one to two pixels wide
+    (:func:`upsr.method.clusters.mixed_clusters`). The other frames of
     the window fill them (their samples there are not mixed), or :func:`split_mixed_pixels`
     splits them between the surfaces around them. At the image's border a footprint may
     straddle an edge whose other side lies beyond the image: a pixel of the border that steps
