@@ -103,16 +103,22 @@ def _band_kernel(z, edge, ends, use_ends, out):  # pragma: no cover - numba
 
 
 @nb.njit(cache=True, nogil=True, inline="always")
-def _corner(u, t, h, w, c):  # pragma: no cover - numba
-    """The c-th (0–3) of the four low-res samples around the low-res position (u, t) (row,
-    column; pixel centres at integers): its indices, clamped to the frame, and its bilinear
-    weight."""
+def _cell(u, t):  # pragma: no cover - numba
+    """The cell of the low-res position (u, t) (row, column; pixel centres at integers): the
+    indices of the sample above and left of it and the fractions towards the next row and
+    column, for :func:`_corner` (once per position, not once per corner: the edge votes
+    visit 4N corners per pixel)."""
     i0 = int(np.floor(u))
     j0 = int(np.floor(t))
-    di = c // 2
-    dj = c % 2
-    fy = u - i0
-    fx = t - j0
+    return i0, j0, u - i0, t - j0
+
+
+@nb.njit(cache=True, nogil=True, inline="always")
+def _corner(i0, j0, fy, fx, h, w, c):  # pragma: no cover - numba
+    """The c-th (0–3) of the four low-res samples around the cell (i0, j0, fy, fx) of
+    :func:`_cell`: its indices, clamped to the frame, and its bilinear weight."""
+    di = c >> 1
+    dj = c & 1
     wy = fy if di == 1 else 1.0 - fy
     return (
         min(max(i0 + di, 0), h - 1),
@@ -144,14 +150,16 @@ def vote_surface(lowres, offsets, raw, px, py, scale, edge_mm, floor, fused, val
     for k in range(n):
         if raw[k] != raw[k]:
             continue
-        u = (py[k] + 0.5) * inv_r - 0.5
-        v = (px[k] + 0.5) * inv_r - 0.5
+        i0, j0, fy, fx = _cell((py[k] + 0.5) * inv_r - 0.5, (px[k] + 0.5) * inv_r - 0.5)
+        off = offsets[k]
         for c in range(4):
-            ii, jj, wt = _corner(u, v, h, w, c)
-            z = lowres[k, ii, jj]
-            if wt <= 0.0 or z < 0:
+            ii, jj, wt = _corner(i0, j0, fy, fx, h, w, c)
+            if wt <= 0.0:
                 continue
-            val = z - offsets[k] if z > 0 else inf
+            z = lowres[k, ii, jj]
+            if z < 0:
+                continue
+            val = z - off if z > 0 else inf
             if val < floor:
                 continue
             far |= (z > 0) & (abs(val - fused) > gap)
@@ -251,15 +259,14 @@ def _state_vote_kernel(
             # the frame's four samples around the pixel, bilinear: the weights of the update's
             # surface (w_v), of the others (w_o, and the heaviest other sample) and of the
             # state's surface (w_s)
-            u = (y + 0.5) * inv_r - 0.5
-            t = (x + 0.5) * inv_r - 0.5
+            i0, j0, fy, fx = _cell((y + 0.5) * inv_r - 0.5, (x + 0.5) * inv_r - 0.5)
             w_v = 0.0
             w_o = 0.0
             w_s = 0.0
             other = 0.0
             heaviest = -1.0
             for c in range(4):
-                ii, jj, wt = _corner(u, t, h, w, c)
+                ii, jj, wt = _corner(i0, j0, fy, fx, h, w, c)
                 z = meas[ii, jj]
                 if not z > 0:
                     continue  # no depth, or a removed mixed pixel: no vote
