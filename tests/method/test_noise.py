@@ -11,6 +11,7 @@ from upsr.method.noise import (
     noise_at_depth,
     noise_profile,
     second_differences,
+    spatial_noise_mm,
     tail_ratio,
     temporal_noise_mm,
 )
@@ -117,6 +118,33 @@ def test_the_tails_of_the_noise_are_read_in_space_not_in_time(law):
     assert np.isnan(
         tail_ratio(second_differences(frames[:, :2, :2], 100.0, sigma))
     )  # too few triples
+
+
+@pytest.mark.parametrize("law", ["gaussian", "laplace"])
+def test_a_samples_noise_is_read_in_space_whatever_the_law_and_the_motion(law):
+    """A floor seen by a camera moving 3 px per frame beside a wall: the temporal
+    differences read the motion (three times the noise); the std of the second differences
+    reads σ under either law. On a flat wall the robust estimate reads under 0.92σ under
+    Laplacian noise, the second differences σ."""
+    rng = np.random.default_rng(12)
+    t, y, x = np.meshgrid(np.arange(9), np.arange(48), np.arange(64), indexing="ij")
+    sigma = 10.0
+    clean = np.where(x < 40, 1000.0 + 20.0 * (y + 3 * t), 2500.0 + 8.0 * (x - 3 * t))
+    frames = add_depth_dependent_noise(clean, sigma, rng, law=law)
+    assert temporal_noise_mm(frames, 100.0) > 2.5 * sigma
+    d2 = second_differences(frames, 100.0, sigma)
+    assert spatial_noise_mm(d2, 0.5 * sigma) == pytest.approx(sigma, rel=0.05)
+    assert spatial_noise_mm(d2, 3 * sigma) == 3 * sigma  # at least the estimate given
+    assert spatial_noise_mm(d2[:49], 0.5 * sigma) == 0.5 * sigma  # too few differences
+    assert spatial_noise_mm(second_differences(clean, 100.0, 0.0), 0.0) == 0.0  # no noise
+    flat = add_depth_dependent_noise(np.full((9, 48, 64), 2000.0), sigma, rng, law=law)
+    robust = float(np.median([estimate_noise_mm(f) for f in flat]))
+    if law == "laplace":
+        assert robust < 0.92 * sigma  # (the MAD of Laplacian differences)
+    else:
+        assert robust == pytest.approx(sigma, rel=0.05)
+    d2 = second_differences(flat, 100.0, robust)
+    assert spatial_noise_mm(d2, robust) == pytest.approx(sigma, rel=0.05)
 
 
 def _kinect_floor(seed: int = 0, n: int = 9) -> tuple[np.ndarray, np.ndarray]:

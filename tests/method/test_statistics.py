@@ -36,7 +36,8 @@ def test_the_trust_profile_is_estimated_once_per_video_given_or_switched_off():
 def test_the_estimator_follows_the_noise_not_the_motion_of_the_camera(law):
     """A camera moving over a floor and a wall changes every pixel's depth from frame to
     frame (the temporal differences read 3× the noise): the estimator still follows the
-    shape of the noise; a given noise is the trust's noise."""
+    shape of the noise, and the noise of a sample (the reach, the radial offsets) is the
+    noise; a given noise is the trust's and the reach's noise."""
     from upsr.method.noise import temporal_noise_mm
 
     rng = np.random.default_rng(4)
@@ -49,5 +50,13 @@ def test_the_estimator_follows_the_noise_not_the_motion_of_the_camera(law):
     assert temporal_noise_mm(frames, 100.0) > 3 * sigma  # the motion, read as noise
     stats = fix_video_statistics(MotionFrontEnd(cfg, 64), frames, cfg)
     assert stats.estimator == ("median" if law == "laplace" else "mean")
+    # the trust's σ reads the motion; a sample's own noise (the reach, the radial offsets'
+    # test) is read in space
+    assert stats.trust_noise_mm > 3 * sigma
+    assert 0.95 * sigma < stats.reach_noise_mm < 1.3 * sigma
+    assert pinned_config(frames, cfg).reach_noise_mm == stats.reach_noise_mm  # a chunk: the same
     given = UPSRConfig(scale=2, n_frames=9, noise_mm=25.0)
-    assert fix_video_statistics(MotionFrontEnd(given, 64), frames, given).trust_noise_mm == 25.0
+    given_stats = fix_video_statistics(MotionFrontEnd(given, 64), frames, given)
+    assert given_stats.trust_noise_mm == given_stats.reach_noise_mm == 25.0
+    reach = UPSRConfig(scale=2, n_frames=9, reach_noise_mm=7.0)
+    assert fix_video_statistics(MotionFrontEnd(reach, 64), frames, reach).reach_noise_mm == 7.0

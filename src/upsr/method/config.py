@@ -249,6 +249,17 @@ class UPSRConfig:
         first window (which sees the quantisation steps of structured-light depth). Give it
         (with ``noise_mm``, ``depth_range_mm`` and ``fusion_estimator``) to process a chunk
         exactly as the whole video.
+    reach_noise_mm : float or None
+        σ of a single sample's noise (mm) in the per-pixel reach
+        (:func:`upsr.method.memory.state_caps`: how many frames a pixel on a slope may draw
+        on) and in the significance test of the radial offsets
+        (:func:`upsr.method.trust.radial_offsets`). ``None``: the trust's σ where a noise,
+        the trust's noise or a noise profile is given or found, else the smaller of the
+        trust's σ and the noise from space (the larger of the per-video noise estimate and
+        the std of the second differences of the first window over √6,
+        :func:`upsr.method.noise.spatial_noise_mm`): a moving camera's temporal differences
+        are no sample's noise. Give it (with ``trust_noise_mm``) to process a chunk exactly
+        as the whole video.
     trust_noise_profile : "auto", "constant" or (float, float)
         How σ of the trust tolerance depends on depth. ``"auto"``: estimated once per video
         from its first frames (:func:`upsr.method.noise.noise_profile`): where the noise grows
@@ -338,6 +349,7 @@ class UPSRConfig:
     edge_weight_floor: float = 0.25
     trust_k: float | None = 3.0
     trust_noise_mm: float | None = None
+    reach_noise_mm: float | None = None
     trust_noise_profile: tuple[float, float] | str = "auto"
     min_trusted: int | None = None
     remove_mixed: bool | str = "auto"
@@ -402,6 +414,7 @@ class UPSRConfig:
         )
         _number("trust_k", self.trust_k, 0, MAX_TOLERANCE, lo_open=True, none=True)
         _number("trust_noise_mm", self.trust_noise_mm, 0, MAX_DEPTH_PARAM_MM, none=True)
+        _number("reach_noise_mm", self.reach_noise_mm, 0, MAX_DEPTH_PARAM_MM, none=True)
         if not (_is_str(self.trust_noise_profile) and self.trust_noise_profile in _PROFILE_NAMES):
             message = (
                 "trust_noise_profile must be 'auto', 'constant' or (sigma_1m_mm, power), not "

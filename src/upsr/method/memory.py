@@ -65,6 +65,7 @@ def state_caps(
     *,
     noise_profile: tuple[float, float] | None = None,
     registration_px: float = REGISTRATION_ERROR_PX,
+    tolerance_sigma_mm: float | None = None,
 ) -> np.ndarray:
     """The largest count of the state per low-res pixel: how many frames its surface lets it
     summarise.
@@ -97,6 +98,10 @@ def state_caps(
         (σ₁, p): σ(z) = σ₁·(z / 1 m)^p at each pixel's anchor (p > 0) instead of ``sigma_mm``.
     registration_px : float
         ε, the registration error of the state (low-res px).
+    tolerance_sigma_mm : float, optional
+        The σ ``tolerance`` was computed with, where it is not the sample's noise
+        ``sigma_mm`` (the trust's σ, which a moving camera inflates: ``reach_noise_mm`` of
+        :class:`~upsr.method.config.UPSRConfig`); the relief is the tolerance less k times it.
 
     Returns
     -------
@@ -114,6 +119,8 @@ def state_caps(
     """
     if not (registration_px > 0 and k > 0):
         return np.full(anchor.shape, np.float32(cap))
+    if tolerance_sigma_mm is not None:  # the same relief, against the sample's noise
+        tolerance = tolerance - np.float32(k * (tolerance_sigma_mm - sigma_mm))
     s1, power = _sigma_and_power(sigma_mm, noise_profile)
     sigma = np.float32(s1) * (np.maximum(anchor, 1.0) / np.float32(1000.0)) ** np.float32(power)
     slope = np.maximum(tolerance - np.float32(k + RELIEF_NOISE_FACTOR) * sigma, 0.0)

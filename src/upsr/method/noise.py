@@ -47,6 +47,7 @@ __all__ = [
     "noise_profile",
     "quantisation_step",
     "second_differences",
+    "spatial_noise_mm",
     "tail_ratio",
     "temporal_noise_mm",
 ]
@@ -372,6 +373,22 @@ def second_differences(
                 means.append(((a + b + c) / 3.0)[ok])
     d2 = np.concatenate(along_rows + along_cols)
     return (d2, np.concatenate(means_rows + means_cols)) if depths else d2
+
+
+def spatial_noise_mm(differences: np.ndarray, noise_mm: float) -> float:
+    """A sample's noise std (mm) from space: the std of the :func:`second_differences`
+    ``differences`` over √6, at least ``noise_mm`` (:func:`estimate_noise_mm`'s robust
+    estimate, 0.9σ under Laplacian noise, where the std is unbiased for any law).
+
+    Unlike the temporal differences (:func:`temporal_noise_mm`), which a moving camera's
+    slanted surfaces inflate to three times the noise, second differences cancel slopes and
+    motion. Returns ``noise_mm`` without noise (``noise_mm`` ≤ 0) or with fewer than 50
+    differences.
+    """
+    d = np.asarray(differences, np.float64)
+    if not noise_mm > 0 or d.size < 50:
+        return float(noise_mm)
+    return max(float(noise_mm), float(np.std(d)) / math.sqrt(6.0))
 
 
 def tail_ratio(differences: np.ndarray) -> float:

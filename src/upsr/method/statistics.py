@@ -25,6 +25,7 @@ from upsr.method.noise import (
     noise_profile,
     quantisation_step,
     second_differences,
+    spatial_noise_mm,
     tail_ratio,
     temporal_noise_mm,
 )
@@ -39,6 +40,9 @@ class VideoStatistics(NamedTuple):
     estimator: str
     #: σ (mm) of the trust tolerance.
     trust_noise_mm: float
+    #: σ (mm) of a sample's noise in the reach of each pixel and the radial offsets' test
+    #: (``UPSRConfig.reach_noise_mm``; at most ``trust_noise_mm``).
+    reach_noise_mm: float
     #: Whether the mixed input pixels are removed.
     remove_mixed: bool
     #: (σ₁, p) of a trust tolerance that grows with depth, or None (one σ).
@@ -52,6 +56,8 @@ def fix_video_statistics(
 
     The front-end's depth range and noise estimate (:meth:`MotionFrontEnd.fix_statistics`);
     the trust noise (at least the temporal noise, :func:`upsr.method.noise.temporal_noise_mm`);
+    the noise of the reach and the radial offsets (at most the trust noise, from space:
+    :func:`upsr.method.noise.spatial_noise_mm`);
     the fusion's estimator from the shape of the noise (:func:`upsr.method.noise.tail_ratio`):
     the median for Laplacian noise, the mean of the trusted samples for Gaussian noise or
     depth quantised in steps of at least :data:`~upsr.method.noise.QUANTISED_STEPS` noise
@@ -67,20 +73,26 @@ def fix_video_statistics(
     else:
         # (the temporal differences also see the motion: a moving camera's slanted surfaces
         # read as 3× the noise, which loosens the trust; the spatial noise alone was measured
-        # and not taken, see docs/notes/depth-rules.md)
+        # and not taken for the tolerance, see docs/notes/depth-rules.md; the reach takes it)
         trust_mm = max(spatial, temporal_noise_mm(first_frames, front.edge_mm))
     mixed = cfg.remove_mixed
     if mixed == "auto":
         mixed = has_mixed_pixels(footprint_share(first_frames, front.edge_mm))
     profile = trust_profile(first_frames, cfg, front.edge_mm)
+    # (slopes and motion cancel; noise-free: no shape to read)
+    d2 = second_differences(first_frames, front.edge_mm, spatial) if spatial > 0 else None
     estimator = cfg.fusion_estimator
     if estimator == "auto":
         step = quantisation_step(first_frames, trust_mm, profile)
-        tail = math.nan  # (noise-free: no shape to read)
-        if spatial > 0:
-            tail = tail_ratio(second_differences(first_frames, front.edge_mm, spatial))
+        tail = math.nan if d2 is None else tail_ratio(d2)
         estimator = choose_estimator(tail, quantised=step >= QUANTISED_STEPS)
-    return VideoStatistics(estimator, trust_mm, bool(mixed), profile)
+    if cfg.reach_noise_mm is not None:
+        reach_mm = cfg.reach_noise_mm
+    elif cfg.trust_noise_mm is not None or cfg.noise_mm is not None or profile is not None:
+        reach_mm = trust_mm  # a given noise is the noise; a profile gives σ(z)
+    else:
+        reach_mm = min(trust_mm, spatial if d2 is None else spatial_noise_mm(d2, spatial))
+    return VideoStatistics(estimator, trust_mm, reach_mm, bool(mixed), profile)
 
 
 def trust_profile(
@@ -114,6 +126,7 @@ def pinned_config(first_frames: np.ndarray, cfg: UPSRConfig) -> UPSRConfig:
         noise_mm=front.noise_mm,
         fusion_estimator=stats.estimator,
         trust_noise_mm=stats.trust_noise_mm,
+        reach_noise_mm=stats.reach_noise_mm,
         remove_mixed=stats.remove_mixed,
         trust_noise_profile=stats.trust_noise_profile or "constant",
     )

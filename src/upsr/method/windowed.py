@@ -298,6 +298,7 @@ class UPSR:
                 # mixed (flying) input pixels abstain: the other frames fill them
                 lowres = np.stack([self._cleaned(k)[0] for k in idx])
             noise = stats.trust_noise_mm  # (cfg.trust_noise_mm where given)
+            reach_noise = stats.reach_noise_mm  # a sample's noise (at most the trust's σ)
             anchor = tolerance = caps = None
             if cfg.trust_k is not None:
                 anchor, tolerance = reference_anchor(
@@ -307,8 +308,8 @@ class UPSR:
                 )  # fmt: skip
                 # how many frames each pixel's estimate may draw on (the reach, the level)
                 caps = state_caps(
-                    anchor, tolerance, float(cfg.n_frames), noise, cfg.trust_k,
-                    noise_profile=stats.trust_noise_profile,
+                    anchor, tolerance, float(cfg.n_frames), reach_noise, cfg.trust_k,
+                    noise_profile=stats.trust_noise_profile, tolerance_sigma_mm=noise,
                 )  # fmt: skip
                 lowres = abstain_lone_outliers(lowres, ref, anchor)
             offsets = untrusted = None
@@ -319,7 +320,7 @@ class UPSR:
                 registered = registered_samples(lowres, maps, r)
                 if cfg.radial_compensation:
                     offsets = radial_offsets(
-                        lowres, maps, r, ref, sigma_mm=noise, edge_mm=self._front.edge_mm,
+                        lowres, maps, r, ref, sigma_mm=reach_noise, edge_mm=self._front.edge_mm,
                         radius_px=cfg.radial_radius_px, registered=registered, anchor=anchor,
                         noise_profile=stats.trust_noise_profile, centres=centres,
                     )  # fmt: skip

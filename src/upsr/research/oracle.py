@@ -631,7 +631,7 @@ def super_resolve_straightforward(frames: npt.ArrayLike, config: UPSRConfig) -> 
     front.fix_statistics(video[:n], estimate_noise=estimate_noise_mm_numpy)
     edge_mm = front.edge_mm
     stats = fix_video_statistics(front, video[:n], cfg)
-    trust_mm = stats.trust_noise_mm
+    trust_mm, reach_mm = stats.trust_noise_mm, stats.reach_noise_mm  # (a sample's noise)
     out = np.empty((t_total, h * r, w * r), np.float32)
     for t in range(t_total):
         s = window_start(t, t_total, cfg)
@@ -640,9 +640,8 @@ def super_resolve_straightforward(frames: npt.ArrayLike, config: UPSRConfig) -> 
         lowres, anchor, tol = _abstaining(
             measured, ref, stats.remove_mixed, cfg, edge_mm, trust_mm, stats.trust_noise_profile
         )
-        caps = None if anchor is None else state_caps(
-            anchor, tol, float(n), trust_mm, cfg.trust_k, noise_profile=stats.trust_noise_profile
-        )  # fmt: skip
+        caps = None if anchor is None else state_caps(anchor, tol, float(n), reach_mm, cfg.trust_k,
+            noise_profile=stats.trust_noise_profile, tolerance_sigma_mm=trust_mm)  # fmt: skip
         up = [upsample_nearest(f, r) for f in lowres]
         pre = [front.prefilter(video[k]) for k in range(s, s + n)]
         guides = [front.guide(p) for p in pre]
@@ -664,7 +663,7 @@ def super_resolve_straightforward(frames: npt.ArrayLike, config: UPSRConfig) -> 
             back = flows_to_reference(ref, bwd, fwd, (h * r, w * r))
             guide = splat_nearest(lowres, np.stack(back), r, cfg.splat_radius_px)
         stack, offsets = _checked_stack(
-            stack, lowres, maps, ref, cfg, edge_mm, trust_mm, anchor, stats.trust_noise_profile,
+            stack, lowres, maps, ref, cfg, edge_mm, reach_mm, anchor, stats.trust_noise_profile,
             caps,
         )  # fmt: skip
         fallback = only_own = None

@@ -234,11 +234,12 @@ def _choices(stats: Any) -> str:
     """The per-video choices of ``fusion_estimator``, the trust and the mixed-pixel test, in
     one line (``upsr.method.statistics.VideoStatistics``)."""
     profile = stats.trust_noise_profile
-    noise = (
-        f"noise σ(z) = {profile[0]:.1f} mm·(z/1 m)^{profile[1]:.2f}"
-        if profile is not None
-        else f"trust noise {stats.trust_noise_mm:.1f} mm"
-    )
+    if profile is not None:
+        noise = f"noise σ(z) = {profile[0]:.1f} mm·(z/1 m)^{profile[1]:.2f}"
+    else:
+        noise = f"trust noise {stats.trust_noise_mm:.1f} mm"
+        if stats.reach_noise_mm < stats.trust_noise_mm:  # (the reach, the radial offsets)
+            noise += f", sample noise {stats.reach_noise_mm:.1f} mm"
     mixed = "mixed pixels removed" if stats.remove_mixed else "no mixed pixels"
     return f"fused by the {stats.estimator}, {noise}, {mixed}"
 
