@@ -252,8 +252,9 @@ class UPSRConfig:
     reach_noise_mm : float or None
         σ of a single sample's noise (mm) in the per-pixel reach
         (:func:`upsr.method.memory.state_caps`: how many frames a pixel on a slope may draw
-        on) and in the significance test of the radial offsets
-        (:func:`upsr.method.trust.radial_offsets`). ``None``: the trust's σ where a noise,
+        on) and in the significance tests of the radial offsets
+        (:func:`upsr.method.trust.radial_offsets`) and of the slopes
+        (:func:`upsr.method.slopes.follow_slopes`). ``None``: the trust's σ where a noise,
         the trust's noise or a noise profile is given or found, else the smaller of the
         trust's σ and the noise from space (the larger of the per-video noise estimate and
         the std of the second differences of the first window over √6,

@@ -40,8 +40,8 @@ class VideoStatistics(NamedTuple):
     estimator: str
     #: σ (mm) of the trust tolerance.
     trust_noise_mm: float
-    #: σ (mm) of a sample's noise in the reach of each pixel and the radial offsets' test
-    #: (``UPSRConfig.reach_noise_mm``; at most ``trust_noise_mm``).
+    #: σ (mm) of a sample's noise in the reach of each pixel and the radial offsets' and
+    #: slopes' tests (``UPSRConfig.reach_noise_mm``; at most ``trust_noise_mm``).
     reach_noise_mm: float
     #: Whether the mixed input pixels are removed.
     remove_mixed: bool

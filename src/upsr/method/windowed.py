@@ -379,7 +379,7 @@ class UPSR:
                 anchor,
                 cfg,
                 edge_mm=self._front.edge_mm,  # type: ignore[union-attr]
-                noise_mm=noise,
+                noise_mm=reach_noise,
                 measured=measured[ref],
             )
 

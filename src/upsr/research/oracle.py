@@ -693,7 +693,7 @@ def super_resolve_straightforward(frames: npt.ArrayLike, config: UPSRConfig) -> 
         )
         # the rules beyond the paper after the deblurring, as the engine applies them
         out[t] = finish_frame(
-            res, fused, lowres[ref], anchor, cfg, edge_mm=edge_mm, noise_mm=trust_mm,
+            res, fused, lowres[ref], anchor, cfg, edge_mm=edge_mm, noise_mm=reach_mm,
             measured=measured[ref],
         )  # fmt: skip
     return out
