@@ -184,6 +184,31 @@ def test_a_room_seen_by_a_moving_camera_reaches_frames_by_its_noise_not_its_moti
     assert errors[0] < 0.85 * errors[1]
 
 
+def test_the_finishing_judges_slopes_by_a_samples_noise(monkeypatch):
+    """The slopes' significance (``slopes.follow_slopes``, in the finishing) takes the
+    sample's noise, not the trust's σ that a camera moving over slopes inflates."""
+    from upsr.method import windowed
+
+    seen = []
+    finish = windowed.finish_frame
+
+    def spy(*args, **kwargs):
+        seen.append(kwargs["noise_mm"])
+        return finish(*args, **kwargs)
+
+    monkeypatch.setattr(windowed, "finish_frame", spy)
+    rng = np.random.default_rng(4)
+    t, y, x = np.meshgrid(np.arange(5), np.arange(24), np.arange(32), indexing="ij")
+    clean = np.where(x < 16, 1500.0 + 8.0 * (y + 6 * t), 2500.0 + 8.0 * (x - 6 * t))
+    frames = (clean + rng.laplace(0, 10 / np.sqrt(2), clean.shape)).astype(np.float32)
+    engine = upsr.UPSR(scale=2, n_frames=5, workers=0)
+    for f in frames:
+        engine.push(f)
+    stats = engine.statistics
+    assert stats.reach_noise_mm < stats.trust_noise_mm / 2
+    assert seen and all(v == stats.reach_noise_mm for v in seen)
+
+
 def test_stage_timings_are_recorded_and_kept_across_videos():
     scene = dynamic_scene(n_frames=6, lowres_shape=(12, 16), scale=2, noise_sigma_mm=10, seed=2)
     engine = upsr.UPSR(scale=2, n_frames=3)
