@@ -79,17 +79,22 @@ def fix_video_statistics(
     if mixed == "auto":
         mixed = has_mixed_pixels(footprint_share(first_frames, front.edge_mm))
     profile = trust_profile(first_frames, cfg, front.edge_mm)
-    # (slopes and motion cancel; noise-free: no shape to read)
-    d2 = second_differences(first_frames, front.edge_mm, spatial) if spatial > 0 else None
     estimator = cfg.fusion_estimator
+    # a given noise is a sample's noise; a profile gives σ(z)
+    given = (cfg.reach_noise_mm, cfg.trust_noise_mm, cfg.noise_mm, profile)
+    estimate_reach = all(v is None for v in given)
+    # (slopes and motion cancel; noise-free: no shape to read; computed once, where needed)
+    d2 = None
+    if spatial > 0 and (estimator == "auto" or estimate_reach):
+        d2 = second_differences(first_frames, front.edge_mm, spatial)
     if estimator == "auto":
         step = quantisation_step(first_frames, trust_mm, profile)
         tail = math.nan if d2 is None else tail_ratio(d2)
         estimator = choose_estimator(tail, quantised=step >= QUANTISED_STEPS)
     if cfg.reach_noise_mm is not None:
         reach_mm = cfg.reach_noise_mm
-    elif cfg.trust_noise_mm is not None or cfg.noise_mm is not None or profile is not None:
-        reach_mm = trust_mm  # a given noise is the noise; a profile gives σ(z)
+    elif not estimate_reach:
+        reach_mm = trust_mm
     else:
         reach_mm = min(trust_mm, spatial if d2 is None else spatial_noise_mm(d2, spatial))
     return VideoStatistics(estimator, trust_mm, reach_mm, bool(mixed), profile)
