@@ -1,13 +1,15 @@
-"""Camera geometry: the pinhole camera, intrinsics scaling (SPEC §1), rendering of meshes."""
+"""Camera geometry: the pinhole camera, intrinsics scaling (SPEC §1), rendering of meshes,
+reprojection of depth between views."""
 
 from upsr._lazy import attach, by_module
 
 __getattr__, __dir__, __all__ = attach(
     __name__,
-    submodules=["camera", "intrinsics", "rendering"],
+    submodules=["camera", "intrinsics", "rendering", "reprojection"],
     names=by_module(
         camera=["PinholeCamera"],
         rendering=["look_at", "render_depth"],
+        reprojection=["reproject"],
         intrinsics=["parse_intrinsics", "scale_intrinsics", "load_intrinsics", "write_intrinsics"],
     ),
 )

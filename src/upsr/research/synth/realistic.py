@@ -82,6 +82,9 @@ class RealisticVideo:
     max_motion_px : float
         Largest displacement (low-res px) of a mesh vertex in the image between two
         consecutive frames (vertices in front of the camera and inside the image).
+    world_to_camera : ndarray float64 (T, 4, 4) or None
+        The moving camera's pose in each frame (metres; the true motion of every pixel between
+        two frames, :func:`upsr.geometry.reprojection.reproject`); None for a static camera.
     """
 
     name: str
@@ -92,6 +95,7 @@ class RealisticVideo:
     camera: PinholeCamera
     static_camera: bool
     max_motion_px: float
+    world_to_camera: np.ndarray | None = None
 
     @property
     def n_frames(self) -> int:
@@ -478,7 +482,9 @@ def _render_moving_camera(
         low[t] = render_depth(*mesh, camera, world_to_camera=pose, background_mm=wall_mm(t))
         truth[t] = render_depth(*mesh, hi_cam, world_to_camera=pose, background_mm=wall_mm(t))
     pts = [mesh[0] @ np.asarray(p)[:3, :3].T + np.asarray(p)[:3, 3] for p in poses]
-    return RealisticVideo(name, low, truth, truth > 0, r, camera, False, _max_motion(camera, pts))
+    motion = _max_motion(camera, pts)
+    poses_4x4 = np.stack([np.vstack([np.asarray(p, np.float64)[:3], [0, 0, 0, 1]]) for p in poses])
+    return RealisticVideo(name, low, truth, truth > 0, r, camera, False, motion, poses_4x4)
 
 
 def camera_toward_wall(
