@@ -2,7 +2,7 @@
 
 A diagnostic beside ``realistic_eval.py``. On the scenes seen by a moving camera (a static
 scene: every pixel's true motion between two frames follows from the truth's depth and the
-camera poses, :func:`upsr.geometry.reprojection.reproject`), the windowed mode runs three
+camera poses, :func:`upsr.geometry.reprojection.reproject`), the windowed mode runs four
 times on the same frames:
 
 * ``upsr``: the defaults;
@@ -10,7 +10,10 @@ times on the same frames:
   of the true motion below (separates the grid's effect from the estimate's);
 * ``upsr_true_motion``: the registration of every window (the maps from the reference to each
   frame, and each frame's samples carried to the reference) replaced by the true motion; all
-  the rest (trust, radial offsets, fusion, finishing) as in the defaults.
+  the rest (trust, radial offsets, fusion, finishing) as in the defaults;
+* ``upsr_depth_motion``: the same with the camera's motion estimated from the noisy frames
+  themselves (:func:`upsr.geometry.rigid.rigid_motion`, point-to-plane ICP of each
+  consecutive pair with the scene's intrinsics) and their nearest-upsampled depth.
 
 Beside nearest and bicubic upsampling it reports the SPEC §6 accuracy, the pixels more than
 the edge tolerance (100 mm) off per pixel of the truth's edge lines ("misplaced per edge px":
@@ -30,6 +33,7 @@ import contextlib
 import json
 import sys
 from collections.abc import Iterator, Sequence
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -37,7 +41,9 @@ import numpy as np
 
 import upsr
 import upsr.method.windowed as windowed
+from upsr.geometry.camera import PinholeCamera
 from upsr.geometry.reprojection import reproject
+from upsr.geometry.rigid import rigid_motion
 from upsr.research import baselines
 from upsr.research.metrics import (
     DISCONTINUITY_MM,
@@ -55,37 +61,65 @@ SHARES = ("edge_accuracy", "flying_pixels", "missing")
 REGISTRATION = ("reg_err_edges_median", "reg_err_edges_p90", "reg_err_surfaces_median")
 
 
-def true_maps(video: RealisticVideo, t: int, frames: range) -> np.ndarray:
-    """(N, H, W, 2) float32: where each output pixel of frame t lies in each frame of
-    ``frames``, as displacements (output px); 0 where the truth has no depth."""
-    cam = video.camera.scaled(video.scale)
-    poses = video.world_to_camera
-    assert poses is not None
-    ys, xs = np.mgrid[0 : cam.height, 0 : cam.width].astype(np.float64)
-    out = np.zeros((len(frames), cam.height, cam.width, 2), np.float32)
-    for i, k in enumerate(frames):
-        ub, vb, _ = reproject(video.truth[t], cam, poses[t], poses[k])
-        out[i, ..., 0] = np.nan_to_num(ub - xs)
-        out[i, ..., 1] = np.nan_to_num(vb - ys)
-    return out
+@dataclass(frozen=True)
+class Motion:
+    """A registration from camera poses: each output pixel of a reference frame carried by
+    its depth ``depth`` (T, r·h, r·w), each low-res sample by its depth ``lowres`` (T, h, w),
+    through the poses ``world_to_camera`` (T, 4, 4) of the low-res ``camera``."""
 
+    world_to_camera: np.ndarray
+    depth: np.ndarray
+    lowres: np.ndarray
+    camera: PinholeCamera
+    scale: int
 
-def true_samples(video: RealisticVideo, k: int, m: int) -> np.ndarray:
-    """(h, w, 2) float64: frame k's low-res sample centres in frame m (output px)."""
-    cam = video.camera.scaled(video.scale)
-    poses = video.world_to_camera
-    assert poses is not None
-    r = video.scale
-    h, w = video.lowres.shape[1:]
-    ii, jj = np.mgrid[0:h, 0:w].astype(np.float64)
-    u, v = (jj + 0.5) * r - 0.5, (ii + 0.5) * r - 0.5
-    ub, vb, _ = reproject(video.lowres[k], cam, poses[k], poses[m], u=u, v=v)
-    return np.stack([np.where(np.isnan(ub), u, ub), np.where(np.isnan(vb), v, vb)], -1)
+    @classmethod
+    def true(cls, video: RealisticVideo) -> Motion:
+        """The scene's own motion (its poses, the truth's depth, the clean samples)."""
+        assert video.world_to_camera is not None
+        return cls(video.world_to_camera, video.truth, video.lowres, video.camera, video.scale)
+
+    @classmethod
+    def from_depth(cls, low: np.ndarray, camera: PinholeCamera, r: int, noise_mm: float) -> Motion:
+        """The camera's motion estimated from the noisy frames themselves
+        (:func:`upsr.geometry.rigid.rigid_motion` of each consecutive pair, chained; the
+        scene's intrinsics), their depth nearest-upsampled."""
+        poses = [np.eye(4)]
+        step = None
+        for k in range(len(low) - 1):
+            step = rigid_motion(low[k], low[k + 1], camera, noise_mm=noise_mm, initial=step)
+            poses.append(step @ poses[-1])
+        depth = np.repeat(np.repeat(low, r, axis=1), r, axis=2)
+        return cls(np.stack(poses), depth, low, camera, r)
+
+    def maps(self, t: int, frames: range) -> np.ndarray:
+        """(N, H, W, 2) float32: where each output pixel of frame t lies in each frame of
+        ``frames``, as displacements (output px); 0 where there is no depth."""
+        cam = self.camera.scaled(self.scale)
+        ys, xs = np.mgrid[0 : cam.height, 0 : cam.width].astype(np.float64)
+        out = np.zeros((len(frames), cam.height, cam.width, 2), np.float32)
+        poses = self.world_to_camera
+        for i, k in enumerate(frames):
+            ub, vb, _ = reproject(self.depth[t], cam, poses[t], poses[k])
+            out[i, ..., 0] = np.nan_to_num(ub - xs)
+            out[i, ..., 1] = np.nan_to_num(vb - ys)
+        return out
+
+    def samples(self, k: int, m: int) -> np.ndarray:
+        """(h, w, 2) float64: frame k's low-res sample centres in frame m (output px)."""
+        cam = self.camera.scaled(self.scale)
+        r = self.scale
+        h, w = self.lowres.shape[1:]
+        ii, jj = np.mgrid[0:h, 0:w].astype(np.float64)
+        u, v = (jj + 0.5) * r - 0.5, (ii + 0.5) * r - 0.5
+        poses = self.world_to_camera
+        ub, vb, _ = reproject(self.lowres[k], cam, poses[k], poses[m], u=u, v=v)
+        return np.stack([np.where(np.isnan(ub), u, ub), np.where(np.isnan(vb), v, vb)], -1)
 
 
 @contextlib.contextmanager
-def true_motion(video: RealisticVideo) -> Iterator[None]:
-    """Replace the windowed engine's registration by the true motion (``flow_scale`` = r)."""
+def registered_by(motion: Motion) -> Iterator[None]:
+    """Replace the windowed engine's registration by ``motion`` (``flow_scale`` = r)."""
     window: dict[str, int] = {}
     finish, chain = windowed.UPSR._finish, windowed.UPSR._chain
     cumulative = windowed.cumulative_flows
@@ -95,12 +129,12 @@ def true_motion(video: RealisticVideo) -> Iterator[None]:
         return finish(self, t, n_total)
 
     def _cumulative(ref, backward, forward, shape, *, out, **_):  # type: ignore[no-untyped-def]
-        assert shape == video.truth.shape[1:], "the true motion needs flow_scale = r"
-        out[...] = true_maps(video, window["t"], range(window["s"], window["s"] + len(out)))
+        assert shape == motion.depth.shape[1:], "a registration from poses needs flow_scale = r"
+        out[...] = motion.maps(window["t"], range(window["s"], window["s"] + len(out)))
         return list(out)
 
     windowed.UPSR._finish = _finish  # type: ignore[method-assign]
-    windowed.UPSR._chain = lambda self, k, m: true_samples(video, k, m)  # type: ignore[method-assign]
+    windowed.UPSR._chain = lambda self, k, m: motion.samples(k, m)  # type: ignore[method-assign]
     windowed.cumulative_flows = _cumulative
     try:
         yield
@@ -157,9 +191,10 @@ def registration_error(video: RealisticVideo, store: list) -> dict[str, float]:
     """Median and 90th percentile (low-res px) of |estimated − true| map, near the truth's
     edges (within r px) and on the surfaces."""
     r = video.scale
+    truth = Motion.true(video)
     near_e, surf = [], []
     for t, s, maps in store:
-        err = np.linalg.norm(maps - true_maps(video, t, range(s, s + len(maps))), axis=-1) / r
+        err = np.linalg.norm(maps - truth.maps(t, range(s, s + len(maps))), axis=-1) / r
         edge = near_discontinuity(video.truth[t], r)
         valid = video.truth[t] > 0
         for i in range(len(maps)):
@@ -184,14 +219,17 @@ def run_case(scene: str, seed: int, sigma: float, n: int, frames: int) -> list[d
     store: list = []
     with captured_maps(store):
         full_grid = np.stack(list(upsr.UPSR(r, n, workers=0, flow_scale=r).process(low)))
-    with true_motion(video):
+    with registered_by(Motion.true(video)):
         oracle = np.stack(list(upsr.UPSR(r, n, workers=0, flow_scale=r).process(low)))
+    with registered_by(Motion.from_depth(low, video.camera, r, max(sigma, 2.0))):
+        ego = np.stack(list(upsr.UPSR(r, n, workers=0, flow_scale=r).process(low)))
     outs = {
         "nearest": baselines.nearest(low, r),
         "bicubic": baselines.bicubic(low, r),
         "upsr": np.stack(list(upsr.UPSR(r, n, workers=0).process(low))),
         "upsr_full_grid": full_grid,
         "upsr_true_motion": oracle,
+        "upsr_depth_motion": ego,
     }
     reg = registration_error(video, store)
     rows = []
