@@ -118,6 +118,17 @@ class Motion:
         return np.stack([np.where(np.isnan(ub), u, ub), np.where(np.isnan(vb), v, vb)], -1)
 
 
+def _noting_window(window: dict[str, int]):  # type: ignore[no-untyped-def]
+    """The engine's ``_finish``, noting the window (reference t, first frame s) it finishes."""
+    finish = windowed.UPSR._finish
+
+    def _finish(self, t, n_total):  # type: ignore[no-untyped-def]
+        window["t"], window["s"] = t, windowed.window_start(t, n_total, self.config)
+        return finish(self, t, n_total)
+
+    return _finish
+
+
 @contextlib.contextmanager
 def registered_by(motion: Motion) -> Iterator[None]:
     """Replace the windowed engine's registration by ``motion`` (``flow_scale`` = r)."""
@@ -125,16 +136,12 @@ def registered_by(motion: Motion) -> Iterator[None]:
     finish, chain = windowed.UPSR._finish, windowed.UPSR._chain
     cumulative = windowed.cumulative_flows
 
-    def _finish(self, t, n_total):  # type: ignore[no-untyped-def]
-        window["t"], window["s"] = t, windowed.window_start(t, n_total, self.config)
-        return finish(self, t, n_total)
-
     def _cumulative(ref, backward, forward, shape, *, out, **_):  # type: ignore[no-untyped-def]
         assert shape == motion.depth.shape[1:], "a registration from poses needs flow_scale = r"
         out[...] = motion.maps(window["t"], range(window["s"], window["s"] + len(out)))
         return list(out)
 
-    windowed.UPSR._finish = _finish  # type: ignore[method-assign]
+    windowed.UPSR._finish = _noting_window(window)  # type: ignore[method-assign]
     windowed.UPSR._chain = lambda self, k, m: motion.samples(k, m)  # type: ignore[method-assign]
     windowed.cumulative_flows = _cumulative
     try:
@@ -150,16 +157,12 @@ def captured_maps(store: list) -> Iterator[None]:
     window: dict[str, int] = {}
     finish, cumulative = windowed.UPSR._finish, windowed.cumulative_flows
 
-    def _finish(self, t, n_total):  # type: ignore[no-untyped-def]
-        window["t"], window["s"] = t, windowed.window_start(t, n_total, self.config)
-        return finish(self, t, n_total)
-
     def _cumulative(*args, out, **kwargs):  # type: ignore[no-untyped-def]
         res = cumulative(*args, out=out, **kwargs)
         store.append((window["t"], window["s"], out.copy()))
         return res
 
-    windowed.UPSR._finish = _finish  # type: ignore[method-assign]
+    windowed.UPSR._finish = _noting_window(window)  # type: ignore[method-assign]
     windowed.cumulative_flows = _cumulative
     try:
         yield
