@@ -2,7 +2,7 @@
 
 A diagnostic beside ``realistic_eval.py``. On the scenes seen by a moving camera (a static
 scene: every pixel's true motion between two frames follows from the truth's depth and the
-camera poses, :func:`upsr.geometry.reprojection.reproject`), the windowed mode runs four
+camera poses, :func:`upsr.method.camera_motion.reproject`), the windowed mode runs four
 times on the same frames (on a static camera's scenes, whose bodies move on their own, the
 first and the last):
 
@@ -12,9 +12,10 @@ first and the last):
 * ``upsr_true_motion``: the registration of every window (the maps from the reference to each
   frame, and each frame's samples carried to the reference) replaced by the true motion; all
   the rest (trust, radial offsets, fusion, finishing) as in the defaults;
-* ``upsr_depth_motion``: the same with the camera's motion estimated from the noisy frames
-  themselves (:func:`upsr.geometry.rigid.rigid_motion`, point-to-plane ICP of each
-  consecutive pair with the scene's intrinsics) and their nearest-upsampled depth.
+* ``upsr_depth_motion``: the defaults with ``camera_motion="depth"`` and the scene's
+  intrinsics (:mod:`upsr.method.camera_motion`: the camera's motion estimated from the noisy
+  frames themselves, used in the windows where it goes along the optical axis and at the
+  pixels whose flow agrees with it).
 
 Beside nearest and bicubic upsampling it reports the SPEC §6 accuracy, the pixels more than
 the edge tolerance (100 mm) off per pixel of the truth's edge lines ("misplaced per edge px":
@@ -43,8 +44,7 @@ import numpy as np
 import upsr
 import upsr.method.windowed as windowed
 from upsr.geometry.camera import PinholeCamera
-from upsr.geometry.reprojection import reproject
-from upsr.geometry.rigid import rigid_motion
+from upsr.method.camera_motion import reproject
 from upsr.research import baselines
 from upsr.research.metrics import (
     DISCONTINUITY_MM,
@@ -80,28 +80,16 @@ class Motion:
         assert video.world_to_camera is not None
         return cls(video.world_to_camera, video.truth, video.lowres, video.camera, video.scale)
 
-    @classmethod
-    def from_depth(cls, low: np.ndarray, camera: PinholeCamera, r: int, noise_mm: float) -> Motion:
-        """The camera's motion estimated from the noisy frames themselves
-        (:func:`upsr.geometry.rigid.rigid_motion` of each consecutive pair, chained; the
-        scene's intrinsics), their depth nearest-upsampled."""
-        poses = [np.eye(4)]
-        step = None
-        for k in range(len(low) - 1):
-            step = rigid_motion(low[k], low[k + 1], camera, noise_mm=noise_mm, initial=step)
-            poses.append(step @ poses[-1])
-        depth = np.repeat(np.repeat(low, r, axis=1), r, axis=2)
-        return cls(np.stack(poses), depth, low, camera, r)
-
     def maps(self, t: int, frames: range) -> np.ndarray:
         """(N, H, W, 2) float32: where each output pixel of frame t lies in each frame of
         ``frames``, as displacements (output px); 0 where there is no depth."""
         cam = self.camera.scaled(self.scale)
+        intr = (cam.fx, cam.fy, cam.cx, cam.cy)
         ys, xs = np.mgrid[0 : cam.height, 0 : cam.width].astype(np.float64)
         out = np.zeros((len(frames), cam.height, cam.width, 2), np.float32)
         poses = self.world_to_camera
         for i, k in enumerate(frames):
-            ub, vb, _ = reproject(self.depth[t], cam, poses[t], poses[k])
+            ub, vb, _ = reproject(self.depth[t], intr, poses[t], poses[k])
             out[i, ..., 0] = np.nan_to_num(ub - xs)
             out[i, ..., 1] = np.nan_to_num(vb - ys)
         return out
@@ -114,7 +102,8 @@ class Motion:
         ii, jj = np.mgrid[0:h, 0:w].astype(np.float64)
         u, v = (jj + 0.5) * r - 0.5, (ii + 0.5) * r - 0.5
         poses = self.world_to_camera
-        ub, vb, _ = reproject(self.lowres[k], cam, poses[k], poses[m], u=u, v=v)
+        intr = (cam.fx, cam.fy, cam.cx, cam.cy)
+        ub, vb, _ = reproject(self.lowres[k], intr, poses[k], poses[m], u=u, v=v)
         return np.stack([np.where(np.isnan(ub), u, ub), np.where(np.isnan(vb), v, vb)], -1)
 
 
@@ -236,10 +225,10 @@ def run_case(scene: str, seed: int, sigma: float, n: int, frames: int) -> list[d
                 list(upsr.UPSR(r, n, workers=0, flow_scale=r).process(low))
             )
         reg = registration_error(video, store)
-    with registered_by(Motion.from_depth(low, video.camera, r, max(sigma, 2.0))):
-        outs["upsr_depth_motion"] = np.stack(
-            list(upsr.UPSR(r, n, workers=0, flow_scale=r).process(low))
-        )
+    c = video.camera
+    depth = upsr.UPSR(r, n, workers=0, camera_motion="depth",
+                      camera_intrinsics=(c.fx, c.fy, c.cx, c.cy))  # fmt: skip
+    outs["upsr_depth_motion"] = np.stack(list(depth.process(low)))
     rows = []
     for method, est in outs.items():
         m = evaluate(est, video.truth, r)

@@ -324,6 +324,18 @@ class UPSRConfig:
         from one output to the next, one flow per frame, latency 0 frames, memory
         independent of N, where N caps how many frames the state summarises
         (:mod:`upsr.method.recursive`).
+    camera_motion : {"flow", "depth"}
+        Windowed mode, beyond the paper. ``"flow"``: the motion between frames is the optical
+        flow (eq. 16–19). ``"depth"``: for a camera moving along its axis in a static scene
+        (a vehicle driving forward): its rigid motion between consecutive frames is estimated
+        from the depth itself and each pixel's motion follows from its depth, which sees the
+        sub-pixel zoom a flow misses (:mod:`upsr.method.camera_motion`; needs
+        ``camera_intrinsics``). Used only in the windows whose every step goes along the
+        optical axis and at the pixels whose flow agrees with it; elsewhere the flow
+        (``benchmarks/registration_oracle.py``).
+    camera_intrinsics : (fx, fy, cx, cy) or None
+        Intrinsics (px) of the low-res frames, pixel (i, j) centred at (u, v) = (j, i); needed
+        by ``camera_motion="depth"``.
     deblur : DeblurConfig
         Deblurring parameters (eq. 29–30).
     """
@@ -361,6 +373,8 @@ class UPSRConfig:
     follow_slopes: bool = True
     fill_holes: bool = False
     mode: str = "windowed"
+    camera_motion: str = "flow"
+    camera_intrinsics: tuple[float, float, float, float] | None = None
     deblur: DeblurConfig = field(default_factory=DeblurConfig)
 
     def __post_init__(self) -> None:
@@ -438,6 +452,27 @@ class UPSRConfig:
             self.mode in ("windowed", "recursive"),
             f"mode must be 'windowed' or 'recursive', not {_show(self.mode)}",
         )
+        _check(
+            self.camera_motion in ("flow", "depth"),
+            f"camera_motion must be 'flow' or 'depth', not {_show(self.camera_motion)}",
+        )
+        if self.camera_intrinsics is not None:
+            try:
+                fx, fy, cx, cy = (float(v) for v in self.camera_intrinsics)
+            except (TypeError, ValueError):
+                message = "camera_intrinsics must be (fx, fy, cx, cy) in px or None"
+                raise InputError(message) from None
+            _check(
+                all(math.isfinite(v) for v in (fx, fy, cx, cy)) and fx > 0 and fy > 0,
+                "camera_intrinsics must be finite with fx, fy > 0",
+            )
+            object.__setattr__(self, "camera_intrinsics", (fx, fy, cx, cy))
+        if self.camera_motion == "depth":
+            _check(
+                self.camera_intrinsics is not None,
+                "camera_motion='depth' needs camera_intrinsics (fx, fy, cx, cy) of the frames",
+            )
+            _check(self.mode == "windowed", "camera_motion='depth' is for the windowed mode")
         _check(
             isinstance(self.remove_mixed, bool)
             or (_is_str(self.remove_mixed) and self.remove_mixed == "auto"),

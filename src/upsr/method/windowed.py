@@ -39,6 +39,15 @@ import numpy.typing as npt
 
 from upsr.errors import InputError
 from upsr.method._parallel import WINDOWED_WORKERS, resolve_workers, window_pool
+from upsr.method.camera_motion import (
+    AGREEMENT_PX,
+    along_axis,
+    grid_intrinsics,
+    pair_motion,
+    pose_maps,
+    pose_samples,
+    window_poses,
+)
 from upsr.method.config import UPSRConfig
 from upsr.method.consistency import maps_at_centres, misregistered, registered_samples
 from upsr.method.finishing import finish_frame, finish_fused, settle_fused
@@ -197,6 +206,8 @@ class UPSR:
         self._bwd: dict[int, np.ndarray] = {}
         # (k, m): frame k's low-res sample centres carried by the consecutive flows to frame m
         self._chains: dict[tuple[int, int], np.ndarray] = {}
+        # camera_motion="depth": the camera's motion from frame k - 1 to frame k (or None)
+        self._steps: dict[int, np.ndarray | None] = {}
 
     @property
     def frames_seen(self) -> int:
@@ -274,21 +285,8 @@ class UPSR:
         ref = t - s
         h, w = self._shape  # type: ignore[misc]
         r = cfg.scale
-        backward = [self._bwd.get(k) for k in idx]
-        forward = [self._fwd.get(k) for k in idx]
         with self._timed("registration"):
-            # motion from the reference to every frame, on the flow grid (eq. 19–21)
-            maps = np.empty((cfg.n_frames, *self._guide[t].shape, 2), np.float32)
-            cumulative_flows(
-                ref,
-                backward,
-                forward,
-                self._guide[t].shape,
-                refine=self._front.residual_flow if cfg.refine else None,  # type: ignore[union-attr]
-                guides=[self._guide[k] for k in idx],
-                parallel=self._parallel,
-                out=maps,
-            )
+            maps, poses = self._register(t, idx, ref)
         with self._timed("fusion"):
             measured = np.stack([self._lowres[k] for k in idx])
             lowres = measured
@@ -342,7 +340,13 @@ class UPSR:
                 # trace_to_reference), each frame's chain kept from one window to the next
                 positions = np.empty((cfg.n_frames, h, w, 2), np.float32)
                 for k in idx:
-                    to_output_grid(self._chain(k, t), r / self._s, out=positions[k - s])
+                    pos = self._chain(k, t)
+                    if poses is not None:
+                        pos = self._agreeing(pos, pose_samples(
+                            self._lowres[k], cfg.camera_intrinsics, self._s,  # type: ignore[arg-type]
+                            poses[k - s], poses[ref],
+                        ))  # fmt: skip
+                    to_output_grid(pos, r / self._s, out=positions[k - s])
                 guide = splat_points(lowres, positions, (h * r, w * r), cfg.splat_radius_px)
             # registration (eq. 20) and the invalid-aware median (eq. 28), one compiled pass
             fused = register_and_fuse(
@@ -399,6 +403,52 @@ class UPSR:
             self._clean[k] = out
         return out  # type: ignore[return-value]
 
+    def _register(self, t: int, idx: range, ref: int) -> tuple[np.ndarray, np.ndarray | None]:
+        """The motion from the reference t to every frame of its window ``idx`` on the flow
+        grid (eq. 19–21), and the frames' poses where the camera's motion registers it."""
+        cfg = self.config
+        maps = np.empty((cfg.n_frames, *self._guide[t].shape, 2), np.float32)
+        cumulative_flows(
+            ref,
+            [self._bwd.get(k) for k in idx],
+            [self._fwd.get(k) for k in idx],
+            self._guide[t].shape,
+            refine=self._front.residual_flow if cfg.refine else None,  # type: ignore[union-attr]
+            guides=[self._guide[k] for k in idx],
+            parallel=self._parallel,
+            out=maps,
+        )
+        if cfg.camera_motion != "depth" or not all(
+            along_axis(self._camera_step(k)) for k in list(idx)[1:]
+        ):
+            return maps, None
+        # (beyond the paper: the camera moves along its axis; each pixel moved by its depth)
+        poses = window_poses(idx, self._camera_step)
+        grid = grid_intrinsics(cfg.camera_intrinsics, self._s)  # type: ignore[arg-type]
+        by_pose = pose_maps(self._pre[t], grid, poses, ref, np.empty_like(maps))
+        return self._agreeing(maps, by_pose), poses
+
+    def _agreeing(self, by_flow: np.ndarray, by_pose: np.ndarray) -> np.ndarray:
+        """The camera's motion where the flow agrees with it within
+        :data:`~upsr.method.camera_motion.AGREEMENT_PX` low-res px, the flow elsewhere (a body
+        moving on its own)."""
+        off = np.hypot(by_pose[..., 0] - by_flow[..., 0], by_pose[..., 1] - by_flow[..., 1])
+        agree = (off <= AGREEMENT_PX * self._s)[..., None]
+        return np.where(agree, by_pose, by_flow).astype(by_flow.dtype)
+
+    def _camera_step(self, k: int) -> np.ndarray | None:
+        """The camera's motion from frame k − 1 to frame k (``camera_motion="depth"``), once
+        per frame (windows finished at once may compute it twice: the same values)."""
+        if k not in self._steps:
+            self._steps[k] = pair_motion(
+                self._lowres[k - 1],
+                self._lowres[k],
+                self.config.camera_intrinsics,  # type: ignore[arg-type]
+                noise_mm=self._stats.reach_noise_mm,  # type: ignore[union-attr]
+                edge_mm=self._front.edge_mm,  # type: ignore[union-attr]
+            )
+        return self._steps[k]
+
     def _chain(self, k: int, m: int) -> np.ndarray:
         """Frame k's low-res sample centres carried by the consecutive flows to frame m (flow
         grid px), one flow step beyond what an earlier window computed. Windows finished at
@@ -442,7 +492,8 @@ class UPSR:
         # frames, which is at least this; windows in the background start later still
         cfg = self.config
         keep_from = max(min(t + 1 - cfg.half_before, self._count - cfg.n_frames), 0)
-        for store in (self._lowres, self._clean, self._pre, self._guide, self._fwd, self._bwd):
+        stores = (self._lowres, self._clean, self._pre, self._guide, self._fwd, self._bwd)
+        for store in (*stores, self._steps):
             for k in [k for k in list(store) if k < keep_from]:  # (workers add to _clean)
                 store.pop(k, None)
         for key in list(self._chains):  # (list(): workers may add chains meanwhile)

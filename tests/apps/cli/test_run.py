@@ -468,6 +468,37 @@ def test_run_writes_scaled_intrinsics(tmp_path: Path) -> None:
     assert (tmp_path / "out.npy.intrinsics.json").exists()
 
 
+def test_run_registers_by_the_cameras_motion_from_depth(
+    capsys: pytest.CaptureFixture[str], tmp_path: Path
+) -> None:
+    """--camera-motion depth takes the input's intrinsics; the output equals the API's;
+    without intrinsics, or with --recursive, one line and exit 2, nothing written."""
+    from upsr.research.synth.realistic import make_realistic
+
+    v = make_realistic("toward_wall", (28, 32), scale=2, n_frames=5, seed=0)
+    low = v.lowres + np.random.default_rng(0).laplace(0.0, 7.0, v.lowres.shape)
+    np.save(tmp_path / "in.npy", low.astype(np.float32))
+    c = v.camera
+    intr = f"{c.fx},{c.fy},{c.cx},{c.cy}"
+    out = tmp_path / "out.npy"
+    args = ["run", tmp_path / "in.npy", "-o", out, "-r", 2, "-n", 5, "--quiet",
+            "--camera-motion", "depth"]  # fmt: skip
+    rc, _, err = run_cli(capsys, *args)
+    assert rc == 2 and not out.exists()
+    assert err.strip().splitlines() == [
+        "upsr: error: --camera-motion depth needs the camera's intrinsics: --intrinsics "
+        "FX,FY,CX,CY or intrinsics carried by the input"
+    ]
+    rc, _, err = run_cli(capsys, *args, "--intrinsics", intr, "--recursive")
+    assert rc == 2 and "windowed" in err and not out.exists()
+    rc, _, err = run_cli(capsys, *args, "--intrinsics", intr)
+    assert rc == 0, err
+    expected = upsr.super_resolve(np.load(tmp_path / "in.npy"), 2, 5, camera_motion="depth",
+                                  camera_intrinsics=(c.fx, c.fy, c.cx, c.cy))  # fmt: skip
+    np.testing.assert_allclose(np.load(out), expected, atol=1e-3)
+    assert not np.array_equal(expected, upsr.super_resolve(np.load(tmp_path / "in.npy"), 2, 5))
+
+
 def test_run_bag_intrinsics(tmp_path: Path) -> None:
     pytest.importorskip("rosbags")
     from tests.io import bagtools

@@ -127,6 +127,11 @@ class FlowPreset(str, Enum):
     medium = "medium"
 
 
+class CameraMotion(str, Enum):
+    flow = "flow"
+    depth = "depth"
+
+
 def fmt(value: Enum | None) -> str | None:
     """The string of a choice, None for none."""
     return None if value is None else str(value.value)
@@ -246,6 +251,17 @@ OutIntrinsicsOpt = Annotated[
         help="Camera intrinsics of the input (px) [default: from the file: ROS CameraInfo, "
         "RealSense, or INPUT.intrinsics.json]; scaled by r and written to "
         "OUTPUT.intrinsics.json.",
+    ),
+]
+CameraMotionOpt = Annotated[
+    CameraMotion,
+    typer.Option(
+        "--camera-motion",
+        help="How the frames are registered: 'flow' (optical flow, any motion) or 'depth': "
+        "where the camera moves along its axis in a static scene (a vehicle driving forward), "
+        "its own motion estimated from the depth (needs the intrinsics), which sees the small "
+        "zoom the flow misses; windows with other motion, and bodies moving on their own, "
+        "keep the flow.",
     ),
 ]
 OverwriteOpt = Annotated[bool, typer.Option("--overwrite", help="Replace existing outputs.")]

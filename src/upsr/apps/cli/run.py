@@ -15,6 +15,8 @@ import typer
 
 from upsr.apps.cli.options import (
     DEFAULT_FRAMES,
+    CameraMotion,
+    CameraMotionOpt,
     DepthScaleAliasOpt,
     FramesOpt,
     InFormatOpt,
@@ -136,6 +138,7 @@ def run(
     topic: TopicOpt = None,
     intrinsics: OutIntrinsicsOpt = None,
     recursive: RecursiveOpt = False,
+    camera_motion: CameraMotionOpt = CameraMotion.flow,
     keep_names: KeepNamesOpt = True,
     color: ColorOpt = None,
     workers: WorkersOpt = None,
@@ -162,6 +165,14 @@ def run(
     in_fmt, out_fmt = fmt(input_format), fmt(output_format)
     info = io.probe(input_path, key=key, fmt=in_fmt, topic=topic)
     camera = input_camera(input_path, info, intrinsics, fmt=in_fmt, topic=topic)
+    if camera_motion is CameraMotion.depth:
+        if camera is None:
+            raise InputError(
+                "--camera-motion depth needs the camera's intrinsics: --intrinsics FX,FY,CX,CY "
+                "or intrinsics carried by the input"
+            )
+        intr = (camera.fx, camera.fy, camera.cx, camera.cy)
+        cfg = dataclasses.replace(cfg, camera_motion="depth", camera_intrinsics=intr)
     if not recursive:  # (the recursive state takes any video length)
         cfg = _fit_window(cfg, info.n_frames, input_path, explicit=frames is not None)
     io.check_output_path([input_path], output, overwrite, fmt=out_fmt)

@@ -84,7 +84,7 @@ class RealisticVideo:
         consecutive frames (vertices in front of the camera and inside the image).
     world_to_camera : ndarray float64 (T, 4, 4) or None
         The moving camera's pose in each frame (metres; the true motion of every pixel between
-        two frames, :func:`upsr.geometry.reprojection.reproject`); None for a static camera.
+        two frames, :func:`upsr.method.camera_motion.reproject`); None for a static camera.
     """
 
     name: str
