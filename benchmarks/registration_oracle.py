@@ -202,12 +202,20 @@ def registration_error(video: RealisticVideo, store: list) -> dict[str, float]:
     }
 
 
-def run_case(scene: str, seed: int, sigma: float, n: int, frames: int) -> list[dict[str, Any]]:
-    """The rows of one scene, seed and σ (a static camera's scenes: no true-motion rows)."""
+#: Sensor models (:func:`upsr.research.synth.realistic.degrade`) and their row labels, as in
+#: ``realistic_eval.py`` (the same noise for the same label and seed).
+SENSORS = {"laplace": "laplace", "gaussian": "gauss", "tof": "tof"}
+
+
+def run_case(
+    scene: str, seed: int, sigma: float, n: int, frames: int, sensor: str = "laplace"
+) -> list[dict[str, Any]]:
+    """The rows of one scene, seed, sensor and σ (a static camera's scenes: no true-motion
+    rows)."""
     video = make_realistic(scene, (56, 64), scale=4, n_frames=frames, seed=seed)
     r = video.scale
-    label = f"laplace{sigma:g}"
-    low = sensor_frames(video, label, "laplace", sigma, seed)
+    label = f"{SENSORS[sensor]}{sigma:g}"
+    low = sensor_frames(video, label, sensor, sigma, seed)
     outs = {
         "nearest": baselines.nearest(low, r),
         "bicubic": baselines.bicubic(low, r),
@@ -254,7 +262,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--scenes", nargs="+", default=["toward_wall", "room"])
     p.add_argument("--seeds", nargs="+", type=int, default=[0])
-    p.add_argument("--sigma", nargs="+", type=float, default=[0.0, 10.0], help="Laplace σ (mm)")
+    p.add_argument("--sensor", default="laplace", choices=list(SENSORS))
+    p.add_argument("--sigma", nargs="+", type=float, default=[0.0, 10.0], help="noise σ (mm)")
     p.add_argument("--frames", type=int, default=9)
     p.add_argument("-n", type=int, default=9, help="window N")
     p.add_argument("--out", type=Path, default=Path("results/registration_oracle"))
@@ -269,7 +278,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     for scene in args.scenes:
         for seed in args.seeds:
             for sigma in args.sigma:
-                for row in run_case(scene, seed, sigma, args.n, args.frames):
+                for row in run_case(scene, seed, sigma, args.n, args.frames, args.sensor):
                     rows.append(row)
                     print(_fmt(row), flush=True)
     args.out.mkdir(parents=True, exist_ok=True)

@@ -195,11 +195,14 @@ def test_the_camera_motion_from_depth_puts_an_approaching_cameras_edges_in_place
 
 def test_a_still_camera_or_a_sideways_one_keeps_the_flow():
     """Bodies moving before a still camera, and a room seen by a camera stepping sideways and
-    turning: the camera's motion is not along its axis, the output is the flow's exactly."""
-    for scene in ("gallop", "room"):
+    turning: the camera's motion is not along its axis; a ToF camera approaching the wall:
+    its mixed pixels move with the edges' sub-pixel motion. The output is the flow's exactly."""
+    from upsr.research.synth.realistic import degrade
+
+    for scene, sensor in (("gallop", "laplace"), ("room", "laplace"), ("toward_wall", "tof")):
         v = make_realistic(scene, (56, 64), scale=4, n_frames=9, seed=0)
         intr = (v.camera.fx, v.camera.fy, v.camera.cx, v.camera.cy)
-        low = add_depth_dependent_noise(v.lowres, 10.0, np.random.default_rng(0), law="laplace")
+        low = degrade(v, sensor, np.random.default_rng(0), sigma_mm=10.0)
         np.testing.assert_array_equal(
             upsr.super_resolve(low, 4, 9, camera_motion="depth", camera_intrinsics=intr),
             upsr.super_resolve(low, 4, 9),

@@ -331,8 +331,9 @@ class UPSRConfig:
         from the depth itself and each pixel's motion follows from its depth, which sees the
         sub-pixel zoom a flow misses (:mod:`upsr.method.camera_motion`; needs
         ``camera_intrinsics``). Used only in the windows whose every step goes along the
-        optical axis and at the pixels whose flow agrees with it; elsewhere the flow
-        (``benchmarks/registration_oracle.py``).
+        optical axis and at the pixels whose flow agrees with it; elsewhere, and where the
+        video's mixed pixels are removed (a footprint sensor: its mixes show the flow the
+        sub-pixel motion), the flow (``benchmarks/registration_oracle.py``).
     camera_intrinsics : (fx, fy, cx, cy) or None
         Intrinsics (px) of the low-res frames, pixel (i, j) centred at (u, v) = (j, i); needed
         by ``camera_motion="depth"``.

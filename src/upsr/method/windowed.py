@@ -418,8 +418,11 @@ class UPSR:
             parallel=self._parallel,
             out=maps,
         )
-        if cfg.camera_motion != "depth" or not all(
-            along_axis(self._camera_step(k)) for k in list(idx)[1:]
+        # (a footprint sensor's mixes move with the edges' sub-pixel motion: the flow sees it)
+        if (
+            cfg.camera_motion != "depth"
+            or self._stats.remove_mixed  # type: ignore[union-attr]
+            or not all(along_axis(self._camera_step(k)) for k in list(idx)[1:])
         ):
             return maps, None
         # (beyond the paper: the camera moves along its axis; each pixel moved by its depth)
