@@ -14,7 +14,9 @@ al. 2012 noise, 1/8 px disparity, 1 % dropouts) at the Kinect size (120×160, r 
 with ``--full-kinect``).
 
 Methods: ``upsr`` (``upsr.super_resolve(frames, scale=r, n_frames=N)``, defaults),
-``upsr_recursive`` (the same with ``mode="recursive"``: causal, N caps the state), its input
+``upsr_recursive`` (the same with ``mode="recursive"``: causal, N caps the state),
+``upsr_camera_motion`` on the scenes seen by a moving camera (the defaults with
+``camera_motion="depth"`` and the scene's intrinsics: :mod:`upsr.method.camera_motion`), its input
 ``nearest``, ``bicubic``, ``bilateral`` (per-frame masked bilateral on the nearest upsampling,
 told the true σ: :func:`upsr.research.peers.bilateral_nearest`), ``temporal_mean`` (mean of
 the raw frames of the window: fair only on static parts seen by a static camera) and
@@ -174,7 +176,14 @@ def _run_case(
     n = min(args.n, video.n_frames)
     oracle = (not args.quick and args.oracle) or (args.quick and label == "laplace10")
     rows = []
-    for method, fn in _methods(video.scale, n, sensor, sigma, oracle).items():
+    methods = _methods(video.scale, n, sensor, sigma, oracle)
+    if video.world_to_camera is not None:  # a moving camera: its own motion from the depth
+        c = video.camera
+        methods["upsr_camera_motion"] = lambda low: upsr.super_resolve(
+            low, scale=video.scale, n_frames=n, camera_motion="depth",
+            camera_intrinsics=(c.fx, c.fy, c.cx, c.cy),
+        )  # fmt: skip
+    for method, fn in methods.items():
         frames = slice(None)
         clip = low
         if method == "straightforward" and not args.quick:
