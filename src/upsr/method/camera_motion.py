@@ -43,8 +43,10 @@ from upsr.errors import InputError
 __all__ = [
     "AGREEMENT_PX",
     "AXIAL_RATIO",
+    "ICP_POINTS",
     "MAX_TURN_DEG",
     "MIN_STEP_MM",
+    "STEP_TOLERANCE",
     "Intrinsics",
     "along_axis",
     "camera_points",
@@ -70,6 +72,10 @@ AXIAL_RATIO = 3.0
 MIN_STEP_MM = 5.0
 #: ... and it turns the camera by at most this (degrees).
 MAX_TURN_DEG = 0.5
+#: :func:`rigid_motion` stops once a step moves the camera by less than this (m, and rad): 10 µm.
+STEP_TOLERANCE = 1e-5
+#: :func:`rigid_motion` pairs about this many of frame A's points (a grid; all up to 64×64 px).
+ICP_POINTS = 4096
 
 
 def grid_intrinsics(intrinsics: Intrinsics, s: float) -> Intrinsics:
@@ -217,7 +223,8 @@ def rigid_motion(
     edge_mm : float
         A 4-neighbour farther than this is across a depth edge (no normal there).
     iterations : int
-        Largest number of Gauss–Newton steps (stops once a step is below 1e-7).
+        Largest number of Gauss–Newton steps (stops once a step moves by less than
+        :data:`STEP_TOLERANCE`); A's points are taken on a grid of about :data:`ICP_POINTS`.
     initial : array_like (4, 4), optional
         Starting estimate (e.g. the previous pair's motion); identity by default.
 
@@ -237,7 +244,10 @@ def rigid_motion(
         raise InputError(f"frames of shapes {pa.shape[:2]} and {pb.shape[:2]}")
     fx, fy, cx, cy = intrinsics
     nb = _normals(pb, float(edge_mm))
-    src = pa[np.isfinite(pa[..., 2])]
+    # A's points on a grid of about ICP_POINTS (all of them up to 64×64 px)
+    stride = max(1, int(math.sqrt(pa.shape[0] * pa.shape[1] / ICP_POINTS)))
+    src = pa[::stride, ::stride]
+    src = src[np.isfinite(src[..., 2])]
     h, w = pb.shape[:2]
     t_est = _pose(initial)
     scale = max(float(noise_mm) / 1000.0, 0.002)
@@ -264,7 +274,7 @@ def rigid_motion(
         update[:3, :3] = rotation_from_vector(step[:3])
         update[:3, 3] = step[3:]
         t_est = update @ t_est
-        if np.abs(step).max() < 1e-7:
+        if np.abs(step).max() < STEP_TOLERANCE:
             break
     return t_est
 
@@ -314,12 +324,23 @@ def pose_maps(
     ``out`` (N, fh, fw, 2) float32 (the maps of
     :func:`upsr.method.registration.cumulative_flows`), from the reference's ``depth`` (mm;
     0: none, displacement 0) on a grid of ``intrinsics`` and the frames' ``poses`` (N, 4, 4)."""
-    ys, xs = np.mgrid[0 : depth.shape[0], 0 : depth.shape[1]].astype(np.float64)
+    fx, fy, cx, cy = intrinsics
+    xs = np.arange(depth.shape[1], dtype=np.float64)[None, :]
+    ys = np.arange(depth.shape[0], dtype=np.float64)[:, None]
+    z = np.asarray(depth, dtype=np.float64) / 1000.0
+    x, y = (xs - cx) / fx * z, (ys - cy) / fy * z  # the reference's points, once (m)
+    none = ~(z > 0)
+    inv_ref = np.linalg.inv(_pose(poses[ref]))
     for i, pose in enumerate(poses):
         if i == ref:
             out[i] = 0.0
             continue
-        ub, vb, _ = reproject(depth, intrinsics, poses[ref], pose)
+        m = _pose(pose) @ inv_ref  # the reference's camera frame to frame i's
+        zb = m[2, 0] * x + m[2, 1] * y + m[2, 2] * z + m[2, 3]
+        with np.errstate(invalid="ignore", divide="ignore"):
+            zb = np.where((zb > 0) & ~none, zb, np.nan)
+            ub = fx * (m[0, 0] * x + m[0, 1] * y + m[0, 2] * z + m[0, 3]) / zb + cx
+            vb = fy * (m[1, 0] * x + m[1, 1] * y + m[1, 2] * z + m[1, 3]) / zb + cy
         out[i, ..., 0] = np.nan_to_num(ub - xs)
         out[i, ..., 1] = np.nan_to_num(vb - ys)
     return out
