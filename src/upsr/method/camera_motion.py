@@ -15,7 +15,9 @@ ICP can take a sideways step of the camera for a turn (an equal cost on a far sc
 64×56 px), and it registers bodies that move on their own as still; so the engine uses the
 camera's motion only in windows where every step goes along the optical axis
 (:func:`along_axis`), and only at the pixels whose flow agrees with it
-(:data:`AGREEMENT_PX`); everywhere else the flow.
+(:data:`AGREEMENT_PX`); everywhere else the flow, and always the flow where the video's mixed
+pixels are removed (a footprint sensor: its mixes move with the edges' sub-pixel motion,
+which the flow sees).
 
 Conventions (those of :mod:`upsr.geometry.rendering`): camera frame x right, y down, z
 forward; pixel (i, j) centred at (u, v) = (j, i); a pixel (u, v) with depth Z (mm) is the

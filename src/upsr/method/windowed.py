@@ -442,15 +442,17 @@ class UPSR:
     def _camera_step(self, k: int) -> np.ndarray | None:
         """The camera's motion from frame k − 1 to frame k (``camera_motion="depth"``), once
         per frame (windows finished at once may compute it twice: the same values)."""
-        if k not in self._steps:
-            self._steps[k] = pair_motion(
-                self._lowres[k - 1],
-                self._lowres[k],
-                self.config.camera_intrinsics,  # type: ignore[arg-type]
-                noise_mm=self._stats.reach_noise_mm,  # type: ignore[union-attr]
-                edge_mm=self._front.edge_mm,  # type: ignore[union-attr]
-            )
-        return self._steps[k]
+        if k in self._steps:
+            return self._steps[k]
+        step = pair_motion(
+            self._lowres[k - 1],
+            self._lowres[k],
+            self.config.camera_intrinsics,  # type: ignore[arg-type]
+            noise_mm=self._stats.reach_noise_mm,  # type: ignore[union-attr]
+            edge_mm=self._front.edge_mm,  # type: ignore[union-attr]
+        )
+        self._steps[k] = step
+        return step
 
     def _chain(self, k: int, m: int) -> np.ndarray:
         """Frame k's low-res sample centres carried by the consecutive flows to frame m (flow
