@@ -44,7 +44,7 @@ import numpy as np
 import upsr
 import upsr.method.windowed as windowed
 from upsr.geometry.camera import PinholeCamera
-from upsr.method.camera_motion import reproject
+from upsr.method.camera_motion import pose_maps, pose_samples
 from upsr.research import baselines
 from upsr.research.metrics import (
     DISCONTINUITY_MM,
@@ -84,27 +84,20 @@ class Motion:
         """(N, H, W, 2) float32: where each output pixel of frame t lies in each frame of
         ``frames``, as displacements (output px); 0 where there is no depth."""
         cam = self.camera.scaled(self.scale)
-        intr = (cam.fx, cam.fy, cam.cx, cam.cy)
-        ys, xs = np.mgrid[0 : cam.height, 0 : cam.width].astype(np.float64)
-        out = np.zeros((len(frames), cam.height, cam.width, 2), np.float32)
-        poses = self.world_to_camera
-        for i, k in enumerate(frames):
-            ub, vb, _ = reproject(self.depth[t], intr, poses[t], poses[k])
-            out[i, ..., 0] = np.nan_to_num(ub - xs)
-            out[i, ..., 1] = np.nan_to_num(vb - ys)
-        return out
+        out = np.empty((len(frames), cam.height, cam.width, 2), np.float32)
+        poses = self.world_to_camera[list(frames)]
+        return pose_maps(self.depth[t], _intrinsics(cam), poses, list(frames).index(t), out)
 
     def samples(self, k: int, m: int) -> np.ndarray:
         """(h, w, 2) float64: frame k's low-res sample centres in frame m (output px)."""
-        cam = self.camera.scaled(self.scale)
-        r = self.scale
-        h, w = self.lowres.shape[1:]
-        ii, jj = np.mgrid[0:h, 0:w].astype(np.float64)
-        u, v = (jj + 0.5) * r - 0.5, (ii + 0.5) * r - 0.5
         poses = self.world_to_camera
-        intr = (cam.fx, cam.fy, cam.cx, cam.cy)
-        ub, vb, _ = reproject(self.lowres[k], intr, poses[k], poses[m], u=u, v=v)
-        return np.stack([np.where(np.isnan(ub), u, ub), np.where(np.isnan(vb), v, vb)], -1)
+        return pose_samples(
+            self.lowres[k], _intrinsics(self.camera), self.scale, poses[k], poses[m]
+        )
+
+
+def _intrinsics(camera: PinholeCamera) -> tuple[float, float, float, float]:
+    return camera.fx, camera.fy, camera.cx, camera.cy
 
 
 def _noting_window(window: dict[str, int]):  # type: ignore[no-untyped-def]
@@ -233,9 +226,8 @@ def run_case(
                 list(upsr.UPSR(r, n, workers=0, flow_scale=r).process(low))
             )
         reg = registration_error(video, store)
-    c = video.camera
     depth = upsr.UPSR(r, n, workers=0, camera_motion="depth",
-                      camera_intrinsics=(c.fx, c.fy, c.cx, c.cy))  # fmt: skip
+                      camera_intrinsics=_intrinsics(video.camera))  # fmt: skip
     outs["upsr_depth_motion"] = np.stack(list(depth.process(low)))
     rows = []
     for method, est in outs.items():

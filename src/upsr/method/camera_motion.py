@@ -158,14 +158,24 @@ def reproject(
         us, vs = np.asarray(u, dtype=np.float64), np.asarray(v, dtype=np.float64)
         if us.shape != z.shape or vs.shape != z.shape:
             raise InputError(f"u {us.shape} and v {vs.shape} must have the depth's shape {z.shape}")
-    rel = _pose(to_pose) @ np.linalg.inv(_pose(from_pose))  # A's camera frame to B's
     with np.errstate(invalid="ignore"):
         zm = np.where(z > 0, z, np.nan) / 1000.0
-    pts = np.stack([(us - cx) / fx * zm, (vs - cy) / fy * zm, zm], -1)
-    pts_b = pts @ rel[:3, :3].T + rel[:3, 3]
+    rel = _pose(to_pose) @ np.linalg.inv(_pose(from_pose))  # A's camera frame to B's
+    return _project((us - cx) / fx * zm, (vs - cy) / fy * zm, zm, rel, intrinsics)
+
+
+def _project(
+    x: np.ndarray, y: np.ndarray, z: np.ndarray, rel: np.ndarray, intrinsics: Intrinsics
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Camera-frame points (metres; NaN: none) moved by ``rel`` (4, 4) and projected: (u, v,
+    depth in mm), NaN where there is no point or it lies behind the camera."""
+    fx, fy, cx, cy = intrinsics
+    zb = rel[2, 0] * x + rel[2, 1] * y + rel[2, 2] * z + rel[2, 3]
     with np.errstate(invalid="ignore", divide="ignore"):
-        zb = np.where(pts_b[..., 2] > 0, pts_b[..., 2], np.nan)
-        return fx * pts_b[..., 0] / zb + cx, fy * pts_b[..., 1] / zb + cy, 1000.0 * zb
+        zb = np.where(zb > 0, zb, np.nan)
+        ub = fx * (rel[0, 0] * x + rel[0, 1] * y + rel[0, 2] * z + rel[0, 3]) / zb + cx
+        vb = fy * (rel[1, 0] * x + rel[1, 1] * y + rel[1, 2] * z + rel[1, 3]) / zb + cy
+    return ub, vb, 1000.0 * zb
 
 
 def rotation_from_vector(omega: npt.ArrayLike) -> np.ndarray:
@@ -288,14 +298,14 @@ def pair_motion(
     *,
     noise_mm: float,
     edge_mm: float,
-) -> np.ndarray:
+) -> np.ndarray | None:
     """The camera's motion from one frame to the next (:func:`rigid_motion` from the identity,
     so that a pair gives the same motion in every window and every chunk of a video), or None
     where the frames share too little to tell (fewer than 6 pixels pair up)."""
     try:
         return rigid_motion(first, second, intrinsics, noise_mm=max(noise_mm, 2.0), edge_mm=edge_mm)
     except InputError:
-        return None  # type: ignore[return-value]
+        return None
 
 
 def along_axis(step: np.ndarray | None) -> bool:
@@ -326,23 +336,16 @@ def pose_maps(
     ``out`` (N, fh, fw, 2) float32 (the maps of
     :func:`upsr.method.registration.cumulative_flows`), from the reference's ``depth`` (mm;
     0: none, displacement 0) on a grid of ``intrinsics`` and the frames' ``poses`` (N, 4, 4)."""
-    fx, fy, cx, cy = intrinsics
+    pts = camera_points(depth, intrinsics)  # the reference's points, once
     xs = np.arange(depth.shape[1], dtype=np.float64)[None, :]
     ys = np.arange(depth.shape[0], dtype=np.float64)[:, None]
-    z = np.asarray(depth, dtype=np.float64) / 1000.0
-    x, y = (xs - cx) / fx * z, (ys - cy) / fy * z  # the reference's points, once (m)
-    none = ~(z > 0)
     inv_ref = np.linalg.inv(_pose(poses[ref]))
     for i, pose in enumerate(poses):
         if i == ref:
             out[i] = 0.0
             continue
-        m = _pose(pose) @ inv_ref  # the reference's camera frame to frame i's
-        zb = m[2, 0] * x + m[2, 1] * y + m[2, 2] * z + m[2, 3]
-        with np.errstate(invalid="ignore", divide="ignore"):
-            zb = np.where((zb > 0) & ~none, zb, np.nan)
-            ub = fx * (m[0, 0] * x + m[0, 1] * y + m[0, 2] * z + m[0, 3]) / zb + cx
-            vb = fy * (m[1, 0] * x + m[1, 1] * y + m[1, 2] * z + m[1, 3]) / zb + cy
+        rel = _pose(pose) @ inv_ref  # the reference's camera frame to frame i's
+        ub, vb, _ = _project(pts[..., 0], pts[..., 1], pts[..., 2], rel, intrinsics)
         out[i, ..., 0] = np.nan_to_num(ub - xs)
         out[i, ..., 1] = np.nan_to_num(vb - ys)
     return out

@@ -583,8 +583,8 @@ def super_resolve_straightforward(frames: npt.ArrayLike, config: UPSRConfig) -> 
 
     For every reference frame its window is processed from scratch: each frame is upsampled
     by r, prefiltered and mapped to 8 bit, and the N−1 consecutive flows of the window are
-    estimated in both directions at the full r (the paper's setting; ``flow_scale`` and
-    ``refine_preset`` are ignored: DIS ``flow_preset`` everywhere); cumulative motion with
+    estimated in both directions at the full r (the paper's; ``flow_scale``, ``refine_preset``
+    and ``camera_motion`` ignored: DIS ``flow_preset`` everywhere); cumulative motion with
     eq. 19, :func:`~upsr.method.registration.warp_nearest` per frame, vote weights from
     :func:`~upsr.method.registration.sample_offsets`, the splat guide from dense motion fields
     (:func:`~upsr.method.fusion.splat_nearest`), :func:`temporal_median_numpy` and
