@@ -437,7 +437,7 @@ class UPSR:
         moving on its own)."""
         off = np.hypot(by_pose[..., 0] - by_flow[..., 0], by_pose[..., 1] - by_flow[..., 1])
         agree = (off <= AGREEMENT_PX * self._s)[..., None]
-        return np.where(agree, by_pose, by_flow).astype(by_flow.dtype)
+        return np.where(agree, by_pose, by_flow)  # (both of one dtype)
 
     def _camera_step(self, k: int) -> np.ndarray | None:
         """The camera's motion from frame k − 1 to frame k (``camera_motion="depth"``), once
