@@ -15,8 +15,9 @@ with ``--full-kinect``).
 
 Methods: ``upsr`` (``upsr.super_resolve(frames, scale=r, n_frames=N)``, defaults),
 ``upsr_recursive`` (the same with ``mode="recursive"``: causal, N caps the state),
-``upsr_camera_motion`` on the scenes seen by a moving camera (the defaults with
-``camera_motion="depth"`` and the scene's intrinsics: :mod:`upsr.method.camera_motion`), its input
+``upsr_camera_motion`` and ``upsr_recursive_camera_motion`` on the scenes seen by a moving
+camera (both modes with ``camera_motion="depth"`` and the scene's intrinsics:
+:mod:`upsr.method.camera_motion`), its input
 ``nearest``, ``bicubic``, ``bilateral`` (per-frame masked bilateral on the nearest upsampling,
 told the true σ: :func:`upsr.research.peers.bilateral_nearest`), ``temporal_mean`` (mean of
 the raw frames of the window: fair only on static parts seen by a static camera) and
@@ -38,6 +39,7 @@ Example::
 from __future__ import annotations
 
 import argparse
+import functools
 import json
 import math
 import sys
@@ -179,10 +181,12 @@ def _run_case(
     methods = _methods(video.scale, n, sensor, sigma, oracle)
     if video.world_to_camera is not None:  # a moving camera: its own motion from the depth
         c = video.camera
-        methods["upsr_camera_motion"] = lambda low: upsr.super_resolve(
-            low, scale=video.scale, n_frames=n, camera_motion="depth",
-            camera_intrinsics=(c.fx, c.fy, c.cx, c.cy),
-        )  # fmt: skip
+        for name, mode in (("upsr_camera_motion", "windowed"),
+                           ("upsr_recursive_camera_motion", "recursive")):  # fmt: skip
+            methods[name] = functools.partial(
+                upsr.super_resolve, scale=video.scale, n_frames=n, mode=mode,
+                camera_motion="depth", camera_intrinsics=(c.fx, c.fy, c.cx, c.cy),
+            )  # fmt: skip
     for method, fn in methods.items():
         frames = slice(None)
         clip = low

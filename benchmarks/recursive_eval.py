@@ -2,11 +2,13 @@
 
 Scenes (``--scenes``, default the room): :mod:`upsr.research.synth.realistic` (the room seen by
 a moving camera, every pixel measured; the deforming body, the camera toward a wall, the
-galloping animal), Laplacian noise of σ = 10 mm, at the ToF size 64×56 → 256×224 (r = 4),
-160×120 → 320×240 and 320×240 → 640×480 (r = 2). Per size, both modes run on the same
-frames with the defaults (windowed: one window at a time, ``workers=0``, and with the default
-workers); the rate is measured after a warm-up frame (numba compiled, caches filled), the
-stages from the engine's ``timings``, the accuracy (SPEC §6) on the frames after the first N.
+galloping animal), Laplacian noise of σ = 10 mm (``--sensor``, ``--sigma``), at the ToF
+size 64×56 → 256×224 (r = 4), 160×120 → 320×240 and 320×240 → 640×480 (r = 2). Per size,
+both modes run on the same frames with the defaults (windowed: one window at a time,
+``workers=0``, and with the default workers; ``--camera-motion depth``: registered by the
+camera's motion, with the scene's intrinsics); the rate is measured after a warm-up frame
+(numba compiled, caches filled), the stages from the engine's ``timings``, the accuracy
+(SPEC §6) on the frames after the first N.
 
 Example::
 
@@ -15,6 +17,8 @@ Example::
         --sizes tof --frames 16
     .venv/bin/python benchmarks/recursive_eval.py --sizes tof --frames 40 --flow-preset fast
     .venv/bin/python benchmarks/recursive_eval.py --sizes vga --modes recursive --flow-scale 2
+    .venv/bin/python benchmarks/recursive_eval.py --scenes toward_wall --sizes tof qvga \
+        --frames 24 --sensor gaussian --sigma 20 --camera-motion depth
 """
 
 from __future__ import annotations
@@ -61,6 +65,11 @@ def main(argv: Sequence[str] | None = None) -> int:
     p.add_argument("--iterations", type=int, default=None, help="deblur iterations")
     p.add_argument("--step-decay", type=float, default=None, help="deblur step decay")
     p.add_argument("--estimator", default=None, help="fusion_estimator (default: auto)")
+    p.add_argument("--sensor", default="laplace", choices=["laplace", "gaussian"])
+    p.add_argument(
+        "--camera-motion", default="flow", choices=["flow", "depth"],
+        help="camera_motion (depth: with the scene's intrinsics)",
+    )  # fmt: skip
     p.add_argument("--json", type=Path, default=None)
     args = p.parse_args(argv)
     options: dict = {}
@@ -78,7 +87,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     for scene, size in ((scene, size) for scene in args.scenes for size in args.sizes):
         shape, r = SIZES[size]
         video = make_realistic(scene, shape, scale=r, n_frames=args.frames)
-        low = degrade(video, "laplace", np.random.default_rng(0), sigma_mm=args.sigma)
+        low = degrade(video, args.sensor, np.random.default_rng(0), sigma_mm=args.sigma)
+        if args.camera_motion == "depth":
+            c = video.camera
+            options.update(camera_motion="depth", camera_intrinsics=(c.fx, c.fy, c.cx, c.cy))
         for mode in args.modes:
             res = _run(mode, low, r, args.n, args.workers, options)
             sl = slice(args.n, None)

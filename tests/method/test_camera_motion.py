@@ -193,10 +193,33 @@ def test_the_camera_motion_from_depth_puts_an_approaching_cameras_edges_in_place
     np.testing.assert_array_equal(threads, out)
 
 
-def test_a_still_camera_or_a_sideways_one_keeps_the_flow():
+def test_the_recursive_state_follows_an_approaching_camera():
+    """The recursive mode registers its state by the camera's motion frame by frame: on the
+    approaching camera at Gauss σ = 20 mm (16 frames, the last 8 scored) the surface rmse
+    falls by more than 5 % (10.78 → 9.58 mm) and the rmse and edge accuracy are no worse."""
+    from upsr.research.metrics import evaluate
+    from upsr.research.synth.realistic import degrade
+
+    v = make_realistic("toward_wall", (56, 64), scale=4, n_frames=16, seed=0)
+    intr = (v.camera.fx, v.camera.fy, v.camera.cx, v.camera.cy)
+    low = degrade(v, "gaussian", np.random.default_rng(0), sigma_mm=20.0)
+    flow = evaluate(upsr.super_resolve(low, 4, 9, mode="recursive")[8:], v.truth[8:], 4)
+    depth = evaluate(
+        upsr.super_resolve(low, 4, 9, mode="recursive", camera_motion="depth",
+                           camera_intrinsics=intr)[8:], v.truth[8:], 4,
+    )  # fmt: skip
+    assert depth["surface_rmse"] < 0.95 * flow["surface_rmse"]
+    assert depth["rmse"] <= flow["rmse"]
+    assert depth["edge_accuracy"] >= flow["edge_accuracy"]
+    assert depth["flying_pixels"] <= flow["flying_pixels"] + 1e-4
+
+
+@pytest.mark.parametrize("mode", ["windowed", "recursive"])
+def test_a_still_camera_or_a_sideways_one_keeps_the_flow(mode):
     """Bodies moving before a still camera, and a room seen by a camera stepping sideways and
     turning: the camera's motion is not along its axis; a ToF camera approaching the wall:
-    its mixed pixels move with the edges' sub-pixel motion. The output is the flow's exactly."""
+    its mixed pixels move with the edges' sub-pixel motion. The output is the flow's exactly,
+    in both modes."""
     from upsr.research.synth.realistic import degrade
 
     for scene, sensor in (("gallop", "laplace"), ("room", "laplace"), ("toward_wall", "tof")):
@@ -204,9 +227,10 @@ def test_a_still_camera_or_a_sideways_one_keeps_the_flow():
         intr = (v.camera.fx, v.camera.fy, v.camera.cx, v.camera.cy)
         low = degrade(v, sensor, np.random.default_rng(0), sigma_mm=10.0)
         np.testing.assert_array_equal(
-            upsr.super_resolve(low, 4, 9, camera_motion="depth", camera_intrinsics=intr),
-            upsr.super_resolve(low, 4, 9),
-        )
+            upsr.super_resolve(low, 4, 9, mode=mode, camera_motion="depth",
+                               camera_intrinsics=intr),
+            upsr.super_resolve(low, 4, 9, mode=mode),
+        )  # fmt: skip
 
 
 def test_a_static_camera_is_registered_as_still():
@@ -230,7 +254,6 @@ def test_a_static_camera_is_registered_as_still():
         ({"camera_intrinsics": (50.0, 50.0)}, r"\(fx, fy, cx, cy\)"),
         ({"camera_intrinsics": (0.0, 50.0, 1.0, 1.0)}, "fx, fy > 0"),
         ({"camera_intrinsics": (50.0, np.nan, 1.0, 1.0)}, "finite"),
-        ({"camera_motion": "depth", "camera_intrinsics": CAM, "mode": "recursive"}, "windowed"),
     ],
 )
 def test_bad_camera_motion_options_are_refused(options, match):

@@ -50,6 +50,7 @@ __all__ = [
     "MIN_STEP_MM",
     "STEP_TOLERANCE",
     "Intrinsics",
+    "agreeing",
     "along_axis",
     "camera_points",
     "grid_intrinsics",
@@ -362,3 +363,12 @@ def pose_samples(
     ub = np.where(np.isnan(ub), jj, ub)
     vb = np.where(np.isnan(vb), ii, vb)
     return np.stack([(ub + 0.5) * s - 0.5, (vb + 0.5) * s - 0.5], axis=-1)
+
+
+def agreeing(by_flow: np.ndarray, by_pose: np.ndarray, grid_scale: float) -> np.ndarray:
+    """The camera's motion ``by_pose`` where the flow ``by_flow`` agrees with it within
+    :data:`AGREEMENT_PX` low-res px, the flow elsewhere (a body moving on its own): maps of
+    one shape (…, 2) and dtype on a flow grid ``grid_scale`` times the frames'."""
+    off = np.hypot(by_pose[..., 0] - by_flow[..., 0], by_pose[..., 1] - by_flow[..., 1])
+    agree = (off <= AGREEMENT_PX * grid_scale)[..., None]
+    return np.where(agree, by_pose, by_flow)

@@ -325,15 +325,16 @@ class UPSRConfig:
         independent of N, where N caps how many frames the state summarises
         (:mod:`upsr.method.recursive`).
     camera_motion : {"flow", "depth"}
-        Windowed mode, beyond the paper. ``"flow"``: the motion between frames is the optical
+        Beyond the paper (both modes). ``"flow"``: the motion between frames is the optical
         flow (eq. 16–19). ``"depth"``: for a camera moving along its axis in a static scene
         (a vehicle driving forward): its rigid motion between consecutive frames is estimated
         from the depth itself and each pixel's motion follows from its depth, which sees the
         sub-pixel zoom a flow misses (:mod:`upsr.method.camera_motion`; needs
-        ``camera_intrinsics``). Used only in the windows whose every step goes along the
-        optical axis and at the pixels whose flow agrees with it; elsewhere, and where the
-        video's mixed pixels are removed (a footprint sensor: its mixes show the flow the
-        sub-pixel motion), the flow (``benchmarks/registration_oracle.py``).
+        ``camera_intrinsics``). Used only in the windows (recursive mode: the frames) whose
+        every step goes along the optical axis and at the pixels whose flow agrees with it;
+        elsewhere, and where the video's mixed pixels are removed (a footprint sensor: its
+        mixes show the flow the sub-pixel motion), the flow
+        (``benchmarks/registration_oracle.py``).
     camera_intrinsics : (fx, fy, cx, cy) or None
         Intrinsics (px) of the low-res frames, pixel (i, j) centred at (u, v) = (j, i); needed
         by ``camera_motion="depth"``.
@@ -473,7 +474,6 @@ class UPSRConfig:
                 self.camera_intrinsics is not None,
                 "camera_motion='depth' needs camera_intrinsics (fx, fy, cx, cy) of the frames",
             )
-            _check(self.mode == "windowed", "camera_motion='depth' is for the windowed mode")
         _check(
             isinstance(self.remove_mixed, bool)
             or (_is_str(self.remove_mixed) and self.remove_mixed == "auto"),

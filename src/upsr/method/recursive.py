@@ -13,7 +13,9 @@ Per frame t (only frame t and the state of t − 1 are read):
 
 1. the motion front-end (:class:`~upsr.method.frontend.MotionFrontEnd`) prefilters frame t and
    computes ONE flow on the flow grid, from frame t to frame t − 1 (the backward lookup of the
-   current grid into the previous one), with its spurious motion suppressed;
+   current grid into the previous one), with its spurious motion suppressed (with
+   ``camera_motion="depth"``, where the camera's step goes along its axis, that of
+   :mod:`upsr.method.camera_motion` at the pixels whose flow agrees with it);
 2. the new measurement is y_t↑ = U y_t after mixed-pixel removal
    (:func:`~upsr.method.mixed.remove_mixed_pixels`), and its anchor and tolerance τ = k·σ +
    relief are those of :func:`~upsr.method.trust.reference_anchor` (frame t is the reference;
@@ -93,6 +95,7 @@ import numpy.typing as npt
 from upsr._numba import SAFE_FASTMATH
 from upsr.errors import InputError
 from upsr.method._parallel import resolve_workers
+from upsr.method.camera_motion import agreeing, along_axis, grid_intrinsics, pair_motion, pose_maps
 from upsr.method.config import UPSRConfig
 from upsr.method.consistency import (
     _block_side,
@@ -446,6 +449,7 @@ class RecursiveUPSR(TwoStagePipeline):
         self._first: np.ndarray | None = None
         self._prev_pre: np.ndarray | None = None
         self._prev_guide: np.ndarray | None = None
+        self._prev_frame: np.ndarray | None = None
         self._depth: np.ndarray | None = None
         self._conf: np.ndarray | None = None
         self._share: np.ndarray | None = None  # the surface shares (edge votes)
@@ -493,6 +497,29 @@ class RecursiveUPSR(TwoStagePipeline):
         # they are the noise only where the spatial estimate sees none (quantised depth)
         return spatial if spatial >= NOISE_FREE_MM else max(spatial, self._temporal_mm)
 
+    def _by_camera(self, flow: np.ndarray, pre: np.ndarray, frame: np.ndarray) -> np.ndarray:
+        """``camera_motion="depth"``: the flow from ``frame`` to the previous frame replaced by
+        the camera's motion where that step goes along the optical axis, at the pixels whose
+        flow agrees with it (as the windowed mode's windows; ``pre``: the frame's prefiltered
+        depth on the flow grid)."""
+        cfg = self.config
+        intrinsics = cfg.camera_intrinsics
+        assert intrinsics is not None and self._prev_frame is not None
+        step = pair_motion(
+            self._prev_frame,
+            frame,
+            intrinsics,
+            noise_mm=self._noise(),
+            edge_mm=self._front.edge_mm,  # type: ignore[union-attr]
+        )
+        if not along_axis(step):
+            return flow
+        s = flow.shape[1] / frame.shape[1]
+        poses = np.stack([np.eye(4), step])  # (the previous frame, this one)
+        by_pose = np.empty((2, *flow.shape), np.float32)
+        pose_maps(pre, grid_intrinsics(intrinsics, s), poses, 1, by_pose)
+        return agreeing(flow, by_pose[0], s)
+
     def push(self, frame: npt.ArrayLike) -> np.ndarray:
         """Add the next low-res frame (h, w) in mm; return its high-res frame (r·h, r·w)."""
         return self._finish(*self._update(frame))
@@ -537,6 +564,8 @@ class RecursiveUPSR(TwoStagePipeline):
             with self._timed("flow"):
                 # one flow per frame: current -> previous (the backward lookup of the state)
                 flow = front.consecutive_flow(pre, self._prev_pre, guide, self._prev_guide)
+                if cfg.camera_motion == "depth" and not remove_mixed:
+                    flow = self._by_camera(flow, pre, f)
         with self._timed("fusion"):
             meas, thin = (
                 remove_mixed_pixels(
@@ -601,7 +630,7 @@ class RecursiveUPSR(TwoStagePipeline):
             )
         self._depth, self._conf = fused, conf
         self._share = share[0] if share else None
-        self._prev_pre, self._prev_guide = pre, guide
+        self._prev_pre, self._prev_guide, self._prev_frame = pre, guide, f
         self._count = t + 1
         return fused, f, meas, anchor, noise, thin, remove_mixed
 

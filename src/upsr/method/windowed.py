@@ -40,7 +40,7 @@ import numpy.typing as npt
 from upsr.errors import InputError
 from upsr.method._parallel import WINDOWED_WORKERS, resolve_workers, window_pool
 from upsr.method.camera_motion import (
-    AGREEMENT_PX,
+    agreeing,
     along_axis,
     grid_intrinsics,
     pair_motion,
@@ -342,10 +342,10 @@ class UPSR:
                 for k in idx:
                     pos = self._chain(k, t)
                     if poses is not None:
-                        pos = self._agreeing(pos, pose_samples(
+                        pos = agreeing(pos, pose_samples(
                             self._lowres[k], cfg.camera_intrinsics, self._s,  # type: ignore[arg-type]
                             poses[k - s], poses[ref],
-                        ))  # fmt: skip
+                        ), self._s)  # fmt: skip
                     to_output_grid(pos, r / self._s, out=positions[k - s])
                 guide = splat_points(lowres, positions, (h * r, w * r), cfg.splat_radius_px)
             # registration (eq. 20) and the invalid-aware median (eq. 28), one compiled pass
@@ -429,15 +429,7 @@ class UPSR:
         poses = window_poses(idx, self._camera_step)
         grid = grid_intrinsics(cfg.camera_intrinsics, self._s)  # type: ignore[arg-type]
         by_pose = pose_maps(self._pre[t], grid, poses, ref, np.empty_like(maps))
-        return self._agreeing(maps, by_pose), poses
-
-    def _agreeing(self, by_flow: np.ndarray, by_pose: np.ndarray) -> np.ndarray:
-        """The camera's motion where the flow agrees with it within
-        :data:`~upsr.method.camera_motion.AGREEMENT_PX` low-res px, the flow elsewhere (a body
-        moving on its own)."""
-        off = np.hypot(by_pose[..., 0] - by_flow[..., 0], by_pose[..., 1] - by_flow[..., 1])
-        agree = (off <= AGREEMENT_PX * self._s)[..., None]
-        return np.where(agree, by_pose, by_flow)  # (both of one dtype)
+        return agreeing(maps, by_pose, self._s), poses
 
     def _camera_step(self, k: int) -> np.ndarray | None:
         """The camera's motion from frame k − 1 to frame k (``camera_motion="depth"``), once

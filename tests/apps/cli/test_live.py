@@ -68,6 +68,41 @@ def test_live_on_a_recording_equals_run_recursive(tmp_path, capsys):
 
 
 @needs_sdk
+def test_live_registers_by_the_cameras_motion_with_the_sdks_intrinsics(
+    tmp_path, capsys, monkeypatch
+):
+    """--camera-motion depth takes the depth stream's intrinsics from the SDK (fx = fy = 40,
+    the centre (23.5, 19.5) of the recording): the output equals ``upsr run --recursive
+    --camera-motion depth`` given them (a still camera: the flow's registration)."""
+    from upsr.method import recursive
+
+    configs = []
+    init = recursive.RecursiveUPSR.__init__
+
+    def noting(self, *args, config=None, **kwargs):
+        configs.append(config)
+        init(self, *args, config=config, **kwargs)
+
+    monkeypatch.setattr(recursive.RecursiveUPSR, "__init__", noting)
+    out = tmp_path / "live.npy"
+    rc, _, err = run_cli(
+        capsys, "live", FIXTURE, "--no-real-time", "-o", out, "-r", "2", "-q",
+        "--camera-motion", "depth",
+    )  # fmt: skip
+    assert rc == 0, err
+    assert configs[0].camera_motion == "depth"
+    assert configs[0].camera_intrinsics == pytest.approx((40.0, 40.0, 23.5, 19.5))
+    np.save(tmp_path / "in.npy", _frames().astype(np.float32))
+    ref = tmp_path / "run.npy"
+    rc, _, err = run_cli(
+        capsys, "run", tmp_path / "in.npy", "-o", ref, "-r", "2", "--recursive", "-q",
+        "--camera-motion", "depth", "--intrinsics", "40,40,23.5,19.5",
+    )  # fmt: skip
+    assert rc == 0, err
+    np.testing.assert_array_equal(np.load(out), np.load(ref))
+
+
+@needs_sdk
 def test_a_recording_not_in_real_time_loses_no_frame_behind_a_slow_first_frame():
     """(The first frame waits for the kernels to compile in a fresh checkout: a pipeline,
     which starts the playback in real time, lost a frame in 3 of 10 such runs.)"""

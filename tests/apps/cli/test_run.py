@@ -471,8 +471,8 @@ def test_run_writes_scaled_intrinsics(tmp_path: Path) -> None:
 def test_run_registers_by_the_cameras_motion_from_depth(
     capsys: pytest.CaptureFixture[str], tmp_path: Path
 ) -> None:
-    """--camera-motion depth takes the input's intrinsics; the output equals the API's;
-    without intrinsics, or with --recursive, one line and exit 2, nothing written."""
+    """--camera-motion depth takes the input's intrinsics; the output equals the API's, in
+    both modes; without intrinsics one line and exit 2, nothing written."""
     from upsr.research.synth.realistic import make_realistic
 
     v = make_realistic("toward_wall", (28, 32), scale=2, n_frames=5, seed=0)
@@ -489,14 +489,15 @@ def test_run_registers_by_the_cameras_motion_from_depth(
         "upsr: error: --camera-motion depth needs the camera's intrinsics: --intrinsics "
         "FX,FY,CX,CY or intrinsics carried by the input"
     ]
-    rc, _, err = run_cli(capsys, *args, "--intrinsics", intr, "--recursive")
-    assert rc == 2 and "windowed" in err and not out.exists()
-    rc, _, err = run_cli(capsys, *args, "--intrinsics", intr)
-    assert rc == 0, err
-    expected = upsr.super_resolve(np.load(tmp_path / "in.npy"), 2, 5, camera_motion="depth",
-                                  camera_intrinsics=(c.fx, c.fy, c.cx, c.cy))  # fmt: skip
-    np.testing.assert_allclose(np.load(out), expected, atol=1e-3)
-    assert not np.array_equal(expected, upsr.super_resolve(np.load(tmp_path / "in.npy"), 2, 5))
+    for mode in ("windowed", "recursive"):
+        flags = ["--recursive"] if mode == "recursive" else []
+        rc, _, err = run_cli(capsys, *args, "--intrinsics", intr, "--overwrite", *flags)
+        assert rc == 0, err
+        low = np.load(tmp_path / "in.npy")
+        expected = upsr.super_resolve(low, 2, 5, mode=mode, camera_motion="depth",
+                                      camera_intrinsics=(c.fx, c.fy, c.cx, c.cy))  # fmt: skip
+        np.testing.assert_allclose(np.load(out), expected, atol=1e-3)
+        assert not np.array_equal(expected, upsr.super_resolve(low, 2, 5, mode=mode))
 
 
 def test_run_bag_intrinsics(tmp_path: Path) -> None:

@@ -24,6 +24,7 @@ output) and the dropped frames; ``--preview`` rewrites a side-by-side PNG (input
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 import queue
 import sys
@@ -36,6 +37,8 @@ from typing import Annotated, Any
 import typer
 
 from upsr.apps.cli.options import (
+    CameraMotion,
+    CameraMotionOpt,
     FlowPresetOpt,
     FlowScaleOpt,
     FramesOpt,
@@ -56,6 +59,7 @@ _LIVE_EPILOG = """\b
 Examples:
   upsr live -o live_x2.npy -r 2 --preview preview.png        # the first RealSense camera
   upsr live capture.bag -o out.npy -r 2 --no-real-time       # a recording, every frame
+  upsr live -o drive.npy -r 2 --camera-motion depth           # a camera driving forward
 """
 
 SourceArg = Annotated[
@@ -321,6 +325,7 @@ def live(
     no_real_time: NoRealTimeOpt = False,
     max_frames: MaxFramesOpt = None,
     seconds: SecondsOpt = None,
+    camera_motion: CameraMotionOpt = CameraMotion.flow,
     overwrite: LiveOverwriteOpt = False,
     quiet: QuietOpt = False,
 ) -> None:
@@ -343,6 +348,8 @@ def live(
     out_fmt = fmt(output_format)
     io.check_output_path([] if recording is None else [recording], output, overwrite, fmt=out_fmt)
     source = FrameSource(recording, real_time=not no_real_time)
+    if camera_motion is CameraMotion.depth:  # (the SDK's intrinsics of the depth stream)
+        cfg = dataclasses.replace(cfg, camera_motion="depth", camera_intrinsics=source.intrinsics)
     # each frame updates the state here, then is finished (deblurred, written, shown) on a
     # helper thread while the next frame updates the state (RecursiveUPSR.push_async)
     engine = RecursiveUPSR(config=cfg)

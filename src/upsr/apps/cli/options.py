@@ -260,7 +260,7 @@ CameraMotionOpt = Annotated[
         help="How the frames are registered: 'flow' (optical flow, any motion) or 'depth': "
         "where the camera moves along its axis in a static scene (a vehicle driving forward), "
         "its own motion estimated from the depth (needs the intrinsics), which sees the small "
-        "zoom the flow misses; windows with other motion, bodies moving on their own and a "
+        "zoom the flow misses; frames moved otherwise, bodies moving on their own and a "
         "time-of-flight sensor's frames keep the flow.",
     ),
 ]
