@@ -75,8 +75,12 @@ AXIAL_RATIO = 3.0
 MIN_STEP_MM = 5.0
 #: ... and it turns the camera by at most this (degrees).
 MAX_TURN_DEG = 0.5
-#: :func:`rigid_motion` stops once a step moves the camera by less than this (m, and rad): 10 µm.
-STEP_TOLERANCE = 1e-5
+#: :func:`rigid_motion` stops once a step moves the camera by less than this (m, and rad):
+#: 0.1 mm. Its steps stay near 0.05–0.1 mm on noisy frames, sliding along the sideways / turn
+#: ambiguity rather than converging: 20 steps and this tolerance gave the approaching camera
+#: the rmse of 60 steps and 10 µm within ±0.2 % (seeds 0–3, Laplace σ = 0 / 10, Gauss 20, both
+#: modes) at 15.6 instead of 52.9 ms per pair at 160×120.
+STEP_TOLERANCE = 1e-4
 #: :func:`rigid_motion` pairs about this many of frame A's points (a grid; all up to 64×64 px).
 ICP_POINTS = 4096
 
@@ -218,7 +222,7 @@ def rigid_motion(
     *,
     noise_mm: float = 10.0,
     edge_mm: float = 100.0,
-    iterations: int = 60,
+    iterations: int = 20,
     initial: npt.ArrayLike | None = None,
 ) -> np.ndarray:
     """The camera's motion from frame A to frame B of a static scene (point-to-plane ICP).
