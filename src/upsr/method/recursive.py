@@ -14,8 +14,8 @@ Per frame t (only frame t and the state of t − 1 are read):
 1. the motion front-end (:class:`~upsr.method.frontend.MotionFrontEnd`) prefilters frame t and
    computes ONE flow on the flow grid, from frame t to frame t − 1 (the backward lookup of the
    current grid into the previous one), with its spurious motion suppressed (with
-   ``camera_motion="depth"``, where the camera's step goes along its axis, that of
-   :mod:`upsr.method.camera_motion` at the pixels whose flow agrees with it);
+   ``camera_motion="depth"``, where the camera's last N − 1 steps went along its axis,
+   that of :mod:`upsr.method.camera_motion` at the pixels whose flow agrees with it);
 2. the new measurement is y_t↑ = U y_t after mixed-pixel removal
    (:func:`~upsr.method.mixed.remove_mixed_pixels`), and its anchor and tolerance τ = k·σ +
    relief are those of :func:`~upsr.method.trust.reference_anchor` (frame t is the reference;
@@ -82,6 +82,7 @@ offline choice.
 
 from __future__ import annotations
 
+import collections
 import contextlib
 import math
 import time
@@ -450,6 +451,7 @@ class RecursiveUPSR(TwoStagePipeline):
         self._prev_pre: np.ndarray | None = None
         self._prev_guide: np.ndarray | None = None
         self._prev_frame: np.ndarray | None = None
+        self._axial: collections.deque[bool] = collections.deque(maxlen=cfg.n_frames - 1)
         self._depth: np.ndarray | None = None
         self._conf: np.ndarray | None = None
         self._share: np.ndarray | None = None  # the surface shares (edge votes)
@@ -499,9 +501,9 @@ class RecursiveUPSR(TwoStagePipeline):
 
     def _by_camera(self, flow: np.ndarray, pre: np.ndarray, frame: np.ndarray) -> np.ndarray:
         """``camera_motion="depth"``: the flow from ``frame`` to the previous frame replaced by
-        the camera's motion where that step goes along the optical axis, at the pixels whose
-        flow agrees with it (as the windowed mode's windows; ``pre``: the frame's prefiltered
-        depth on the flow grid)."""
+        the camera's motion at the pixels whose flow agrees with it, where that step and the
+        N − 2 before it (a window's; one noisy step alone can pass) went along the axis
+        (``pre``: the frame's prefiltered depth on the flow grid)."""
         cfg = self.config
         intrinsics = cfg.camera_intrinsics
         assert intrinsics is not None and self._prev_frame is not None
@@ -512,7 +514,8 @@ class RecursiveUPSR(TwoStagePipeline):
             noise_mm=self._noise(),
             edge_mm=self._front.edge_mm,  # type: ignore[union-attr]
         )
-        if not along_axis(step):
+        self._axial.append(along_axis(step))
+        if len(self._axial) < self._axial.maxlen or not all(self._axial):  # type: ignore[operator]
             return flow
         s = flow.shape[1] / frame.shape[1]
         poses = np.stack([np.eye(4), step])  # (the previous frame, this one)
