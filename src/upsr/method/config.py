@@ -330,8 +330,9 @@ class UPSRConfig:
         (a vehicle driving forward): its rigid motion between consecutive frames is estimated
         from the depth itself and each pixel's motion follows from its depth, which sees the
         sub-pixel zoom a flow misses (:mod:`upsr.method.camera_motion`; needs
-        ``camera_intrinsics``). Used only in the windows (recursive mode: the frames) whose
-        every step goes along the optical axis and at the pixels whose flow agrees with it;
+        ``camera_intrinsics``). Used only in the windows whose every step goes along the
+        optical axis (recursive mode: once the last N − 1 steps did) and at the pixels whose
+        flow agrees with it;
         elsewhere, and where the video's mixed pixels are removed (a footprint sensor: its
         mixes show the flow the sub-pixel motion), the flow
         (``benchmarks/registration_oracle.py``).
