@@ -17,6 +17,8 @@ Example::
         --sizes tof --frames 16
     .venv/bin/python benchmarks/recursive_eval.py --sizes tof --frames 40 --flow-preset fast
     .venv/bin/python benchmarks/recursive_eval.py --sizes vga --modes recursive --flow-scale 2
+    .venv/bin/python benchmarks/recursive_eval.py --scenes deforming room toward_wall gallop \
+        --sizes tof qvga --frames 24 --modes recursive windowed causal
     .venv/bin/python benchmarks/recursive_eval.py --scenes toward_wall --sizes tof qvga \
         --frames 24 --sensor gaussian --sigma 20 --camera-motion depth
 """
@@ -24,29 +26,47 @@ Example::
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import sys
 import time
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 from pathlib import Path
 
 import numpy as np
 
 import upsr
+from upsr.method import windowed
 from upsr.research.metrics import evaluate
 from upsr.research.synth.realistic import SCENES, degrade, make_realistic
 
 SIZES = {"tof": ((56, 64), 4), "qvga": ((120, 160), 2), "vga": ((240, 320), 2)}
 
 
+@contextlib.contextmanager
+def causal_windows() -> Iterator[None]:
+    """The windowed engine with each window ending at its reference (latency 0, the frames
+    the recursive mode has seen): the ``causal`` mode of this benchmark, a diagnostic."""
+    start = windowed.window_start
+    windowed.window_start = lambda t, n_total, cfg: int(  # type: ignore[assignment]
+        min(max(t - (cfg.n_frames - 1), 0), n_total - cfg.n_frames)
+    )
+    try:
+        yield
+    finally:
+        windowed.window_start = start  # type: ignore[assignment]
+
+
 def _run(mode: str, low: np.ndarray, r: int, n: int, workers: int, options: dict) -> dict:
-    cfg = upsr.UPSRConfig.from_options(r, n, mode=mode, **options)
-    warm = upsr.UPSR(config=cfg, workers=workers)
-    list(warm.process(low[: n + 1]))  # compile and fill the caches
-    engine = upsr.UPSR(config=cfg, workers=workers)
-    start = time.perf_counter()
-    out = np.stack(list(engine.process(low)))
-    seconds = time.perf_counter() - start
+    causal = mode == "causal"
+    cfg = upsr.UPSRConfig.from_options(r, n, mode="windowed" if causal else mode, **options)
+    with causal_windows() if causal else contextlib.nullcontext():
+        warm = upsr.UPSR(config=cfg, workers=workers)
+        list(warm.process(low[: n + 1]))  # compile and fill the caches
+        engine = upsr.UPSR(config=cfg, workers=workers)
+        start = time.perf_counter()
+        out = np.stack(list(engine.process(low)))
+        seconds = time.perf_counter() - start
     per_frame = {k: 1000.0 * v / len(low) for k, v in engine.timings.items()}
     return {"out": out, "fps": len(low) / seconds, "ms_per_frame": per_frame}
 
@@ -58,7 +78,11 @@ def main(argv: Sequence[str] | None = None) -> int:
     p.add_argument("--frames", type=int, default=24, help="video length T")
     p.add_argument("-n", type=int, default=9, help="N (window / recursive cap)")
     p.add_argument("--sigma", type=float, default=10.0)
-    p.add_argument("--modes", nargs="+", default=["recursive", "windowed"])
+    p.add_argument(
+        "--modes", nargs="+", default=["recursive", "windowed"],
+        choices=["recursive", "windowed", "causal"],
+        help="causal: the windowed mode with windows that end at their reference (a diagnostic)",
+    )  # fmt: skip
     p.add_argument("--workers", type=int, default=0, help="windowed workers")
     p.add_argument("--flow-preset", default=None)
     p.add_argument("--flow-scale", type=int, default=None, help="flow grid scale s (default: auto)")
