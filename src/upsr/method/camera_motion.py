@@ -37,6 +37,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable, Sequence
 
+import numba as nb
 import numpy as np
 import numpy.typing as npt
 
@@ -369,10 +370,28 @@ def pose_samples(
     return np.stack([(ub + 0.5) * s - 0.5, (vb + 0.5) * s - 0.5], axis=-1)
 
 
-def agreeing(by_flow: np.ndarray, by_pose: np.ndarray, grid_scale: float) -> np.ndarray:
+@nb.njit(cache=True, nogil=True)
+def _agreeing_kernel(by_flow, by_pose, limit, out):  # pragma: no cover - numba
+    for i in range(by_flow.shape[0]):
+        dx = by_pose[i, 0] - by_flow[i, 0]
+        dy = by_pose[i, 1] - by_flow[i, 1]
+        src = by_pose if math.hypot(dx, dy) <= limit else by_flow  # (NaN: the flow)
+        out[i, 0] = src[i, 0]
+        out[i, 1] = src[i, 1]
+
+
+def agreeing(
+    by_flow: np.ndarray, by_pose: np.ndarray, grid_scale: float, *, out: np.ndarray | None = None
+) -> np.ndarray:
     """The camera's motion ``by_pose`` where the flow ``by_flow`` agrees with it within
     :data:`AGREEMENT_PX` low-res px, the flow elsewhere (a body moving on its own): maps of
-    one shape (…, 2) and dtype on a flow grid ``grid_scale`` times the frames'."""
-    off = np.hypot(by_pose[..., 0] - by_flow[..., 0], by_pose[..., 1] - by_flow[..., 1])
-    agree = (off <= AGREEMENT_PX * grid_scale)[..., None]
-    return np.where(agree, by_pose, by_flow)
+    one shape (…, 2) and dtype on a flow grid ``grid_scale`` times the frames', written to
+    ``out`` (which may be ``by_flow``; default a new array). One compiled pass."""
+    if out is None:
+        out = np.empty(by_flow.shape, by_flow.dtype)
+    if not out.flags.c_contiguous or out.dtype != by_flow.dtype:
+        raise ValueError("out must be C-contiguous, of by_flow's dtype")
+    flow = np.ascontiguousarray(by_flow).reshape(-1, 2)
+    pose = np.ascontiguousarray(by_pose, by_flow.dtype).reshape(-1, 2)
+    _agreeing_kernel(flow, pose, float(AGREEMENT_PX * grid_scale), out.reshape(-1, 2))
+    return out

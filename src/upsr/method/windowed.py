@@ -429,7 +429,7 @@ class UPSR:
         poses = window_poses(idx, self._camera_step)
         grid = grid_intrinsics(cfg.camera_intrinsics, self._s)  # type: ignore[arg-type]
         by_pose = pose_maps(self._pre[t], grid, poses, ref, np.empty_like(maps))
-        return agreeing(maps, by_pose, self._s), poses
+        return agreeing(maps, by_pose, self._s, out=maps), poses
 
     def _camera_step(self, k: int) -> np.ndarray | None:
         """The camera's motion from frame k − 1 to frame k (``camera_motion="depth"``), once
