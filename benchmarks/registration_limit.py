@@ -28,7 +28,7 @@ import argparse
 import contextlib
 import json
 import sys
-from collections.abc import Iterator, Sequence
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
@@ -36,8 +36,7 @@ import cv2
 import numpy as np
 
 import upsr
-from registration_oracle import _noting_window, captured_maps, misplaced_per_edge_px
-from upsr.method import windowed
+from registration_oracle import captured_maps, misplaced_per_edge_px, window_maps
 from upsr.research import baselines
 from upsr.research.metrics import evaluate
 
@@ -70,25 +69,19 @@ def make_video(seed: int, sigma: float) -> tuple[np.ndarray, np.ndarray, np.ndar
     return shifts, truth, low
 
 
-@contextlib.contextmanager
-def exact_shifts(shifts: np.ndarray) -> Iterator[None]:
+def exact_shifts(shifts: np.ndarray) -> contextlib.AbstractContextManager[None]:
     """Replace the windowed engine's maps by the exact shifts (any flow grid)."""
-    window: dict[str, int] = {}
-    finish, cumulative = windowed.UPSR._finish, windowed.cumulative_flows
 
-    def _cumulative(ref, backward, forward, shape, *, out, **_):  # type: ignore[no-untyped-def]
-        t, s0, grid = window["t"], window["s"], shape[0] / H
-        for i in range(len(out)):
-            out[i] = (shifts[t] - shifts[s0 + i]) * grid / R
-        return list(out)
+    def make(window, _):  # type: ignore[no-untyped-def]
+        def _cumulative(ref, backward, forward, shape, *, out, **_):  # type: ignore[no-untyped-def]
+            t, s0, grid = window["t"], window["s"], shape[0] / H
+            for i in range(len(out)):
+                out[i] = (shifts[t] - shifts[s0 + i]) * grid / R
+            return list(out)
 
-    windowed.UPSR._finish = _noting_window(window)  # type: ignore[method-assign]
-    windowed.cumulative_flows = _cumulative
-    try:
-        yield
-    finally:
-        windowed.UPSR._finish = finish  # type: ignore[method-assign]
-        windowed.cumulative_flows = cumulative
+        return _cumulative
+
+    return window_maps(make)
 
 
 def reregister(

@@ -34,7 +34,7 @@ import argparse
 import contextlib
 import json
 import sys
-from collections.abc import Iterator, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -100,57 +100,59 @@ def _intrinsics(camera: PinholeCamera) -> tuple[float, float, float, float]:
     return camera.fx, camera.fy, camera.cx, camera.cy
 
 
-def _noting_window(window: dict[str, int]):  # type: ignore[no-untyped-def]
-    """The engine's ``_finish``, noting the window (reference t, first frame s) it finishes."""
-    finish = windowed.UPSR._finish
+@contextlib.contextmanager
+def window_maps(make: Callable[[dict[str, int], Callable], Callable]) -> Iterator[None]:
+    """The windowed engine's ``cumulative_flows`` replaced by ``make(window, original)``,
+    where ``window`` holds the reference t and first frame s of the window being finished."""
+    window: dict[str, int] = {}
+    finish, cumulative = windowed.UPSR._finish, windowed.cumulative_flows
 
     def _finish(self, t, n_total):  # type: ignore[no-untyped-def]
         window["t"], window["s"] = t, windowed.window_start(t, n_total, self.config)
         return finish(self, t, n_total)
 
-    return _finish
-
-
-@contextlib.contextmanager
-def registered_by(motion: Motion) -> Iterator[None]:
-    """Replace the windowed engine's registration by ``motion`` (``flow_scale`` = r)."""
-    window: dict[str, int] = {}
-    finish, chain = windowed.UPSR._finish, windowed.UPSR._chain
-    cumulative = windowed.cumulative_flows
-
-    def _cumulative(ref, backward, forward, shape, *, out, **_):  # type: ignore[no-untyped-def]
-        assert shape == motion.depth.shape[1:], "a registration from poses needs flow_scale = r"
-        out[...] = motion.maps(window["t"], range(window["s"], window["s"] + len(out)))
-        return list(out)
-
-    windowed.UPSR._finish = _noting_window(window)  # type: ignore[method-assign]
-    windowed.UPSR._chain = lambda self, k, m: motion.samples(k, m)  # type: ignore[method-assign]
-    windowed.cumulative_flows = _cumulative
-    try:
-        yield
-    finally:
-        windowed.UPSR._finish, windowed.UPSR._chain = finish, chain  # type: ignore[method-assign]
-        windowed.cumulative_flows = cumulative
-
-
-@contextlib.contextmanager
-def captured_maps(store: list) -> Iterator[None]:
-    """Keep (t, first frame, maps) of every window the engine registers."""
-    window: dict[str, int] = {}
-    finish, cumulative = windowed.UPSR._finish, windowed.cumulative_flows
-
-    def _cumulative(*args, out, **kwargs):  # type: ignore[no-untyped-def]
-        res = cumulative(*args, out=out, **kwargs)
-        store.append((window["t"], window["s"], out.copy()))
-        return res
-
-    windowed.UPSR._finish = _noting_window(window)  # type: ignore[method-assign]
-    windowed.cumulative_flows = _cumulative
+    windowed.UPSR._finish = _finish  # type: ignore[method-assign]
+    windowed.cumulative_flows = make(window, cumulative)
     try:
         yield
     finally:
         windowed.UPSR._finish = finish  # type: ignore[method-assign]
         windowed.cumulative_flows = cumulative
+
+
+@contextlib.contextmanager
+def registered_by(motion: Motion) -> Iterator[None]:
+    """Replace the windowed engine's registration by ``motion`` (``flow_scale`` = r)."""
+
+    def make(window, _):  # type: ignore[no-untyped-def]
+        def _cumulative(ref, backward, forward, shape, *, out, **_):  # type: ignore[no-untyped-def]
+            assert shape == motion.depth.shape[1:], "a registration from poses needs flow_scale = r"
+            out[...] = motion.maps(window["t"], range(window["s"], window["s"] + len(out)))
+            return list(out)
+
+        return _cumulative
+
+    chain = windowed.UPSR._chain
+    windowed.UPSR._chain = lambda self, k, m: motion.samples(k, m)  # type: ignore[method-assign]
+    try:
+        with window_maps(make):
+            yield
+    finally:
+        windowed.UPSR._chain = chain  # type: ignore[method-assign]
+
+
+def captured_maps(store: list) -> contextlib.AbstractContextManager[None]:
+    """Keep (t, first frame, maps) of every window the engine registers."""
+
+    def make(window, cumulative):  # type: ignore[no-untyped-def]
+        def _cumulative(*args, out, **kwargs):  # type: ignore[no-untyped-def]
+            res = cumulative(*args, out=out, **kwargs)
+            store.append((window["t"], window["s"], out.copy()))
+            return res
+
+        return _cumulative
+
+    return window_maps(make)
 
 
 def edge_lines(truth: np.ndarray) -> np.ndarray:
