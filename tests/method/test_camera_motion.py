@@ -8,6 +8,8 @@ import pytest
 import upsr
 from upsr.errors import InputError
 from upsr.method.camera_motion import (
+    AGREEMENT_PX,
+    agreeing,
     along_axis,
     camera_points,
     grid_intrinsics,
@@ -163,6 +165,28 @@ def test_only_a_step_along_the_axis_counts():
     assert not along_axis(_step(tx_mm=30.0, tz_mm=-10.0))  # the room's sideways step
     assert not along_axis(_step(tz_mm=-25.0, yaw_deg=1.0))  # a turn
     assert not along_axis(None)
+
+
+@pytest.mark.parametrize("dtype", [np.float32, np.float64])
+def test_the_camera_motion_is_taken_only_where_the_flow_agrees(dtype):
+    """Within AGREEMENT_PX low-res px of the flow (times the grid's scale) the camera's
+    motion, beyond it or where either is NaN the flow; into ``out`` (the flow itself) too."""
+    s = 3.0
+    flow = np.zeros((2, 3, 2), dtype)
+    pose = np.zeros((2, 3, 2), dtype)
+    pose[0, 0] = (AGREEMENT_PX * s - 0.01, 0.0)  # just within
+    pose[0, 1] = (0.0, AGREEMENT_PX * s + 0.01)  # just beyond
+    pose[0, 2] = (np.nan, 0.0)
+    pose[1] = (1.0, 1.0)
+    flow[1, 2] = (np.nan, 0.0)
+    want = flow.copy()
+    want[0, 0], want[1, :2] = pose[0, 0], pose[1, :2]
+    np.testing.assert_array_equal(agreeing(flow, pose, s), want)
+    assert agreeing(flow, pose, s).dtype == dtype
+    assert agreeing(flow, pose, s, out=flow) is flow
+    np.testing.assert_array_equal(flow, want)
+    with pytest.raises(ValueError, match="C-contiguous"):
+        agreeing(flow, pose, s, out=np.empty((3, 2, 2), dtype).transpose(1, 0, 2))
 
 
 def _approaching(seed: int = 0, sigma: float = 10.0):
