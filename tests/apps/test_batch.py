@@ -117,3 +117,39 @@ def test_chunks_read_only_their_frames_and_finish_only_their_outputs(
     assert reads[0] == (0, N, N)
     assert sorted(reads[1:]) == sorted((lo, hi, hi - lo) for _, _, lo, hi in plan)
     assert len(finished) == 13  # one window per output frame: none for the overlaps
+
+
+def test_batch_registers_by_the_cameras_motion_as_a_single_run(tmp_path: Path) -> None:
+    """``camera_motion="depth"``: each recording with its intrinsics, chunks equal to the
+    single run (a step is estimated from the identity in every chunk), not the flow's
+    output; recorded in the options (a rerun with the flow is refused); without intrinsics
+    the recording fails with one line."""
+    import numpy as np
+
+    import upsr
+    from upsr.research.synth.realistic import make_realistic
+
+    v = make_realistic("toward_wall", (28, 32), scale=2, n_frames=12, seed=0)
+    low = (v.lowres + np.random.default_rng(0).laplace(0.0, 7.0, v.lowres.shape)).astype(np.float32)
+    np.save(tmp_path / "a.npy", low)
+    c = v.camera
+    intr = (c.fx, c.fy, c.cx, c.cy)
+    cfg = UPSRConfig(scale=2, n_frames=5)
+    out = tmp_path / "out"
+    res = run_batch(
+        [tmp_path / "a.npy"], out, cfg, workers=1, chunk_frames=3, progress=False,
+        intrinsics=",".join(map(str, intr)), camera_motion="depth",
+    )  # fmt: skip
+    assert res.exit_code == 0, [r.error for r in res.recordings]
+    want = upsr.super_resolve(low, 2, 5, camera_motion="depth", camera_intrinsics=intr)
+    np.testing.assert_array_equal(np.load(out / "a.npy"), want)
+    assert not np.array_equal(want, upsr.super_resolve(low, 2, 5))
+    res = run_batch([tmp_path / "a.npy"], out, cfg, workers=1, progress=False)
+    assert res.exit_code == 2 and "other options" in res.recordings[0].error
+    res = run_batch(
+        [tmp_path / "a.npy"], tmp_path / "none", cfg, workers=1, progress=False,
+        camera_motion="depth",
+    )  # fmt: skip
+    assert res.exit_code == 2 and "needs the camera's intrinsics" in res.recordings[0].error
+    with pytest.raises(InputError, match="'flow' or 'depth'"):
+        run_batch([tmp_path / "a.npy"], out, cfg, camera_motion="imu", progress=False)

@@ -265,6 +265,7 @@ def run_batch(
     sensor: str = "default",
     strict_units: bool = False,
     scale_given: bool = False,
+    camera_motion: str = "flow",
 ) -> BatchResult:
     """Super-resolve every recording of ``inputs`` into ``out_dir``.
 
@@ -305,6 +306,8 @@ def run_batch(
         each recording's estimate is checked before its work.
     keep_names : bool
         PNG/EXR folder outputs keep the input's frame names (False: 000000, …).
+    camera_motion : {"flow", "depth"}
+        ``UPSRConfig.camera_motion``, with each recording's intrinsics (none: it fails).
     sensor, strict_units, scale_given
         Each recording's first frame is checked as by ``upsr run`` (the plausible range of
         ``sensor``, refused with ``strict_units``, else warned; TUM PNGs read as mm refused
@@ -319,6 +322,8 @@ def run_batch(
     out = Path(os.path.abspath(out_dir))
     if not inputs:
         raise InputError("no input recordings given")
+    if camera_motion not in ("flow", "depth"):
+        raise InputError(f"camera_motion must be 'flow' or 'depth', not {camera_motion!r}")
     out_fmt = _check_batch_options(out, output_format, workers, chunk_frames)
     if scheduler is not None:
         check_scheduler_address(scheduler)
@@ -330,6 +335,8 @@ def run_batch(
         options["output_depth_scale"] = output_depth_scale
     if not keep_names:
         options["keep_names"] = False
+    if camera_motion != "flow":  # (absent at the default: records of earlier batches)
+        options["camera_motion"] = camera_motion
     say = log or (lambda line: None)
     with _batch_folder(out):
         return _run_locked(
@@ -351,6 +358,7 @@ def run_batch(
                 "max_memory": max_memory,
                 "keep_names": keep_names,
                 "units": (sensor, strict_units, scale_given, output_depth_scale),
+                "camera_motion": camera_motion,
             },
         )
 

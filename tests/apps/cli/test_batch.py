@@ -111,3 +111,26 @@ def test_batch_checks_each_recordings_units_and_output_before_its_work(
     cap = capsys.readouterr()
     assert "1 failed" in cap.out and "b.npy" in cap.err
     assert not list(png.glob("b*"))  # nothing written for it
+
+
+def test_batch_camera_motion_option(tmp_path: Path, capsys) -> None:
+    """``upsr batch --camera-motion depth`` equals ``upsr run --camera-motion depth`` on each
+    recording (its intrinsics from --intrinsics); without intrinsics one line per recording."""
+    from upsr.research.synth.realistic import make_realistic
+
+    v = make_realistic("toward_wall", (28, 32), scale=2, n_frames=8, seed=1)
+    low = (v.lowres + np.random.default_rng(1).laplace(0.0, 7.0, v.lowres.shape)).astype(np.float32)
+    np.save(tmp_path / "a.npy", low)
+    c = v.camera
+    intr = f"{c.fx},{c.fy},{c.cx},{c.cy}"
+    common = ["-r", "2", "-n", "5", "-q", "--camera-motion", "depth"]
+    run = ["run", str(tmp_path / "a.npy"), "-o", str(tmp_path / "run.npy"), *common]
+    assert main([*run, "--intrinsics", intr]) == 0
+    batch = ["batch", str(tmp_path / "a.npy"), "--out", str(tmp_path / "out"), "-w", "1"]
+    assert main([*batch, *common, "--intrinsics", intr]) == 0
+    np.testing.assert_array_equal(
+        np.load(tmp_path / "out" / "a.npy"), np.load(tmp_path / "run.npy")
+    )
+    capsys.readouterr()
+    assert main(["batch", str(tmp_path / "a.npy"), "--out", str(tmp_path / "o2"), *common]) == 2
+    assert "needs the camera's intrinsics" in capsys.readouterr().err
