@@ -53,7 +53,7 @@ def prepare_recording(
     recording (``limits``: ``out_fmt``, ``max_memory``, ``workers`` of the memory check,
     ``units``, and ``camera_motion``: "depth" registers by the camera's motion with the
     recording's intrinsics, refused where it has none)."""
-    from upsr.apps._camera import input_camera
+    from upsr.apps._camera import camera_motion_config, input_camera
     from upsr.apps._preflight import check_first_frame, check_run_resources
     from upsr.io import identity
     from upsr.io import video as io
@@ -79,16 +79,7 @@ def prepare_recording(
     )
     rec.camera = input_camera(rec.input, info, intrinsics, fmt=read["fmt"], topic=read["topic"])
     if lim.get("camera_motion", "flow") == "depth":
-        if rec.camera is None:
-            raise InputError(
-                f"{rec.input}: --camera-motion depth needs the camera's intrinsics: "
-                "--intrinsics FX,FY,CX,CY or intrinsics carried by the input"
-            )
-        c = rec.camera
-        cfg = dataclasses.replace(
-            cfg, camera_motion="depth", camera_intrinsics=(c.fx, c.fy, c.cx, c.cy)
-        )
-        rec.config = cfg
+        cfg = rec.config = camera_motion_config(cfg, rec.camera, f"{rec.input}: ")
     rec.frame_names = identity.read_frame_names(rec.input, fmt=read["fmt"])
     rec.timestamps = identity.read_timestamps(
         rec.input, fmt=read["fmt"], topic=read["topic"], key=read["key"]

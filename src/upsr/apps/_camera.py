@@ -3,17 +3,42 @@
 ``--intrinsics FX,FY,CX,CY`` when given, else the intrinsics the input carries (a bag's
 ``sensor_msgs/CameraInfo``, RealSense's camera info, or an ``INPUT.intrinsics.json``), else
 none. Used by ``upsr run``, ``upsr view``, ``upsr export-ply`` and
-:func:`upsr.apps.batch.run_batch`.
+:func:`upsr.apps.batch.run_batch`; :func:`camera_motion_config` gives ``--camera-motion
+depth`` those intrinsics (``upsr run``, ``upsr batch``, ``upsr live``).
 """
 
 from __future__ import annotations
 
+import dataclasses
 from pathlib import Path
 from typing import Any
 
 from upsr.errors import InputError
+from upsr.method.config import UPSRConfig
 
-__all__ = ["input_camera"]
+__all__ = ["camera_motion_config", "input_camera"]
+
+
+def camera_motion_config(cfg: UPSRConfig, camera: Any, where: str = "") -> UPSRConfig:
+    """``cfg`` registering the frames by the camera's own motion (``camera_motion="depth"``)
+    with ``camera``'s intrinsics: a :class:`~upsr.geometry.camera.PinholeCamera` or
+    (fx, fy, cx, cy).
+
+    Raises
+    ------
+    InputError
+        ``camera`` is None (one line, prefixed by ``where``).
+    """
+    if camera is None:
+        raise InputError(
+            f"{where}--camera-motion depth needs the camera's intrinsics: --intrinsics "
+            "FX,FY,CX,CY or intrinsics carried by the input"
+        )
+    from upsr.geometry.camera import PinholeCamera
+
+    c = camera
+    intr = (c.fx, c.fy, c.cx, c.cy) if isinstance(c, PinholeCamera) else tuple(c)
+    return dataclasses.replace(cfg, camera_motion="depth", camera_intrinsics=intr)
 
 
 def input_camera(

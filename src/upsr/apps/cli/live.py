@@ -24,7 +24,6 @@ output) and the dropped frames; ``--preview`` rewrites a side-by-side PNG (input
 
 from __future__ import annotations
 
-import dataclasses
 import functools
 import queue
 import sys
@@ -333,6 +332,7 @@ def live(
 
     Prints one summary line on stdout; the live status line goes to stderr.
     """
+    from upsr.apps._camera import camera_motion_config
     from upsr.io import video as io
     from upsr.method.recursive import RecursiveUPSR
 
@@ -349,7 +349,7 @@ def live(
     io.check_output_path([] if recording is None else [recording], output, overwrite, fmt=out_fmt)
     source = FrameSource(recording, real_time=not no_real_time)
     if camera_motion is CameraMotion.depth:  # (the SDK's intrinsics of the depth stream)
-        cfg = dataclasses.replace(cfg, camera_motion="depth", camera_intrinsics=source.intrinsics)
+        cfg = camera_motion_config(cfg, source.intrinsics)
     # each frame updates the state here, then is finished (deblurred, written, shown) on a
     # helper thread while the next frame updates the state (RecursiveUPSR.push_async)
     engine = RecursiveUPSR(config=cfg)

@@ -153,7 +153,7 @@ def run(
     """
     cfg = method_config(locals())  # first: locals() are the options
     from upsr.apps import _preflight as pre
-    from upsr.apps._camera import input_camera
+    from upsr.apps._camera import camera_motion_config, input_camera
     from upsr.io import identity, units
     from upsr.io import video as io
     from upsr.method.windowed import UPSR
@@ -166,13 +166,7 @@ def run(
     info = io.probe(input_path, key=key, fmt=in_fmt, topic=topic)
     camera = input_camera(input_path, info, intrinsics, fmt=in_fmt, topic=topic)
     if camera_motion is CameraMotion.depth:
-        if camera is None:
-            raise InputError(
-                "--camera-motion depth needs the camera's intrinsics: --intrinsics FX,FY,CX,CY "
-                "or intrinsics carried by the input"
-            )
-        intr = (camera.fx, camera.fy, camera.cx, camera.cy)
-        cfg = dataclasses.replace(cfg, camera_motion="depth", camera_intrinsics=intr)
+        cfg = camera_motion_config(cfg, camera)
     if not recursive:  # (the recursive state takes any video length)
         cfg = _fit_window(cfg, info.n_frames, input_path, explicit=frames is not None)
     io.check_output_path([input_path], output, overwrite, fmt=out_fmt)
