@@ -1,13 +1,15 @@
 """Run every benchmark (``make bench``): speed (ToF always; Samba, speed-up and memory when the
-Samba meshes are at ``--data``, default ``../shared/data``), speed beside a busy process, the
-flow grid, the synthetic scenes,
-the realistic sensor scenes (``--out docs/results`` writes them to docs/results/realistic), thin
-parts on a ToF sensor, the deblurring iterations and speckle removal, and the Samba accuracy
-tables. Each benchmark prints its table and writes ``results.json`` under ``--out``."""
+Samba meshes are at ``--data``, default ``../shared/data``), speed beside a busy process,
+``upsr live`` on SDK recordings played in real time (with pyrealsense2), the flow grid, the
+synthetic scenes, the realistic sensor scenes (``--out docs/results`` writes them to
+docs/results/realistic), thin parts on a ToF sensor, the deblurring iterations and speckle
+removal, and the Samba accuracy tables. Each benchmark prints its table and writes
+``results.json`` under ``--out``."""
 
 from __future__ import annotations
 
 import argparse
+import importlib.util
 import sys
 from pathlib import Path
 
@@ -15,6 +17,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 import deblur_eval
 import flow_grid_eval
+import live_eval
 import load_eval
 import realistic_eval
 import samba_eval
@@ -33,6 +36,11 @@ def main() -> int:
     speed_eval.main(["--data", args.data, "--out", str(out / "speed")])
     print("\n== speed beside another busy process (the kernels' OpenMP wait policy) ==", flush=True)
     load_eval.main(["--out", str(out / "load")])
+    print("\n== upsr live on SDK recordings played in real time ==", flush=True)
+    if importlib.util.find_spec("pyrealsense2") is None:
+        print("pyrealsense2 is not installed (pip install 'upsr[realsense]'): skipped")
+    else:
+        live_eval.main(["--out", str(out / "live")])
     print("\n== flow grid ==", flush=True)
     flow_grid_eval.main(["--data", args.data, "--out", str(out / "flow_grid")])
     print("\n== synthetic scenes ==", flush=True)

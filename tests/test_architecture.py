@@ -8,7 +8,8 @@
     method    -> (nothing)
 
 Every layer may use ``upsr.errors``, ``upsr._lazy``, ``upsr._numba`` and ``upsr._atomic``;
-nothing imports ``upsr.apps``. Imports inside functions count as much as those at the top.
+nothing imports ``upsr.apps`` (``upsr.__main__``, ``python -m upsr``, belongs to it). Imports
+inside functions count as much as those at the top.
 """
 
 from __future__ import annotations
@@ -64,6 +65,8 @@ def _imports(path: Path) -> list[tuple[str, bool]]:
 
 def _layer(module: str) -> str | None:
     parts = module.split(".")
+    if parts[1:2] == ["__main__"]:
+        return "apps"  # (``python -m upsr``: the command line, as the ``upsr`` script)
     return parts[1] if len(parts) > 1 else None
 
 

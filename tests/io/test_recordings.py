@@ -64,6 +64,18 @@ def test_depth_units_are_applied() -> None:
         assert np.abs(a[both] - b[both]).max() <= 0.5 + 1e-3
 
 
+def test_realsense_units_as_the_camera_was_set() -> None:
+    """The Depth Units a float32 holds (the SDK, a .bag) read as the decimal a .db3 stores."""
+    from upsr.io.rosbag import realsense_units_mm
+
+    for units_m, mm in ((1e-4, 0.1), (1e-3, 1.0), (1.25e-4, 0.125), (2.5e-4, 0.25)):
+        assert realsense_units_mm(float(np.float32(units_m))) == mm
+        assert realsense_units_mm(units_m) == mm
+    for bad in (0.0, -1e-3, 1.5, float("nan"), float("inf")):
+        with pytest.raises(InputError, match="not a valid unit"):
+            realsense_units_mm(bad)
+
+
 def test_librealsense_image_trailer() -> None:
     """librealsense's Image records end with float32 depth units after data."""
     from rosbags.rosbag1 import Reader

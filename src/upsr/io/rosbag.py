@@ -44,6 +44,7 @@ __all__ = [
     "frames",
     "intrinsics",
     "probe",
+    "realsense_units_mm",
     "timestamps",
     "writes_folder",
 ]
@@ -283,9 +284,27 @@ def _depth_units_mm(reader: Any, depth_topic: str, name: str) -> float | None:
         )
     except (ValueError, IndexError):
         raise InputError(f"{name}: RealSense Depth Units {msg.data!r} is not a number") from None
+    return realsense_units_mm(units, name)
+
+
+def realsense_units_mm(units_m: float, name: str = "RealSense") -> float:
+    """mm per raw unit of a RealSense Depth Units option (metres per unit).
+
+    The value the camera was set to, whichever way it was stored: the SDK holds it as a
+    float32 (0.0001 m reads 9.99999974738e-05), a ``.db3`` recording as text ("0.000100"), a
+    ``.bag`` as a Float32. Rounded to 6 significant digits they agree, and so do the frames
+    read from a recording and from the SDK playing it (a raw 6000 at 0.1 mm is 600.0 mm, not
+    599.99994: thresholds of the method decide on such differences).
+
+    Raises
+    ------
+    InputError
+        Not a finite unit in (0, 1) m.
+    """
+    units = float(units_m)
     if not (np.isfinite(units) and 0 < units < 1):
-        raise InputError(f"{name}: RealSense Depth Units {units!r} m is not a valid unit")
-    return units * 1000.0
+        raise InputError(f"{name}: RealSense Depth Units {units_m!r} m is not a valid unit")
+    return float(f"{units * 1000.0:.6g}")
 
 
 def probe(path: Path, opts: ReadOptions, fmt: str = "rosbag") -> VideoInfo:

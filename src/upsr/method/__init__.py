@@ -22,6 +22,7 @@ surface smoothing         —                      :mod:`upsr.method.smoothing`
 speckle removal           —                      :mod:`upsr.method.outliers`
 sliding-window engine     Table 1                :mod:`upsr.method.windowed`
 recursive (causal) engine —                      :mod:`upsr.method.recursive`
+warm-up before a stream   —                      :mod:`upsr.method.warmup`
 ========================  =====================  ==========================================
 
 The method imports nothing from the layers above it (I/O, pictures, research, apps).
@@ -53,6 +54,7 @@ __getattr__, __dir__, __all__ = attach(
         "trust",
         "upsampling",
         "validation",
+        "warmup",
         "windowed",
     ],
     names={

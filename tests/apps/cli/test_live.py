@@ -141,3 +141,55 @@ def test_live_bad_recording(tmp_path, capsys):
     )
     assert_user_error(rc, out, err, "no such recording")
     assert not (tmp_path / "o.npy").exists()
+
+
+@needs_sdk
+def test_live_in_tenths_of_a_mm_gives_the_frames_and_output_of_run(tmp_path, capsys):
+    """A recording in 100 µm units (written by librealsense 2.59): the SDK's float32 unit
+    (9.99999974738e-05 m) and the recording's text ("0.000100") give the same frames, so
+    `upsr live` equals `upsr run --recursive` on the same file (the method's thresholds
+    decided differently on 600.0 and 599.99994 mm: up to 836 mm apart on edge pixels of a
+    256×192 recording)."""
+    from upsr.apps.cli.live import FrameSource
+    from upsr.io import read_video
+
+    rec = Path(__file__).resolve().parents[2] / "io" / "data" / "realsense" / "rs259_100um.db3"
+    source = FrameSource(rec, real_time=False)
+    try:
+        got = np.stack([mm for mm, _t in source])
+    finally:
+        source.close()
+    np.testing.assert_array_equal(got, read_video(rec))
+    out, ref = tmp_path / "live.npy", tmp_path / "run.npy"
+    rc, stdout, err = run_cli(capsys, "live", rec, "--no-real-time", "-o", out, "-r", "2", "-q")
+    assert rc == 0, err
+    assert "ms median" in stdout and "ms max" in stdout and "0 dropped" in stdout
+    rc, _, err = run_cli(capsys, "run", rec, "-o", ref, "-r", "2", "--recursive", "-q")
+    assert rc == 0, err
+    np.testing.assert_array_equal(np.load(out), np.load(ref))
+
+
+@needs_sdk
+def test_live_loads_the_kernels_before_the_stream_starts(tmp_path, capsys, monkeypatch):
+    """`upsr live` warms the engine up for the stream's shape (known from the SDK before it
+    streams) and only then starts the source: a camera's first frames are not dropped while
+    a new process loads its compiled kernels."""
+    from upsr.apps.cli import live as live_cli
+    from upsr.method import warmup
+
+    events = []
+    monkeypatch.setattr(
+        warmup, "warm_up", lambda cfg, shape: events.append(("warm up", cfg.mode, shape))
+    )
+    start = live_cli.FrameSource.start
+
+    def started(self):
+        events.append(("start", self.received))
+        return start(self)
+
+    monkeypatch.setattr(live_cli.FrameSource, "start", started)
+    rc, _, err = run_cli(
+        capsys, "live", FIXTURE, "--no-real-time", "-o", tmp_path / "o.npy", "-r", "2", "-q"
+    )
+    assert rc == 0, err
+    assert events[:2] == [("warm up", "recursive", (40, 48)), ("start", 0)]

@@ -126,6 +126,13 @@ def _proc(*args: object, **kw: object) -> subprocess.CompletedProcess[str]:
     )  # type: ignore[call-overload]
 
 
+def test_python_dash_m_upsr_is_the_command_line() -> None:
+    p = subprocess.run(
+        [sys.executable, "-m", "upsr", "--version"], capture_output=True, text=True, timeout=120
+    )
+    assert p.returncode == 0 and p.stdout.strip() == f"upsr {upsr.__version__}"
+
+
 @pytest.mark.skipif(not BIN.exists(), reason="console script not installed")
 def test_console_script_success_and_errors(tmp_path: Path) -> None:
     np.save(tmp_path / "in.npy", video())

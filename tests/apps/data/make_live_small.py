@@ -3,7 +3,8 @@
 No camera: a ``pyrealsense2.software_device`` with one 48×40 Z16 depth stream (1 mm units,
 30 frames/s) is recorded by ``pyrealsense2.recorder`` while 12 synthetic frames are fed to it
 (a slanted wall, a box moving 2 px per frame, Laplacian noise of 8 mm, a few pixels without
-depth). ``upsr live`` plays it back through the SDK as a camera (tests/apps/cli/test_live.py).
+depth; :func:`upsr.research.synth.recording.write_realsense_recording`). ``upsr live`` plays
+it back through the SDK as a camera (tests/apps/cli/test_live.py).
 
     python tests/apps/data/make_live_small.py [OUT.db3]
 """
@@ -32,44 +33,13 @@ def frames(seed: int = 0) -> np.ndarray:
     return out
 
 
-def write(path: Path) -> Path:
-    import pyrealsense2 as rs
+def write(path: Path, units_m: float = 0.001) -> Path:
+    """Record :func:`frames` through the SDK (depth units ``units_m``) at ``path``."""
+    from upsr.research.synth.recording import write_realsense_recording
 
-    dev = rs.software_device()
-    sensor = dev.add_sensor("Depth")
-    intr = rs.intrinsics()
-    intr.width, intr.height = W, H
-    intr.fx = intr.fy = 40.0
-    intr.ppx, intr.ppy = W / 2 - 0.5, H / 2 - 0.5
-    intr.model = rs.distortion.none
-    intr.coeffs = [0.0] * 5
-    vs = rs.video_stream()
-    vs.type = rs.stream.depth
-    vs.uid, vs.index = 0, 0
-    vs.width, vs.height, vs.fps, vs.bpp = W, H, FPS, 2
-    vs.fmt = rs.format.z16
-    vs.intrinsics = intr
-    profile = sensor.add_video_stream(vs)
-    sensor.add_read_only_option(rs.option.depth_units, 0.001)
-    recorder = rs.recorder(str(path), dev)
-    sensor.open(profile)
-    queue = rs.frame_queue(N + 2)
-    sensor.start(queue)
-    for t, z in enumerate(frames()):
-        f = rs.software_video_frame()
-        f.pixels = np.ascontiguousarray(z)
-        f.bpp = 2
-        f.stride = W * 2
-        f.timestamp = t * 1000.0 / FPS
-        f.domain = rs.timestamp_domain.hardware_clock
-        f.frame_number = t + 1
-        f.profile = profile.as_video_stream_profile()
-        sensor.on_video_frame(f)
-        queue.wait_for_frame(1000)
-    sensor.stop()
-    sensor.close()
-    del recorder  # closes the file
-    return path
+    return write_realsense_recording(
+        path, frames(), fps=FPS, units_m=units_m, intrinsics=(40.0, 40.0, W / 2 - 0.5, H / 2 - 0.5)
+    )
 
 
 if __name__ == "__main__":

@@ -1,25 +1,29 @@
 """``upsr live``: super-resolve a RealSense camera (or an SDK recording) frame by frame.
 
 The frames come from the RealSense SDK (``pyrealsense2``, the optional extra
-``upsr[realsense]``; it needs the system's libusb): a connected camera, or a ``.bag``
-recording played back through the SDK exactly as a camera (``enable_device_from_file``). A
-reader thread takes each frame from the SDK and hands it over through a queue of ONE frame: a
-frame that arrives while the previous one is still being processed replaces it, and the one
-replaced is counted as dropped (never queued without bound); gaps in the SDK's frame numbers
-count as dropped too. ``--no-real-time`` plays a recording as fast as the processing allows
-(no frame dropped: deterministic, the same frames as ``upsr run --recursive``): the recording's
+``upsr[realsense]``; it needs the system's libusb): a connected camera, or a ``.bag`` / ``.db3``
+recording played back through the SDK exactly as a camera (``enable_device_from_file``). Before
+the stream starts (the SDK resolves its profile without streaming), the engine loads its
+compiled kernels for the stream's size (:func:`upsr.method.warmup.warm_up`): in a new process
+the first frame would otherwise take several frames' time while the camera's next frames are
+dropped. A reader thread takes each frame from the SDK and hands it over through a queue of ONE
+frame: a frame that arrives while the previous one is still being processed replaces it, and the
+one replaced is counted as dropped (never queued without bound); gaps in the SDK's frame numbers
+count as dropped too. ``--no-real-time`` plays a recording as fast as the processing allows (no
+frame dropped: deterministic, the same frames as ``upsr run --recursive``): the recording's
 depth sensor is opened directly, not through a pipeline, in non-real-time playback from the
-start, and its frame callback waits for the queue, so the playback waits for the processing
-(a pipeline starts in real time and, with a slow first frame, lost one).
+start, and its frame callback waits for the queue, so the playback waits for the processing (a
+pipeline starts in real time and, with a slow first frame, lost one).
 
 Each frame is super-resolved at once by the recursive engine
 (:class:`upsr.method.recursive.RecursiveUPSR`, latency 0 frames: its state is updated on this
 thread, then the frame is finished on a helper thread while the next one arrives,
 :meth:`~upsr.method.pipeline.TwoStagePipeline.push_async`) and written, in order, with
 :class:`upsr.io.video.VideoWriter` (any output format of ``upsr run``). A status line on stderr
-shows the frames processed, the rate, the latency (time from the frame's arrival to its
-output) and the dropped frames; ``--preview`` rewrites a side-by-side PNG (input | output,
-:func:`upsr.viz.pictures.comparison_frame`) every ``--preview-every`` frames.
+shows the frames processed, the rate, the latency (time from the frame's arrival to its output)
+and the dropped frames, the summary the median and largest latency; ``--preview`` rewrites a
+side-by-side PNG (input | output, :func:`upsr.viz.pictures.comparison_frame`) every
+``--preview-every`` frames.
 """
 
 from __future__ import annotations
@@ -66,8 +70,8 @@ SourceArg = Annotated[
     typer.Argument(
         metavar="[RECORDING]",
         show_default=False,
-        help="A RealSense .bag recording played through the SDK as a camera [default: the "
-        "first connected RealSense camera].",
+        help="A RealSense recording (.bag, or .db3 from SDK 2.56 on) played through the SDK as "
+        "a camera [default: the first connected RealSense camera].",
     ),
 ]
 LiveOutputOpt = Annotated[
@@ -120,10 +124,13 @@ _END = object()
 class FrameSource:
     """Depth frames (mm, float32 (h, w)) from the RealSense SDK, through a queue of one.
 
+    Made, it knows the depth stream's ``shape`` (h, w) and ``intrinsics`` (fx, fy, cx, cy)
+    without streaming yet (the SDK resolves the profile); :meth:`start` starts it.
+
     Parameters
     ----------
     recording : path, optional
-        A ``.bag`` file played back as a camera (no repeat); None: the first camera.
+        A ``.bag`` / ``.db3`` file played back as a camera (no repeat); None: the first camera.
     real_time : bool
         Recording: play at the recorded rate (frames may be dropped) or, False, as fast as
         they are taken (none dropped).
@@ -137,7 +144,11 @@ class FrameSource:
                 "upsr live needs the RealSense SDK: pip install 'upsr[realsense]' "
                 f"(and the system's libusb) ({e})"
             ) from e
+        from upsr.io.rosbag import realsense_units_mm
+
         self._rs = rs
+        self._units_mm = realsense_units_mm
+        self.recording = recording
         self.real_time = real_time if recording is not None else True
         self.dropped = 0
         self.received = 0
@@ -147,40 +158,72 @@ class FrameSource:
         if recording is not None and not Path(recording).is_file():
             raise InputError(f"{recording}: no such recording")
         self._pipe: Any = None
+        self._cfg: Any = None
         self._sensor: Any = None
+        self._profile: Any = None  # the sensor's depth profile (not in real time)
+        self._playback: Any = None
+        self._thread: threading.Thread | None = None
         self._busy = threading.Lock()  # held while the sensor's callback hands a frame over
         try:
             if recording is not None and not self.real_time:
-                stream = self._open_sensor(recording)
-                target = self._wait_for_end
+                stream = self._find_sensor(recording)
             else:
-                stream = self._open_pipeline(recording)
-                target = self._read
+                stream = self._resolve_pipeline(recording)
         except RuntimeError as e:
             raise InputError(f"RealSense: {e}") from e
         self.shape = (stream.height(), stream.width())
         intr = stream.get_intrinsics()
         self.intrinsics = (intr.fx, intr.fy, intr.ppx, intr.ppy)
+
+    def start(self) -> FrameSource:
+        """Start the stream (a recording starts playing, a camera streaming) and its reader;
+        returns ``self``. The shape and the intrinsics are known before (the engine can load
+        its kernels for them first, :func:`upsr.method.warmup.warm_up`)."""
+        if self._thread is not None:
+            return self
+        try:
+            if self._sensor is not None:
+                self._sensor.open(self._profile)
+                self._sensor.start(self._on_frame)
+                target = self._wait_for_end
+            else:
+                stream = self._start_pipeline()
+                if (stream.height(), stream.width()) != self.shape:  # pragma: no cover
+                    raise InputError(
+                        f"RealSense: the depth stream started at {stream.width()}x"
+                        f"{stream.height()}, not the resolved {self.shape[1]}x{self.shape[0]}"
+                    )
+                target = self._read
+        except RuntimeError as e:
+            raise InputError(f"RealSense: {e}") from e
         self._thread = threading.Thread(target=target, name="upsr-live-reader", daemon=True)
         self._thread.start()
+        return self
 
-    def _open_pipeline(self, recording: Path | None) -> Any:
-        """A camera, or a recording in real time: a pipeline read by :meth:`_read`."""
+    def _resolve_pipeline(self, recording: Path | None) -> Any:
+        """A camera, or a recording in real time: the depth profile a pipeline will stream
+        (resolved, not started: nothing plays yet)."""
         rs = self._rs
         cfg = rs.config()
         if recording is not None:
             cfg.enable_device_from_file(str(recording), repeat_playback=False)
         cfg.enable_stream(rs.stream.depth)
+        self._cfg = cfg
         self._pipe = rs.pipeline()
-        profile = self._pipe.start(cfg)
-        device = profile.get_device()
-        self._playback = device.as_playback() if recording is not None else None
-        if self._playback is not None:
-            self._playback.set_real_time(self.real_time)
+        profile = cfg.resolve(rs.pipeline_wrapper(self._pipe))
         return profile.get_stream(rs.stream.depth).as_video_stream_profile()
 
-    def _open_sensor(self, recording: Path) -> Any:
-        """A recording as fast as it is read: its depth sensor, whose callback blocks."""
+    def _start_pipeline(self) -> Any:
+        """Start the resolved pipeline (read by :meth:`_read`); its depth profile."""
+        profile = self._pipe.start(self._cfg)
+        if self.recording is not None:
+            self._playback = profile.get_device().as_playback()
+            self._playback.set_real_time(self.real_time)
+        return profile.get_stream(self._rs.stream.depth).as_video_stream_profile()
+
+    def _find_sensor(self, recording: Path) -> Any:
+        """A recording as fast as it is read: its depth sensor (opened by :meth:`start`),
+        whose callback blocks."""
         rs = self._rs
         device = rs.context().load_device(str(recording))
         self._playback = device.as_playback()
@@ -188,9 +231,7 @@ class FrameSource:
         for sensor in device.query_sensors():
             for prof in sensor.get_stream_profiles():
                 if prof.stream_type() == rs.stream.depth:
-                    self._sensor = sensor
-                    sensor.open(prof)
-                    sensor.start(self._on_frame)
+                    self._sensor, self._profile = sensor, prof
                     return prof.as_video_stream_profile()
         raise InputError(f"{recording}: no depth stream")
 
@@ -199,7 +240,8 @@ class FrameSource:
         import numpy as np
 
         mm = np.asanyarray(depth.get_data()).astype(np.float32)
-        mm *= np.float32(depth.get_units() * 1000.0)
+        # (the unit as a recording read by `upsr run` gives it: the same frames)
+        mm *= np.float32(self._units_mm(depth.get_units()))
         self.received += 1
         return mm, time.perf_counter()
 
@@ -280,7 +322,9 @@ class FrameSource:
                     return
 
     def __iter__(self) -> Iterator[tuple[Any, float]]:
-        """(frame mm, arrival time) in order, until the recording ends or :meth:`close`."""
+        """(frame mm, arrival time) in order, until the recording ends or :meth:`close`
+        (started first where :meth:`start` was not called)."""
+        self.start()
         while True:
             item = self._queue.get()
             if item is _END:
@@ -297,6 +341,8 @@ class FrameSource:
                 self._queue.get_nowait()
             except queue.Empty:
                 break
+        if self._thread is None:
+            return  # (never started: nothing streams)
         self._thread.join(timeout=5.0)
         try:
             if self._pipe is not None:
@@ -335,6 +381,7 @@ def live(
     from upsr.apps._camera import camera_motion_config
     from upsr.io import video as io
     from upsr.method.recursive import RecursiveUPSR
+    from upsr.method.warmup import warm_up
 
     cfg = config_from_options(
         scale,
@@ -348,57 +395,92 @@ def live(
     out_fmt = fmt(output_format)
     io.check_output_path([] if recording is None else [recording], output, overwrite, fmt=out_fmt)
     source = FrameSource(recording, real_time=not no_real_time)
-    if camera_motion is CameraMotion.depth:  # (the SDK's intrinsics of the depth stream)
-        cfg = camera_motion_config(cfg, source.intrinsics)
-    # each frame updates the state here, then is finished (deblurred, written, shown) on a
-    # helper thread while the next frame updates the state (RecursiveUPSR.push_async)
-    engine = RecursiveUPSR(config=cfg)
-    r = cfg.scale
+    stats: dict[str, Any] = {"done": 0, "latency_ms": [], "last_status": 0.0}
     start = time.perf_counter()
-    stats = {"done": 0, "latency_ms": 0.0, "last_status": 0.0}
-    submitted = 0
     try:
-        with io.VideoWriter(
-            output, fmt=out_fmt, depth_scale=depth_scale, overwrite=overwrite
-        ) as writer:
-
-            def emit(frame: Any, arrived: float, out: Any) -> None:
-                writer.write(out)
-                stats["done"] += 1
-                now = time.perf_counter()
-                stats["latency_ms"] = 1000.0 * (now - arrived)
-                done = stats["done"]
-                if preview is not None and (done == 1 or done % preview_every == 0):
-                    _write_preview(preview, frame, out, r, done)
-                if not quiet and now - stats["last_status"] > 0.25:
-                    _status(done, now - start, stats["latency_ms"], source.dropped)
-                    stats["last_status"] = now
-
-            try:
-                for frame, arrived in source:
-                    engine.push_async(frame, then=functools.partial(emit, frame, arrived))
-                    submitted += 1
-                    if (max_frames is not None and submitted >= max_frames) or (
-                        seconds is not None and time.perf_counter() - start >= seconds
-                    ):
-                        break
-            finally:
-                engine.wait()  # the last frame is written before the writer closes
-            if stats["done"] == 0:
-                raise InputError("no depth frame came from the RealSense source")
+        if camera_motion is CameraMotion.depth:  # (the SDK's intrinsics of the depth stream)
+            cfg = camera_motion_config(cfg, source.intrinsics)
+        h, w = source.shape
+        if not quiet:
+            sys.stderr.write(f"upsr live: loading the kernels for {w}x{h} frames ...")
+            sys.stderr.flush()
+        # before the stream starts: a new process's first frame would otherwise load them
+        # while the camera's next frames are dropped (upsr.method.warmup)
+        warm_up(cfg, source.shape)
+        # each frame updates the state here, then is finished (deblurred, written, shown) on
+        # a helper thread while the next frame updates the state (RecursiveUPSR.push_async)
+        engine = RecursiveUPSR(config=cfg)
+        r = cfg.scale
+        source.start()
+        start = time.perf_counter()
+        _stream(source, engine, output, out_fmt, depth_scale, overwrite, stats, start,
+                preview=preview, preview_every=preview_every, quiet=quiet,
+                max_frames=max_frames, seconds=seconds)  # fmt: skip
     finally:
         source.close()
         if not quiet:
             sys.stderr.write("\n")
     elapsed = time.perf_counter() - start
     done = stats["done"]
-    h, w = source.shape
     rate = done / elapsed if elapsed > 0 else float("inf")
+    lat = sorted(stats["latency_ms"])
     typer.echo(
         f"upsr live: {done} frames {w}x{h} -> {w * r}x{h * r} (r={r}, recursive) in "
-        f"{elapsed:.1f} s ({rate:.1f} frames/s, last latency {stats['latency_ms']:.0f} ms, "
-        f"{source.dropped} dropped) -> {output}"
+        f"{elapsed:.1f} s ({rate:.1f} frames/s, latency {lat[len(lat) // 2]:.0f} ms median, "
+        f"{lat[-1]:.0f} ms max, {source.dropped} dropped) -> {output}"
     )
+
+
+def _stream(
+    source: FrameSource,
+    engine: Any,
+    output: Path,
+    out_fmt: Any,
+    depth_scale: float,
+    overwrite: bool,
+    stats: dict[str, Any],
+    start: float,
+    *,
+    preview: Path | None,
+    preview_every: int,
+    quiet: bool,
+    max_frames: int | None,
+    seconds: float | None,
+) -> None:
+    """Super-resolve ``source``'s frames with ``engine`` into ``output`` until it ends (or
+    ``max_frames`` / ``seconds``); ``stats``: frames done, each one's latency (ms)."""
+    from upsr.io import video as io
+
+    r = engine.config.scale
+    submitted = 0
+    with io.VideoWriter(
+        output, fmt=out_fmt, depth_scale=depth_scale, overwrite=overwrite
+    ) as writer:
+
+        def emit(frame: Any, arrived: float, out: Any) -> None:
+            writer.write(out)
+            stats["done"] += 1
+            now = time.perf_counter()
+            stats["latency_ms"].append(1000.0 * (now - arrived))
+            done = stats["done"]
+            if preview is not None and (done == 1 or done % preview_every == 0):
+                _write_preview(preview, frame, out, r, done)
+            if not quiet and now - stats["last_status"] > 0.25:
+                _status(done, now - start, stats["latency_ms"][-1], source.dropped)
+                stats["last_status"] = now
+
+        try:
+            for frame, arrived in source:
+                engine.push_async(frame, then=functools.partial(emit, frame, arrived))
+                submitted += 1
+                if (max_frames is not None and submitted >= max_frames) or (
+                    seconds is not None and time.perf_counter() - start >= seconds
+                ):
+                    break
+        finally:
+            engine.wait()  # the last frame is written before the writer closes
+        if stats["done"] == 0:
+            raise InputError("no depth frame came from the RealSense source")
 
 
 def _status(done: int, elapsed: float, latency_ms: float, dropped: int) -> None:

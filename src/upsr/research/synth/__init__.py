@@ -14,6 +14,7 @@ from upsr.research.synth.degradation import (
     tof_footprint,
 )
 from upsr.research.synth.realistic import RealisticVideo, degrade, make_realistic
+from upsr.research.synth.recording import write_realsense_recording
 from upsr.research.synth.scenes import DynamicScene, SyntheticVideo, dynamic_scene, make_scene
 
 __all__ = [
@@ -33,4 +34,5 @@ __all__ = [
     "projector_shadows",
     "quantise_disparity",
     "tof_footprint",
+    "write_realsense_recording",
 ]
