@@ -95,20 +95,24 @@ def main(argv: Sequence[str] | None = None) -> dict[str, Any]:
             rows.append({"case": label, "recorded": args.frames, **runs[len(runs) // 2]})
             rows[-1]["runs"] = runs
             print(f"  {label}: done", flush=True)
-    print(f"\nupsr live, SDK recordings of {args.frames} frames played in real time at {FPS}/s")
-    print(
-        f"{'case':<28} {'processed':>9} {'dropped':>7} {'frames/s':>8} {'latency median':>14} "
-        f"{'max':>6}   runs (processed / dropped)"
-    )
+    lines = [
+        f"upsr live, SDK recordings of {args.frames} frames played in real time at {FPS}/s",
+        "",
+        "| case | processed | dropped | frames/s | latency median | max | runs (processed / "
+        "dropped) |",
+        "|---|---|---|---|---|---|---|",
+    ]
     for row in rows:
         each = ", ".join(f"{x['frames']}/{x['dropped']}" for x in row["runs"])
-        print(
-            f"{row['case']:<28} {row['frames']:>9} {row['dropped']:>7} {row['fps']:>8.1f} "
-            f"{_ms(row['latency_median_ms']):>14} {_ms(row['latency_max_ms']):>6}   {each}"
+        lines.append(
+            f"| {row['case']} | {row['frames']} | {row['dropped']} | {row['fps']:.1f} | "
+            f"{_ms(row['latency_median_ms'])} | {_ms(row['latency_max_ms'])} | {each} |"
         )
+    print("\n" + "\n".join(lines))
     args.out.mkdir(parents=True, exist_ok=True)
     result = {"fps_recorded": FPS, "frames": args.frames, "rows": rows}
     (args.out / "results.json").write_text(json.dumps(result, indent=2))
+    (args.out / "results.md").write_text("\n".join(lines) + "\n")
     return result
 
 
