@@ -130,6 +130,18 @@ def test_bad_mode_and_input():
         list(engine.process(np.zeros((3, 8, 8))))
 
 
+@pytest.mark.parametrize("workers", [0, 1])
+def test_a_video_that_ends_in_empty_frames_is_finished(workers):
+    """A lens covered at the end (or a camera inside an object): the state holds over the
+    empty frames with its count halved each, then is forgotten (0), and the video is not
+    refused (the last state, not every frame, was empty)."""
+    _, video = _wall(12, 10.0, shape=(12, 16))
+    video[4:] = 0.0
+    outs = list(RecursiveUPSR(scale=2, workers=workers).process(video))
+    assert len(outs) == 12 and (outs[3] > 0).all()
+    assert not outs[-1].any()
+
+
 def test_memory_is_independent_of_n_and_of_the_video_length():
     _, video = _wall(40, 10.0, shape=(12, 16))
 

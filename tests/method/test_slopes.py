@@ -257,3 +257,14 @@ def test_the_rims_of_a_surface_keep_their_anchor():
     np.testing.assert_array_equal(plane_anchor(low, anchor, 100.0), anchor)
     with pytest.raises(ValueError, match="shape"):
         plane_anchor(low, anchor[:-1], 100.0)
+
+
+def test_a_block_never_follows_its_slope_through_the_camera():
+    """A steep slope a few mm away (a sensor's stray near values): its first block would reach
+    1 − 0.375 × 40 = −14 mm; it keeps its depth, the others follow the slope."""
+    low = np.array([[1.0, 41.0, 81.0, 121.0]] * 3)
+    up = np.repeat(np.repeat(low, 2, axis=0), 2, axis=1)
+    out = follow_slopes(up, low, sigma_mm=0.0, edge_mm=100.0)
+    assert (out > 0).all()
+    assert out[2, :2].tolist() == [1.0, 1.0]
+    assert out[2, 2:6].tolist() == [31.0, 51.0, 71.0, 91.0]

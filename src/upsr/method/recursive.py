@@ -461,6 +461,7 @@ class RecursiveUPSR(TwoStagePipeline):
         self._estimator = "mean" if cfg.fusion_estimator == "auto" else cfg.fusion_estimator
         self._remove_mixed = cfg.remove_mixed is True
         self._mixes = np.zeros(2)  # footprint_counts of the frames so far (remove_mixed="auto")
+        self._any_valid = False  # (a video may end in empty frames, a lens covered)
         self._reset_pipeline()
 
     @property
@@ -547,6 +548,7 @@ class RecursiveUPSR(TwoStagePipeline):
                 f"frame {t}: shape {f.shape} differs from the first frame's {self._shape}"
             )
         front = self._front
+        self._any_valid = self._any_valid or bool((f > 0).any())
         if cfg.remove_mixed == "auto" and t < cfg.n_frames:
             # does the sensor mix? The first N frames pooled as they arrive (one: too few edges)
             self._mixes += footprint_counts(f, front.edge_mm)
@@ -654,15 +656,9 @@ class RecursiveUPSR(TwoStagePipeline):
                 # the mixed pixels the state did not fill: split between their neighbours
                 # (in the output only, the state holds measurements)
                 fused = split_mixed_pixels(
-                    fused,
-                    f,
-                    meas,
-                    anchor,
-                    keep_mean=True,
+                    fused, f, meas, anchor, keep_mean=True, thin_parts=cfg.thin_parts, thin=thin,
                     edge_mm=self._front.edge_mm,  # type: ignore[union-attr]
-                    thin_parts=cfg.thin_parts,
-                    thin=thin,
-                )
+                )  # fmt: skip
             return finish_frame(
                 finish_fused(
                     fused,
@@ -693,7 +689,7 @@ class RecursiveUPSR(TwoStagePipeline):
         """
         try:
             self.wait()
-            if self._count and self._depth is not None and not (self._depth > 0).any():
+            if self._count and not self._any_valid:
                 raise InputError("no valid depth in any frame (all pixels are 0 or NaN)")
             return []
         finally:

@@ -362,6 +362,14 @@ def _follow_kernel(depth, anchor, sy, sx, scale, sigma, out):  # pragma: no cove
                     ty += e * d[b]
             cx = gx - tx / dd if use_x else 0.0
             cy = gy - ty / dd if use_y else 0.0
+            # never through the camera: a block a few mm away on a steep slope (a sensor's
+            # stray near values) keeps its depths rather than reach 0 or below
+            low = np.inf
+            for b in range(r):
+                for c in range(r):
+                    low = min(low, depth[i * r + b, j * r + c] + cx * d[c] + cy * d[b])
+            if not low > 0:
+                continue
             for b in range(r):
                 for c in range(r):
                     y = i * r + b
