@@ -193,3 +193,29 @@ def test_live_loads_the_kernels_before_the_stream_starts(tmp_path, capsys, monke
     )
     assert rc == 0, err
     assert events[:2] == [("warm up", "recursive", (40, 48)), ("start", 0)]
+
+
+@needs_sdk
+def test_ctrl_c_ends_the_stream_and_keeps_what_was_processed(tmp_path, capsys, monkeypatch):
+    """A camera has no end: Ctrl-C stops it, and the output holds the frames processed so far
+    (the first five here), as `upsr run --recursive` gives them; exit status 0."""
+    from upsr.apps.cli import live as live_cli
+
+    frames = live_cli.FrameSource.__iter__
+
+    def interrupted(self):
+        for k, item in enumerate(frames(self)):
+            if k == 5:
+                raise KeyboardInterrupt
+            yield item
+
+    monkeypatch.setattr(live_cli.FrameSource, "__iter__", interrupted)
+    out = tmp_path / "live.npy"
+    rc, stdout, err = run_cli(capsys, "live", FIXTURE, "--no-real-time", "-o", out, "-r", "2", "-q")
+    assert rc == 0, err
+    assert "5 frames 48x40" in stdout and "stopped by Ctrl-C" in stdout
+    np.save(tmp_path / "in.npy", _frames()[:5].astype(np.float32))
+    ref = tmp_path / "run.npy"
+    rc, _, err = run_cli(capsys, "run", tmp_path / "in.npy", "-o", ref, "-r", "2", "--recursive")
+    assert rc == 0, err
+    np.testing.assert_array_equal(np.load(out), np.load(ref))

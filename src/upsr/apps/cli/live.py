@@ -376,7 +376,9 @@ def live(
 ) -> None:
     """Super-resolve a RealSense camera or recording live (recursive mode, latency 0).
 
-    Prints one summary line on stdout; the live status line goes to stderr.
+    Runs until the recording ends, --max-frames or --seconds, or Ctrl-C: the output then holds
+    every frame processed so far (a second Ctrl-C while they finish writes nothing). Prints
+    one summary line on stdout; the live status line goes to stderr.
     """
     from upsr.apps._camera import camera_motion_config
     from upsr.io import video as io
@@ -428,6 +430,7 @@ def live(
         f"upsr live: {done} frames {w}x{h} -> {w * r}x{h * r} (r={r}, recursive) in "
         f"{elapsed:.1f} s ({rate:.1f} frames/s, latency {lat[len(lat) // 2]:.0f} ms median, "
         f"{lat[-1]:.0f} ms max, {source.dropped} dropped) -> {output}"
+        + (" (stopped by Ctrl-C)" if stats.get("stopped") else "")
     )
 
 
@@ -477,6 +480,10 @@ def _stream(
                     seconds is not None and time.perf_counter() - start >= seconds
                 ):
                     break
+        except KeyboardInterrupt:
+            # Ctrl-C ends a live stream, as the end of a recording does: the frames processed
+            # so far are written (a second Ctrl-C, while they finish, leaves no output)
+            stats["stopped"] = True
         finally:
             engine.wait()  # the last frame is written before the writer closes
         if stats["done"] == 0:
