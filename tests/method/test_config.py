@@ -104,3 +104,10 @@ def test_speckle_size_is_one_lowres_pixel_by_default():
 def test_bad_flow_grid_options_are_rejected(options):
     with pytest.raises(InputError):
         UPSRConfig(scale=4, **options)
+
+
+@pytest.mark.parametrize("bad", [(3000, 100), (-1, 5), (0, float("inf")), "x", (1, 2, 3)])
+def test_valid_range_checked(bad):
+    with pytest.raises(InputError, match="valid_range_mm"):
+        UPSRConfig(valid_range_mm=bad)
+    assert UPSRConfig(valid_range_mm=[100, 5000]).valid_range_mm == (100.0, 5000.0)

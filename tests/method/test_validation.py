@@ -41,3 +41,11 @@ def test_one_empty_frame_is_fine():
     v = np.ones((3, 4, 4))
     v[1] = 0
     assert as_depth_video(v).shape == (3, 4, 4)
+
+
+def test_depths_outside_the_valid_range_are_no_measurement():
+    frame = np.array([[50.0, 100.0, 2000.0], [65535.0, 0.0, np.nan]])
+    out = as_depth_frame(frame, valid_range_mm=(100.0, 10000.0))
+    assert out.tolist() == [[0.0, 100.0, 2000.0], [0.0, 0.0, 0.0]]
+    with pytest.raises(InputError, match="outside 70000-80000 mm"):
+        as_depth_video(frame[None], valid_range_mm=(70000.0, 80000.0))

@@ -138,6 +138,19 @@ class DeblurConfig:
         )
 
 
+def _valid_range(value: Any) -> tuple[float, float]:
+    """``valid_range_mm`` as (min, max) floats, checked (InputError)."""
+    try:
+        lo, hi = (float(v) for v in value)
+    except (TypeError, ValueError):
+        raise InputError("valid_range_mm must be (min, max) in mm or None") from None
+    _check(
+        math.isfinite(lo) and math.isfinite(hi) and 0 <= lo < hi,
+        f"valid_range_mm must be finite with 0 <= min < max, got ({lo:g}, {hi:g})",
+    )
+    return lo, hi
+
+
 @dataclass(frozen=True)
 class UPSRConfig:
     """Parameters of UP-SR (paper Table 1).
@@ -339,6 +352,11 @@ class UPSRConfig:
     camera_intrinsics : (fx, fy, cx, cy) or None
         Intrinsics (px) of the low-res frames, pixel (i, j) centred at (u, v) = (j, i); needed
         by ``camera_motion="depth"``.
+    valid_range_mm : (float, float) or None
+        Beyond the paper. (min, max) mm: the frames' depths outside are no measurement (0),
+        as a depth camera SDK's threshold filter makes them: a sensor's stray near or far
+        values (a RealSense reports up to 65.535 m) then never vote, and the output is 0
+        there unless other frames measured it. None: every depth > 0 counts.
     deblur : DeblurConfig
         Deblurring parameters (eq. 29–30).
     """
@@ -378,6 +396,7 @@ class UPSRConfig:
     mode: str = "windowed"
     camera_motion: str = "flow"
     camera_intrinsics: tuple[float, float, float, float] | None = None
+    valid_range_mm: tuple[float, float] | None = None
     deblur: DeblurConfig = field(default_factory=DeblurConfig)
 
     def __post_init__(self) -> None:
@@ -470,6 +489,8 @@ class UPSRConfig:
                 "camera_intrinsics must be finite with fx, fy > 0",
             )
             object.__setattr__(self, "camera_intrinsics", (fx, fy, cx, cy))
+        if self.valid_range_mm is not None:
+            object.__setattr__(self, "valid_range_mm", _valid_range(self.valid_range_mm))
         if self.camera_motion == "depth":
             _check(
                 self.camera_intrinsics is not None,

@@ -125,7 +125,7 @@ from upsr.method.trust import (
     reference_anchor,
     state_significance,
 )
-from upsr.method.validation import as_depth_frame
+from upsr.method.validation import as_depth_frame, no_valid_depth
 from upsr.method.windowed import STAGES
 
 __all__ = [
@@ -533,7 +533,7 @@ class RecursiveUPSR(TwoStagePipeline):
         t = self._count
         cfg = self.config
         r = cfg.scale
-        f = as_depth_frame(frame, name=f"frame {t}")
+        f = as_depth_frame(frame, name=f"frame {t}", valid_range_mm=cfg.valid_range_mm)
         if self._front is None:
             self._shape = f.shape
             self._front = MotionFrontEnd(
@@ -690,7 +690,7 @@ class RecursiveUPSR(TwoStagePipeline):
         try:
             self.wait()
             if self._count and not self._any_valid:
-                raise InputError("no valid depth in any frame (all pixels are 0 or NaN)")
+                raise InputError(no_valid_depth(self.config.valid_range_mm))
             return []
         finally:
             self.reset()

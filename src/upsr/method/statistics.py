@@ -29,6 +29,7 @@ from upsr.method.noise import (
     tail_ratio,
     temporal_noise_mm,
 )
+from upsr.method.validation import within_range
 
 __all__ = ["VideoStatistics", "fix_video_statistics", "pinned_config", "trust_profile"]
 
@@ -123,6 +124,8 @@ def pinned_config(first_frames: np.ndarray, cfg: UPSRConfig) -> UPSRConfig:
     A chunk of a video run with this config gives exactly what the whole run gives for its
     frames (``upsr batch`` splits long recordings so).
     """
+    if cfg.valid_range_mm is not None:  # (the frames as the engine will see them)
+        first_frames = within_range(np.array(first_frames, np.float32), cfg.valid_range_mm)
     front = MotionFrontEnd(cfg, first_frames.shape[-1])
     stats = fix_video_statistics(front, first_frames, cfg)
     return dataclasses.replace(

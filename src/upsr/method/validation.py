@@ -11,14 +11,19 @@ import numpy.typing as npt
 
 from upsr.errors import InputError
 
-__all__ = ["MAX_DEPTH_MM", "as_depth_frame", "as_depth_video"]
+__all__ = ["MAX_DEPTH_MM", "as_depth_frame", "as_depth_video", "no_valid_depth", "within_range"]
 
 #: Largest depth accepted (mm): 1 km. Depth cameras measure metres; a larger value is a unit
 #: error or garbage (and 1e38 mm overflows float32 arithmetic into ±inf downstream).
 MAX_DEPTH_MM = 1e6
 
 
-def as_depth_frame(frame: npt.ArrayLike, *, name: str = "frame") -> np.ndarray:
+def as_depth_frame(
+    frame: npt.ArrayLike,
+    *,
+    name: str = "frame",
+    valid_range_mm: tuple[float, float] | None = None,
+) -> np.ndarray:
     """Return ``frame`` as a float32 (h, w) depth map in mm with invalid pixels set to 0.
 
     Parameters
@@ -27,6 +32,9 @@ def as_depth_frame(frame: npt.ArrayLike, *, name: str = "frame") -> np.ndarray:
         (h, w) depth in mm, float or unsigned/signed integer; 0 or NaN = no measurement.
     name : str
         How to call the array in error messages.
+    valid_range_mm : (float, float), optional
+        (min, max): depths outside are no measurement (0), as a depth camera SDK's
+        threshold filter makes them (``UPSRConfig.valid_range_mm``).
 
     Raises
     ------
@@ -59,10 +67,26 @@ def as_depth_frame(frame: npt.ArrayLike, *, name: str = "frame") -> np.ndarray:
             f"{name}: depth {big:.3g} mm is beyond {MAX_DEPTH_MM:g} mm (1 km): wrong units "
             f"or corrupt data"
         )
+    return within_range(out, valid_range_mm)
+
+
+def within_range(depth: np.ndarray, valid_range_mm: tuple[float, float] | None) -> np.ndarray:
+    """``depth`` (mm, any shape) with the depths outside ``valid_range_mm`` = (min, max) set to
+    0 (no measurement; in place where it is float32); unchanged for None."""
+    if valid_range_mm is None:
+        return depth
+    lo, hi = valid_range_mm
+    out = np.asarray(depth, np.float32)
+    out[(out < lo) | (out > hi)] = 0.0
     return out
 
 
-def as_depth_video(frames: npt.ArrayLike, *, name: str = "input") -> np.ndarray:
+def as_depth_video(
+    frames: npt.ArrayLike,
+    *,
+    name: str = "input",
+    valid_range_mm: tuple[float, float] | None = None,
+) -> np.ndarray:
     """Return ``frames`` as a float32 (T, h, w) depth video in mm, invalid pixels set to 0.
 
     A single (h, w) frame is not accepted: a video is 3-D. Individual empty (all-invalid)
@@ -71,7 +95,8 @@ def as_depth_video(frames: npt.ArrayLike, *, name: str = "input") -> np.ndarray:
     Raises
     ------
     InputError
-        Wrong shape or dtype, NaN-free ±inf, negative depths, no valid depth anywhere.
+        Wrong shape or dtype, NaN-free ±inf, negative depths, no valid depth anywhere (within
+        ``valid_range_mm``, see :func:`as_depth_frame`).
     """
     arr = np.asarray(frames)
     if arr.dtype == object:
@@ -84,7 +109,15 @@ def as_depth_video(frames: npt.ArrayLike, *, name: str = "input") -> np.ndarray:
         raise InputError(f"{name}: empty depth video of shape {arr.shape}")
     out = np.empty(arr.shape, np.float32)
     for t in range(arr.shape[0]):
-        out[t] = as_depth_frame(arr[t], name=f"{name} frame {t}")
+        out[t] = as_depth_frame(arr[t], name=f"{name} frame {t}", valid_range_mm=valid_range_mm)
     if not (out > 0).any():
-        raise InputError(f"{name}: no valid depth in any frame (all pixels are 0 or NaN)")
+        raise InputError(f"{name}: {no_valid_depth(valid_range_mm)}")
     return out
+
+
+def no_valid_depth(valid_range_mm: tuple[float, float] | None = None) -> str:
+    """The error of a video without any valid depth (within ``valid_range_mm``)."""
+    if valid_range_mm is None:
+        return "no valid depth in any frame (all pixels are 0 or NaN)"
+    lo, hi = valid_range_mm
+    return f"no valid depth in any frame (all pixels are 0 or NaN, or outside {lo:g}-{hi:g} mm)"

@@ -70,7 +70,7 @@ from upsr.method.trust import (
     radial_offsets,
     reference_anchor,
 )
-from upsr.method.validation import as_depth_frame, as_depth_video
+from upsr.method.validation import as_depth_frame, as_depth_video, no_valid_depth
 
 __all__ = [
     "STAGES",
@@ -243,7 +243,7 @@ class UPSR:
     def _ingest(self, frame: npt.ArrayLike) -> None:
         t = self._count
         cfg = self.config
-        f = as_depth_frame(frame, name=f"frame {t}")
+        f = as_depth_frame(frame, name=f"frame {t}", valid_range_mm=self.config.valid_range_mm)
         if self._front is None:
             self._shape = f.shape
             self._front = MotionFrontEnd(
@@ -537,7 +537,7 @@ class UPSR:
                     f"only {self._count} frame(s)"
                 )
             if not self._any_valid:
-                raise InputError("no valid depth in any frame (all pixels are 0 or NaN)")
+                raise InputError(no_valid_depth(self.config.valid_range_mm))
             self._submit_ready(self._count, ahead=self._count)
             return [self._take(self._count) for _ in range(self._next_out, self._count)]
         finally:
@@ -636,7 +636,7 @@ def super_resolve(
         Bad data (shape, dtype, ±inf, negative depth, no valid depth) or parameters.
     """
     cfg = config if config is not None else UPSRConfig.from_options(scale, n_frames, **options)
-    video = as_depth_video(frames)
+    video = as_depth_video(frames, valid_range_mm=cfg.valid_range_mm)
     t_total, h, w = video.shape
     if cfg.mode == "windowed" and cfg.n_frames > t_total:
         raise InputError(

@@ -619,7 +619,7 @@ def super_resolve_straightforward(frames: npt.ArrayLike, config: UPSRConfig) -> 
     from upsr.method.windowed import window_start
 
     cfg = config
-    video = as_depth_video(frames)
+    video = as_depth_video(frames, valid_range_mm=cfg.valid_range_mm)
     t_total, h, w = video.shape
     r, n = cfg.scale, cfg.n_frames
     # UP-SR's motion front-end on the full r grid, DIS flow_preset everywhere, the prefilter

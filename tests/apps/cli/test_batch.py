@@ -134,3 +134,36 @@ def test_batch_camera_motion_option(tmp_path: Path, capsys) -> None:
     capsys.readouterr()
     assert main(["batch", str(tmp_path / "a.npy"), "--out", str(tmp_path / "o2"), *common]) == 2
     assert "needs the camera's intrinsics" in capsys.readouterr().err
+
+
+def test_batch_and_run_valid_range(tmp_path: Path, capsys) -> None:
+    """``--valid-range MIN,MAX``: a sensor's stray far values (65535 mm) are no measurement;
+    ``upsr run`` equals the same video with them set to 0, ``upsr batch`` equals ``upsr run``;
+    a bad range is one line."""
+    rng = np.random.default_rng(0)
+    ys, xs = np.mgrid[0:20, 0:24].astype(np.float32)
+    video = np.stack([2000 + 5 * xs + 3 * ys + rng.normal(0, 5, xs.shape) for _ in range(6)])
+    stray = rng.random(video.shape) < 0.02
+    np.save(tmp_path / "a.npy", np.where(stray, 65535.0, video).astype(np.float32))
+    np.save(tmp_path / "clean.npy", np.where(stray, 0.0, video).astype(np.float32))
+    common = ["-r", "2", "-n", "3", "-q"]
+    for mode in ([], ["--recursive"]):
+        out, ref = tmp_path / f"run{len(mode)}.npy", tmp_path / f"ref{len(mode)}.npy"
+        run = ["run", str(tmp_path / "a.npy"), "-o", str(out), *common, *mode]
+        assert main([*run, "--valid-range", "100,10000"]) == 0
+        assert main(["run", str(tmp_path / "clean.npy"), "-o", str(ref), *common, *mode]) == 0
+        np.testing.assert_array_equal(np.load(out), np.load(ref))
+        assert np.load(out).max() < 3000
+    batch = ["batch", str(tmp_path / "a.npy"), "--out", str(tmp_path / "out"), "-w", "1"]
+    assert main([*batch, *common, "--valid-range", "100,10000"]) == 0
+    batched = np.load(tmp_path / "out" / "a.npy")
+    np.testing.assert_array_equal(batched, np.load(tmp_path / "run0.npy"))
+    capsys.readouterr()
+    run = ["run", str(tmp_path / "a.npy"), "-o", str(tmp_path / "o.npy"), *common]
+    for bad, message in (("4000,300", "0 <= min < max"), ("1,2,3", "MIN,MAX"), ("x", "MIN,MAX")):
+        assert main([*run, "--valid-range", bad]) == 2
+        err = capsys.readouterr().err
+        assert message in err and len(err.strip().splitlines()) == 1
+    assert main([*run, "--valid-range", "70000,80000"]) == 2
+    assert "outside 70000-80000 mm" in capsys.readouterr().err
+    assert not (tmp_path / "o.npy").exists()

@@ -219,3 +219,18 @@ def test_ctrl_c_ends_the_stream_and_keeps_what_was_processed(tmp_path, capsys, m
     rc, _, err = run_cli(capsys, "run", tmp_path / "in.npy", "-o", ref, "-r", "2", "--recursive")
     assert rc == 0, err
     np.testing.assert_array_equal(np.load(out), np.load(ref))
+
+
+@needs_sdk
+def test_live_valid_range_as_run(tmp_path, capsys):
+    """--valid-range 1500,5000 drops the recording's box (1.3 m) as `upsr run` does."""
+    out, ref = tmp_path / "live.npy", tmp_path / "run.npy"
+    common = ["-r", "2", "-q", "--valid-range", "1500,5000"]
+    rc, _, err = run_cli(capsys, "live", FIXTURE, "--no-real-time", "-o", out, *common)
+    assert rc == 0, err
+    np.save(tmp_path / "in.npy", _frames().astype(np.float32))
+    rc, _, err = run_cli(capsys, "run", tmp_path / "in.npy", "-o", ref, "--recursive", *common)
+    assert rc == 0, err
+    live = np.load(out)
+    np.testing.assert_array_equal(live, np.load(ref))
+    assert live.max() < 2500 and (live[:, 24:52, 12:32] == 0).any()  # (where the box was)

@@ -51,6 +51,7 @@ from upsr.apps.cli.options import (
     OutFormat,
     QuietOpt,
     ScaleOpt,
+    ValidRangeOpt,
     config_from_options,
     fmt,
 )
@@ -371,6 +372,7 @@ def live(
     max_frames: MaxFramesOpt = None,
     seconds: SecondsOpt = None,
     camera_motion: CameraMotionOpt = CameraMotion.flow,
+    valid_range: ValidRangeOpt = None,
     overwrite: LiveOverwriteOpt = False,
     quiet: QuietOpt = False,
 ) -> None:
@@ -393,6 +395,7 @@ def live(
         flow_scale=flow_scale,
         no_deblur=no_deblur,
         recursive=True,
+        valid_range=valid_range,
     )
     out_fmt = fmt(output_format)
     io.check_output_path([] if recording is None else [recording], output, overwrite, fmt=out_fmt)

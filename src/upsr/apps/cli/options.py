@@ -418,6 +418,16 @@ TrustKOpt = Annotated[
         f"[default: {_D['trust_k']:g}].",
     ),
 ]
+ValidRangeOpt = Annotated[
+    str | None,
+    typer.Option(
+        "--valid-range",
+        metavar="MIN,MAX",
+        help="Depths (mm) outside MIN..MAX are no measurement, as a depth camera SDK's "
+        "threshold filter makes them (a sensor's stray near or far values) [default: every "
+        "depth > 0].",
+    ),
+]
 NoTrustOpt = Annotated[
     bool,
     typer.Option("--no-trust", help="No trust test: the paper's plain median (eq. 28)."),
@@ -524,6 +534,7 @@ def config_from_options(
     no_slopes: bool = False,
     no_edge_votes: bool = False,
     no_thin_parts: bool = False,
+    valid_range: str | None = None,
 ) -> UPSRConfig:
     """The :class:`UPSRConfig` of the method options shared by ``upsr run`` and ``upsr batch``
     (``None``: the default; ``frames=None``: N = 9)."""
@@ -583,7 +594,23 @@ def config_from_options(
         options["edge_votes"] = False
     if no_thin_parts:
         options["thin_parts"] = False
+    if valid_range is not None:
+        options["valid_range_mm"] = parse_valid_range(valid_range)
     return UPSRConfig.from_options(scale, DEFAULT_FRAMES if frames is None else frames, **options)
+
+
+def parse_valid_range(text: str) -> tuple[float, float]:
+    """``--valid-range MIN,MAX`` (mm) as two numbers (checked by :class:`UPSRConfig`)."""
+    from upsr.errors import InputError
+
+    parts = str(text).split(",")
+    try:
+        lo, hi = (float(p) for p in parts)
+    except ValueError:
+        raise InputError(
+            f"--valid-range must be MIN,MAX in mm (e.g. 300,4000), got {text!r}"
+        ) from None
+    return lo, hi
 
 
 def method_config(values: dict[str, Any]) -> UPSRConfig:
@@ -625,6 +652,7 @@ METHOD_OPTIONS: tuple[tuple[str, Any, Any], ...] = (
     ("no_slopes", NoSlopesOpt, False),
     ("no_edge_votes", NoEdgeVotesOpt, False),
     ("no_thin_parts", NoThinPartsOpt, False),
+    ("valid_range", ValidRangeOpt, None),
 )
 
 
