@@ -141,6 +141,10 @@ def test_live_bad_recording(tmp_path, capsys):
     )
     assert_user_error(rc, out, err, "no such recording")
     assert not (tmp_path / "o.npy").exists()
+    (tmp_path / "dir.db3").mkdir()
+    for odd in (tmp_path / "dir.db3", Path("/dev/null")):
+        rc, out, err = run_cli(capsys, "live", odd, "-o", tmp_path / "o.npy", "-r", "2")
+        assert_user_error(rc, out, err, "not a regular file")
 
 
 @needs_sdk

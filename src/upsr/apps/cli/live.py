@@ -157,7 +157,8 @@ class FrameSource:
         self._stop = threading.Event()
         self._error: BaseException | None = None
         if recording is not None and not Path(recording).is_file():
-            raise InputError(f"{recording}: no such recording")
+            what = "not a regular file" if Path(recording).exists() else "no such recording"
+            raise InputError(f"{recording}: {what}")
         self._pipe: Any = None
         self._cfg: Any = None
         self._sensor: Any = None
