@@ -512,6 +512,8 @@ def test_writer_frame_count_and_shape_checks(tmp_path: Path) -> None:
         w.write(-v[0])
     with pytest.raises(InputError, match="unknown output format"):
         io.VideoWriter(tmp_path / "a.mp4")
+    with pytest.raises(InputError, match="--format rosbag: a ROS 2 bag folder"):
+        io.VideoWriter(tmp_path / "a.db3")
     with pytest.raises(InputError, match="depth_scale"):
         io.VideoWriter(tmp_path / "a", depth_scale=0)
     assert listing(tmp_path) == []

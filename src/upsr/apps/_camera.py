@@ -16,7 +16,7 @@ from typing import Any
 from upsr.errors import InputError
 from upsr.method.config import UPSRConfig
 
-__all__ = ["camera_motion_config", "input_camera"]
+__all__ = ["camera_motion_config", "input_camera", "intrinsics_sidecar"]
 
 
 def camera_motion_config(cfg: UPSRConfig, camera: Any, where: str = "") -> UPSRConfig:
@@ -74,3 +74,18 @@ def input_camera(
             f"{info.width}x{info.height}"
         )
     return cam
+
+
+def intrinsics_sidecar(
+    camera: Any, scale: int, stamps: Any = None, names: list[str] | None = None
+) -> str | None:
+    """The text of ``OUTPUT.intrinsics.json`` for an output super-resolved by ``scale`` from
+    frames of ``camera`` (None without intrinsics), with the frames' timestamps (ns) and
+    names where known (``upsr run``, ``upsr batch``, ``upsr live``)."""
+    if camera is None:
+        return None
+    from upsr.geometry.intrinsics import intrinsics_text
+
+    return intrinsics_text(
+        camera.scaled(scale), source=camera, scale=scale, timestamps_ns=stamps, frame_names=names
+    )

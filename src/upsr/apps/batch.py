@@ -203,7 +203,7 @@ def _assemble(
 ) -> None:
     """Write the output of ``rec`` from its chunks, with its intrinsics sidecar (published
     with the video: a failing sidecar leaves no complete-looking output)."""
-    from upsr.geometry.intrinsics import intrinsics_text
+    from upsr.apps._camera import intrinsics_sidecar
     from upsr.io import video as io
 
     out_cam = None if rec.camera is None else rec.camera.scaled(cfg.scale)
@@ -217,14 +217,8 @@ def _assemble(
         timestamps_ns=rec.timestamps,
         camera=out_cam,
     ) as writer:
-        if out_cam is not None:
-            text = intrinsics_text(
-                out_cam,
-                source=rec.camera,
-                scale=cfg.scale,
-                timestamps_ns=rec.timestamps,
-                frame_names=rec.frame_names,
-            )
+        text = intrinsics_sidecar(rec.camera, cfg.scale, rec.timestamps, rec.frame_names)
+        if text is not None:
             writer.add_sidecar(io.intrinsics_path(rec.output), text)
         for spec in rec.chunks:
             part = np.load(spec["part"], mmap_mode="r", allow_pickle=False)

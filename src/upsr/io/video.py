@@ -143,9 +143,10 @@ def _output_format(path: Path, fmt: str | None) -> str:
         return "exr"
     if suffix == "" or path.is_dir():
         return "png"
+    bag = " (--format rosbag: a ROS 2 bag folder)" if suffix in (".db3", ".bag", ".mcap") else ""
     raise InputError(
         f"{path}: unknown output format {path.suffix!r}: use a .npy, .npz, .tif or .exr file "
-        f"or a folder name (no suffix) for 16-bit PNG frames (--format exr: EXR frames)"
+        f"or a folder name (no suffix) for 16-bit PNG frames (--format exr: EXR frames){bag}"
     )
 
 

@@ -238,3 +238,28 @@ def test_live_valid_range_as_run(tmp_path, capsys):
     live = np.load(out)
     np.testing.assert_array_equal(live, np.load(ref))
     assert live.max() < 2500 and (live[:, 24:52, 12:32] == 0).any()  # (where the box was)
+
+
+@needs_sdk
+def test_live_writes_a_ros2_bag_with_the_scaled_intrinsics_as_run_does(tmp_path, capsys):
+    """A ROS 2 bag output (whose SQLite connection belongs to the thread that opened it: the
+    frames finished on the engine's helper thread are written on the caller's) carries the
+    SDK's intrinsics scaled by r, and so does OUTPUT.intrinsics.json, as `upsr run` writes
+    them for the same recording."""
+    from upsr.io import read_intrinsics, read_video
+
+    bag, npy, ref = tmp_path / "bag", tmp_path / "live.npy", tmp_path / "run.npy"
+    common = ["-r", "2", "-q"]
+    live = ["live", FIXTURE, "--no-real-time", *common]
+    rc, _, err = run_cli(capsys, *live, "-o", bag, "--format", "rosbag")
+    assert rc == 0, err
+    rc, _, err = run_cli(capsys, *live, "-o", npy)
+    assert rc == 0, err
+    rc, _, err = run_cli(capsys, "run", FIXTURE, "-o", ref, "--recursive", *common)
+    assert rc == 0, err
+    # (a ROS 2 depth image holds float32 metres: within 1e-3 mm)
+    np.testing.assert_allclose(read_video(bag), np.load(ref), rtol=0, atol=1e-3)
+    np.testing.assert_array_equal(np.load(npy), np.load(ref))
+    want = read_intrinsics(ref)
+    assert (want.fx, want.cx, want.width) == (80.0, 47.5, 96)
+    assert read_intrinsics(bag) == want and read_intrinsics(npy) == want

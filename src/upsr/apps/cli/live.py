@@ -384,6 +384,7 @@ def live(
     one summary line on stdout; the live status line goes to stderr.
     """
     from upsr.apps._camera import camera_motion_config
+    from upsr.geometry.camera import PinholeCamera
     from upsr.io import video as io
     from upsr.method.recursive import RecursiveUPSR
     from upsr.method.warmup import warm_up
@@ -417,9 +418,10 @@ def live(
         # a helper thread while the next frame updates the state (RecursiveUPSR.push_async)
         engine = RecursiveUPSR(config=cfg)
         r = cfg.scale
+        camera = PinholeCamera(*source.intrinsics, width=w, height=h)
         source.start()
         start = time.perf_counter()
-        _stream(source, engine, output, out_fmt, depth_scale, overwrite, stats, start,
+        _stream(source, engine, (output, out_fmt, depth_scale, overwrite, camera), stats, start,
                 preview=preview, preview_every=preview_every, quiet=quiet,
                 max_frames=max_frames, seconds=seconds)  # fmt: skip
     finally:
@@ -441,10 +443,7 @@ def live(
 def _stream(
     source: FrameSource,
     engine: Any,
-    output: Path,
-    out_fmt: Any,
-    depth_scale: float,
-    overwrite: bool,
+    sink: tuple[Path, Any, float, bool, Any],
     stats: dict[str, Any],
     start: float,
     *,
@@ -454,32 +453,52 @@ def _stream(
     max_frames: int | None,
     seconds: float | None,
 ) -> None:
-    """Super-resolve ``source``'s frames with ``engine`` into ``output`` until it ends (or
+    """Super-resolve ``source``'s frames with ``engine`` into ``sink`` = (output, format,
+    depth scale, overwrite, the input's camera: its scaled intrinsics go with the video and
+    to ``OUTPUT.intrinsics.json`` as ``upsr run`` writes them) until it ends (or
     ``max_frames`` / ``seconds``); ``stats``: frames done, each one's latency (ms)."""
+    from upsr.apps._camera import intrinsics_sidecar
     from upsr.io import video as io
 
+    output, out_fmt, depth_scale, overwrite, camera = sink
     r = engine.config.scale
     submitted = 0
+    # (outputs are finished on the engine's helper thread and written on this one: a
+    # writer, a ROS 2 bag's SQLite connection among them, belongs to the thread that made it)
+    ready: queue.SimpleQueue[tuple[Any, Any]] = queue.SimpleQueue()
     with io.VideoWriter(
-        output, fmt=out_fmt, depth_scale=depth_scale, overwrite=overwrite
+        output,
+        fmt=out_fmt,
+        depth_scale=depth_scale,
+        overwrite=overwrite,
+        camera=camera.scaled(r),
     ) as writer:
+        writer.add_sidecar(io.intrinsics_path(output), intrinsics_sidecar(camera, r))
 
         def emit(frame: Any, arrived: float, out: Any) -> None:
-            writer.write(out)
-            stats["done"] += 1
-            now = time.perf_counter()
-            stats["latency_ms"].append(1000.0 * (now - arrived))
-            done = stats["done"]
-            if preview is not None and (done == 1 or done % preview_every == 0):
-                _write_preview(preview, frame, out, r, done)
-            if not quiet and now - stats["last_status"] > 0.25:
-                _status(done, now - start, stats["latency_ms"][-1], source.dropped)
-                stats["last_status"] = now
+            stats["latency_ms"].append(1000.0 * (time.perf_counter() - arrived))
+            ready.put((frame, out))
+
+        def write_ready() -> None:
+            while True:
+                try:
+                    frame, out = ready.get_nowait()
+                except queue.Empty:
+                    return
+                writer.write(out)
+                stats["done"] += 1
+                done, now = stats["done"], time.perf_counter()
+                if preview is not None and (done == 1 or done % preview_every == 0):
+                    _write_preview(preview, frame, out, r, done)
+                if not quiet and now - stats["last_status"] > 0.25:
+                    _status(done, now - start, stats["latency_ms"][-1], source.dropped)
+                    stats["last_status"] = now
 
         try:
             for frame, arrived in source:
                 engine.push_async(frame, then=functools.partial(emit, frame, arrived))
                 submitted += 1
+                write_ready()
                 if (max_frames is not None and submitted >= max_frames) or (
                     seconds is not None and time.perf_counter() - start >= seconds
                 ):
@@ -490,6 +509,7 @@ def _stream(
             stats["stopped"] = True
         finally:
             engine.wait()  # the last frame is written before the writer closes
+        write_ready()
         if stats["done"] == 0:
             raise InputError("no depth frame came from the RealSense source")
 

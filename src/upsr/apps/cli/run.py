@@ -153,7 +153,7 @@ def run(
     """
     cfg = method_config(locals())  # first: locals() are the options
     from upsr.apps import _preflight as pre
-    from upsr.apps._camera import camera_motion_config, input_camera
+    from upsr.apps._camera import camera_motion_config, input_camera, intrinsics_sidecar
     from upsr.io import identity, units
     from upsr.io import video as io
     from upsr.method.windowed import UPSR
@@ -197,7 +197,7 @@ def run(
         engine = UPSR(cfg.scale, cfg.n_frames, config=cfg, workers=workers)
         pre.kernel_note(quiet)
         out_cam = None if camera is None else camera.scaled(cfg.scale)
-        sidecar = _sidecar(camera, cfg.scale, stamps, names)
+        sidecar = intrinsics_sidecar(camera, cfg.scale, stamps, names)
         start = time.perf_counter()
         _write_video(
             engine.process(itertools.chain([frame0], source)),
@@ -247,17 +247,6 @@ def _choices(stats: Any) -> str:
             noise += f", sample noise {stats.reach_noise_mm:.1f} mm"
     mixed = "mixed pixels removed" if stats.remove_mixed else "no mixed pixels"
     return f"fused by the {stats.estimator}, {noise}, {mixed}"
-
-
-def _sidecar(camera: Any, scale: int, stamps: Any, names: list[str] | None) -> str | None:
-    """The text of ``OUTPUT.intrinsics.json`` (None without intrinsics)."""
-    if camera is None:
-        return None
-    from upsr.geometry.intrinsics import intrinsics_text
-
-    return intrinsics_text(
-        camera.scaled(scale), source=camera, scale=scale, timestamps_ns=stamps, frame_names=names
-    )
 
 
 def _check_color(
