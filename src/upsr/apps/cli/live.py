@@ -28,6 +28,7 @@ side-by-side PNG (input | output, :func:`upsr.viz.pictures.comparison_frame`) ev
 
 from __future__ import annotations
 
+import contextlib
 import functools
 import queue
 import sys
@@ -462,45 +463,44 @@ def _stream(
 
     output, out_fmt, depth_scale, overwrite, camera = sink
     r = engine.config.scale
+
+    @contextlib.contextmanager
+    def opened() -> Iterator[Any]:
+        with io.VideoWriter(
+            output,
+            fmt=out_fmt,
+            depth_scale=depth_scale,
+            overwrite=overwrite,
+            camera=camera.scaled(r),
+        ) as writer:
+            writer.add_sidecar(io.intrinsics_path(output), intrinsics_sidecar(camera, r))
+            yield writer
+
+    def written(frame: Any, out: Any) -> None:  # (on the writer's thread)
+        stats["done"] += 1
+        done, now = stats["done"], time.perf_counter()
+        if preview is not None and (done == 1 or done % preview_every == 0):
+            _write_preview(preview, frame, out, r, done)
+        if not quiet and now - stats["last_status"] > 0.25:
+            _status(done, now - start, stats["latency_ms"][done - 1], source.dropped)
+            stats["last_status"] = now
+
+    def emit(frame: Any, arrived: float, out: Any) -> None:  # (where the frame finished)
+        stats["latency_ms"].append(1000.0 * (time.perf_counter() - arrived))
+        writer.put((frame, out))
+
+    writer = _Writer(opened, written)
+    writer.start()
     submitted = 0
-    # (outputs are finished on the engine's helper thread and written on this one: a
-    # writer, a ROS 2 bag's SQLite connection among them, belongs to the thread that made it)
-    ready: queue.SimpleQueue[tuple[Any, Any]] = queue.SimpleQueue()
-    with io.VideoWriter(
-        output,
-        fmt=out_fmt,
-        depth_scale=depth_scale,
-        overwrite=overwrite,
-        camera=camera.scaled(r),
-    ) as writer:
-        writer.add_sidecar(io.intrinsics_path(output), intrinsics_sidecar(camera, r))
-
-        def emit(frame: Any, arrived: float, out: Any) -> None:
-            stats["latency_ms"].append(1000.0 * (time.perf_counter() - arrived))
-            ready.put((frame, out))
-
-        def write_ready() -> None:
-            while True:
-                try:
-                    frame, out = ready.get_nowait()
-                except queue.Empty:
-                    return
-                writer.write(out)
-                stats["done"] += 1
-                done, now = stats["done"], time.perf_counter()
-                if preview is not None and (done == 1 or done % preview_every == 0):
-                    _write_preview(preview, frame, out, r, done)
-                if not quiet and now - stats["last_status"] > 0.25:
-                    _status(done, now - start, stats["latency_ms"][-1], source.dropped)
-                    stats["last_status"] = now
-
+    complete = False
+    try:
         try:
             for frame, arrived in source:
                 engine.push_async(frame, then=functools.partial(emit, frame, arrived))
                 submitted += 1
-                write_ready()
-                if (max_frames is not None and submitted >= max_frames) or (
-                    seconds is not None and time.perf_counter() - start >= seconds
+                if writer.error is not None or (
+                    (max_frames is not None and submitted >= max_frames)
+                    or (seconds is not None and time.perf_counter() - start >= seconds)
                 ):
                     break
         except KeyboardInterrupt:
@@ -508,10 +508,64 @@ def _stream(
             # so far are written (a second Ctrl-C, while they finish, leaves no output)
             stats["stopped"] = True
         finally:
-            engine.wait()  # the last frame is written before the writer closes
-        write_ready()
-        if stats["done"] == 0:
-            raise InputError("no depth frame came from the RealSense source")
+            engine.wait()  # every frame handed to the writer before it closes
+        complete = bool(stats["latency_ms"])
+    finally:
+        writer.finish(complete)
+    if not complete:
+        raise InputError("no depth frame came from the RealSense source")
+
+
+class _Writer(threading.Thread):
+    """The output opened, written and closed on a thread of its own: a ROS 2 bag's SQLite
+    connection belongs to the thread that opened it, and neither the caller (which updates the
+    state) nor the engine's helper (which finishes the frames) waits for the disk. At most
+    :data:`WRITE_QUEUE` outputs wait: beyond, the helper waits, and the camera's frames are
+    dropped at the source (never queued without bound)."""
+
+    def __init__(self, opened: Any, written: Any) -> None:
+        super().__init__(name="upsr-live-writer", daemon=True)
+        self._opened, self._written = opened, written
+        self._queue: queue.Queue[Any] = queue.Queue(maxsize=WRITE_QUEUE)
+        self.error: BaseException | None = None
+
+    def run(self) -> None:
+        try:
+            with self._opened() as writer:
+                while (item := self._queue.get()) is not _END:
+                    if item is _ABORT:
+                        raise _Aborted  # (the writer discards what it wrote)
+                    writer.write(item[1])
+                    self._written(*item)
+        except _Aborted:
+            pass
+        except BaseException as e:  # (raised on the caller's thread by finish)
+            self.error = e
+
+    def put(self, item: Any) -> None:
+        """Queue an output (or the end), waiting while the queue is full."""
+        while self.is_alive():
+            try:
+                self._queue.put(item, timeout=0.2)
+                return
+            except queue.Full:
+                continue
+
+    def finish(self, complete: bool) -> None:
+        """Close the output (``complete``) or discard it; raise the writer's error."""
+        self.put(_END if complete else _ABORT)
+        self.join()
+        if self.error is not None:
+            raise self.error
+
+
+class _Aborted(Exception):
+    pass
+
+
+_ABORT = object()
+#: Outputs that may wait for the writer (beyond: the engine's helper waits).
+WRITE_QUEUE = 4
 
 
 def _status(done: int, elapsed: float, latency_ms: float, dropped: int) -> None:
