@@ -263,3 +263,26 @@ def test_live_writes_a_ros2_bag_with_the_scaled_intrinsics_as_run_does(tmp_path,
     want = read_intrinsics(ref)
     assert (want.fx, want.cx, want.width) == (80.0, 47.5, 96)
     assert read_intrinsics(bag) == want and read_intrinsics(npy) == want
+
+
+@needs_sdk
+def test_a_write_error_ends_live_with_one_line_and_no_output(tmp_path, capsys, monkeypatch):
+    """The writer's thread fails on the third frame (a full disk, say): the stream stops,
+    the error is one line, exit status 2, nothing is left behind."""
+    from upsr.errors import InputError
+    from upsr.io import video
+
+    write = video.VideoWriter.write
+    count = []
+
+    def failing(self, frame):
+        count.append(1)
+        if len(count) == 3:
+            raise InputError("disk full")
+        return write(self, frame)
+
+    monkeypatch.setattr(video.VideoWriter, "write", failing)
+    out = tmp_path / "o.npy"
+    rc, stdout, err = run_cli(capsys, "live", FIXTURE, "--no-real-time", "-o", out, "-r", "2", "-q")
+    assert_user_error(rc, stdout, err, "disk full")
+    assert sorted(p.name for p in tmp_path.iterdir()) == []
