@@ -286,3 +286,15 @@ def test_a_write_error_ends_live_with_one_line_and_no_output(tmp_path, capsys, m
     rc, stdout, err = run_cli(capsys, "live", FIXTURE, "--no-real-time", "-o", out, "-r", "2", "-q")
     assert_user_error(rc, stdout, err, "disk full")
     assert sorted(p.name for p in tmp_path.iterdir()) == []
+
+
+@needs_sdk
+def test_live_refuses_work_that_would_not_fit_in_memory(tmp_path, capsys):
+    """As `upsr run` does, before anything streams: one line, exit 2, nothing written."""
+    out = tmp_path / "o.npy"
+    rc, stdout, err = run_cli(
+        capsys, "live", FIXTURE, "--no-real-time", "-o", out, "-r", "16", "--max-memory", "1M"
+    )
+    assert_user_error(rc, stdout, err, "needs ~")
+    assert "of memory" in err and "--max-memory to override" in err
+    assert not out.exists()

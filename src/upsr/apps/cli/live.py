@@ -47,6 +47,7 @@ from upsr.apps.cli.options import (
     FlowScaleOpt,
     FramesOpt,
     IterationsOpt,
+    MaxMemoryOpt,
     NoDeblurOpt,
     OutDepthScaleOpt,
     OutFormat,
@@ -375,6 +376,7 @@ def live(
     seconds: SecondsOpt = None,
     camera_motion: CameraMotionOpt = CameraMotion.flow,
     valid_range: ValidRangeOpt = None,
+    max_memory: MaxMemoryOpt = None,
     overwrite: LiveOverwriteOpt = False,
     quiet: QuietOpt = False,
 ) -> None:
@@ -384,6 +386,7 @@ def live(
     every frame processed so far (a second Ctrl-C while they finish writes nothing). Prints
     one summary line on stdout; the live status line goes to stderr.
     """
+    from upsr.apps import _preflight as pre
     from upsr.apps._camera import camera_motion_config
     from upsr.geometry.camera import PinholeCamera
     from upsr.io import video as io
@@ -402,6 +405,7 @@ def live(
     )
     out_fmt = fmt(output_format)
     io.check_output_path([] if recording is None else [recording], output, overwrite, fmt=out_fmt)
+    mem = pre.memory_limit(max_memory)
     source = FrameSource(recording, real_time=not no_real_time)
     stats: dict[str, Any] = {"done": 0, "latency_ms": [], "last_status": 0.0}
     start = time.perf_counter()
@@ -409,6 +413,11 @@ def live(
         if camera_motion is CameraMotion.depth:  # (the SDK's intrinsics of the depth stream)
             cfg = camera_motion_config(cfg, source.intrinsics)
         h, w = source.shape
+        # (one frame's work: the stream's length is not known, its disk not checked)
+        resolved = io._output_format(output, out_fmt)
+        pre.check_run_resources(
+            (1, h, w), cfg, workers=1, out_fmt=resolved, output=None, max_memory=mem
+        )
         if not quiet:
             sys.stderr.write(f"upsr live: loading the kernels for {w}x{h} frames ...")
             sys.stderr.flush()
