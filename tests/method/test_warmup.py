@@ -45,7 +45,8 @@ def test_warm_up_of_the_windowed_mode(monkeypatch):
         return process(self, frames)
 
     monkeypatch.setattr(windowed.UPSR, "process", recorded)
-    warm_up(UPSRConfig(scale=2, n_frames=9), (24, 32))
+    # (a valid range that keeps none of the synthetic frames' depths changes nothing)
+    warm_up(UPSRConfig(scale=2, n_frames=9, valid_range_mm=(5000, 8000)), (24, 32))
     assert windows == [(3, False, (3, 24, 32)), (3, True, (3, 24, 32))]
 
 

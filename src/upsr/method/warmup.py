@@ -80,7 +80,8 @@ def warm_up(config: UPSRConfig, shape_px: tuple[int, int]) -> None:
     frames = warm_up_frames(shape_px)
     removal = (False, True) if config.remove_mixed == "auto" else (config.remove_mixed,)
     for remove in removal:
-        cfg = dataclasses.replace(config, remove_mixed=remove)
+        # (the synthetic frames whatever range the video keeps: the kernels are the same)
+        cfg = dataclasses.replace(config, remove_mixed=remove, valid_range_mm=None)
         if cfg.mode == "recursive":
             engine = RecursiveUPSR(config=cfg, workers=0)
             for frame in frames:

@@ -19,7 +19,8 @@ Each frame is super-resolved at once by the recursive engine
 (:class:`upsr.method.recursive.RecursiveUPSR`, latency 0 frames: its state is updated on this
 thread, then the frame is finished on a helper thread while the next one arrives,
 :meth:`~upsr.method.pipeline.TwoStagePipeline.push_async`) and written, in order, with
-:class:`upsr.io.video.VideoWriter` (any output format of ``upsr run``). A status line on stderr
+:class:`upsr.io.video.VideoWriter` (any output format of ``upsr run``, with the SDK's
+intrinsics scaled by r) on a writer thread of its own. A status line on stderr
 shows the frames processed, the rate, the latency (time from the frame's arrival to its output)
 and the dropped frames, the summary the median and largest latency; ``--preview`` rewrites a
 side-by-side PNG (input | output, :func:`upsr.viz.pictures.comparison_frame`) every
@@ -424,8 +425,9 @@ def live(
         # before the stream starts: a new process's first frame would otherwise load them
         # while the camera's next frames are dropped (upsr.method.warmup)
         warm_up(cfg, source.shape)
-        # each frame updates the state here, then is finished (deblurred, written, shown) on
-        # a helper thread while the next frame updates the state (RecursiveUPSR.push_async)
+        # each frame updates the state here, then is finished (deblurred) on a helper thread
+        # while the next frame updates the state (RecursiveUPSR.push_async), and written
+        # (and shown) on the writer's thread
         engine = RecursiveUPSR(config=cfg)
         r = cfg.scale
         camera = PinholeCamera(*source.intrinsics, width=w, height=h)
