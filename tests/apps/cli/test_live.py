@@ -298,3 +298,31 @@ def test_live_refuses_work_that_would_not_fit_in_memory(tmp_path, capsys):
     assert_user_error(rc, stdout, err, "needs ~")
     assert "of memory" in err and "--max-memory to override" in err
     assert not out.exists()
+
+
+@needs_sdk
+@pytest.mark.parametrize("real_time", [True, False])
+def test_live_stream_option(tmp_path, capsys, real_time):
+    """--stream WxH[@FPS] opens that depth stream (a camera's low-res, fast mode); a stream the
+    recording does not have is one line naming the ones it has; a bad spelling too."""
+    from upsr.apps.cli.live import parse_stream
+
+    assert parse_stream("424x240@90") == (424, 240, 90) and parse_stream("48X40") == (48, 40, 0)
+    timing = [] if real_time else ["--no-real-time"]
+    out = tmp_path / "o.npy"
+    for stream in ("48x40@30", "48x40"):
+        rc, stdout, err = run_cli(capsys, "live", FIXTURE, *timing, "-o", out, "-r", "2", "-q",
+                                  "--stream", stream, "--overwrite")  # fmt: skip
+        assert rc == 0, err
+        assert "48x40 -> 96x80" in stdout
+    for stream, message in (
+        ("64x48@30", "no depth stream 64x48@30 (offered: 48x40@30)"),
+        ("48x40@60", "no depth stream 48x40@60 (offered: 48x40@30)"),
+        ("abc", "--stream must be WxH or WxH@FPS"),
+        ("0x5", "positive size"),
+    ):
+        bad = tmp_path / "bad.npy"
+        rc, stdout, err = run_cli(capsys, "live", FIXTURE, *timing, "-o", bad, "-r", "2", "-q",
+                                  "--stream", stream)  # fmt: skip
+        assert_user_error(rc, stdout, err, message)
+        assert not bad.exists()

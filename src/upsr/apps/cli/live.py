@@ -67,6 +67,7 @@ Examples:
   upsr live -o live_x2.npy -r 2 --preview preview.png        # the first RealSense camera
   upsr live capture.bag -o out.npy -r 2 --no-real-time       # a recording, every frame
   upsr live -o drive.npy -r 2 --camera-motion depth           # a camera driving forward
+  upsr live -o low.npy -r 4 --stream 256x144@90               # a low-res, fast stream
 """
 
 SourceArg = Annotated[
@@ -112,6 +113,16 @@ NoRealTimeOpt = Annotated[
         "dropped; the output equals 'upsr run --recursive' on the same frames).",
     ),
 ]
+StreamOpt = Annotated[
+    str | None,
+    typer.Option(
+        "--stream",
+        metavar="WxH[@FPS]",
+        help="The depth stream to open, e.g. 424x240@90 (a low resolution at a high rate, "
+        "which upsr then super-resolves) [default: the camera's default; a recording's "
+        "depth stream].",
+    ),
+]
 MaxFramesOpt = Annotated[
     int | None,
     typer.Option("--max-frames", min=1, help="Stop after this many processed frames."),
@@ -138,9 +149,18 @@ class FrameSource:
     real_time : bool
         Recording: play at the recorded rate (frames may be dropped) or, False, as fast as
         they are taken (none dropped).
+    stream : (width, height, fps), optional
+        The depth stream to open (fps 0: any rate); None: the camera's default, or the
+        recording's depth stream.
     """
 
-    def __init__(self, recording: Path | None, *, real_time: bool = True) -> None:
+    def __init__(
+        self,
+        recording: Path | None,
+        *,
+        real_time: bool = True,
+        stream: tuple[int, int, int] | None = None,
+    ) -> None:
         try:
             import pyrealsense2 as rs
         except ImportError as e:  # pragma: no cover - depends on the machine
@@ -169,15 +189,21 @@ class FrameSource:
         self._playback: Any = None
         self._thread: threading.Thread | None = None
         self._busy = threading.Lock()  # held while the sensor's callback hands a frame over
+        self._stream = stream
         try:
             if recording is not None and not self.real_time:
-                stream = self._find_sensor(recording)
+                profile = self._find_sensor(recording)
             else:
-                stream = self._resolve_pipeline(recording)
+                profile = self._resolve_pipeline(recording)
         except RuntimeError as e:
-            raise InputError(f"RealSense: {e}") from e
-        self.shape = (stream.height(), stream.width())
-        intr = stream.get_intrinsics()
+            offered = self._offered(recording)
+            if not offered:  # (no stream asked for, or no device: the SDK's own words)
+                raise InputError(f"RealSense: {e}") from e
+            where = recording if recording is not None else "RealSense camera"
+            text = _stream_text(self._stream)  # type: ignore[arg-type]
+            raise InputError(f"{where}: no depth stream {text}{offered}") from e
+        self.shape = (profile.height(), profile.width())
+        intr = profile.get_intrinsics()
         self.intrinsics = (intr.fx, intr.fy, intr.ppx, intr.ppy)
 
     def start(self) -> FrameSource:
@@ -212,7 +238,11 @@ class FrameSource:
         cfg = rs.config()
         if recording is not None:
             cfg.enable_device_from_file(str(recording), repeat_playback=False)
-        cfg.enable_stream(rs.stream.depth)
+        if self._stream is None:
+            cfg.enable_stream(rs.stream.depth)
+        else:
+            w, h, fps = self._stream
+            cfg.enable_stream(rs.stream.depth, w, h, rs.format.z16, fps)
         self._cfg = cfg
         self._pipe = rs.pipeline()
         profile = cfg.resolve(rs.pipeline_wrapper(self._pipe))
@@ -235,10 +265,41 @@ class FrameSource:
         self._playback.set_real_time(False)  # before anything plays
         for sensor in device.query_sensors():
             for prof in sensor.get_stream_profiles():
-                if prof.stream_type() == rs.stream.depth:
+                if prof.stream_type() == rs.stream.depth and self._wanted(prof):
                     self._sensor, self._profile = sensor, prof
                     return prof.as_video_stream_profile()
-        raise InputError(f"{recording}: no depth stream")
+        what = "" if self._stream is None else " " + _stream_text(self._stream)
+        raise InputError(f"{recording}: no depth stream{what}{self._offered(recording)}")
+
+    def _wanted(self, profile: Any) -> bool:
+        """Whether a depth profile is the ``stream`` asked for (any without one)."""
+        if self._stream is None:
+            return True
+        w, h, fps = self._stream
+        video = profile.as_video_stream_profile()
+        return (video.width(), video.height()) == (w, h) and fps in (0, profile.fps())
+
+    def _offered(self, recording: Path | None) -> str:
+        """``" (offered: WxH@FPS, …)"``: the depth streams of the recording or of the first
+        camera, where a ``stream`` was asked for ("" otherwise, or where none can be read)."""
+        if self._stream is None:
+            return ""
+        rs = self._rs
+        try:
+            ctx = rs.context()
+            device = ctx.load_device(str(recording)) if recording is not None else ctx.devices[0]
+            offered = sorted(
+                {
+                    _stream_text((v.width(), v.height(), v.fps()))
+                    for sensor in device.query_sensors()
+                    for p in sensor.get_stream_profiles()
+                    if p.stream_type() == rs.stream.depth
+                    for v in [p.as_video_stream_profile()]
+                }
+            )
+        except (RuntimeError, IndexError):
+            return ""
+        return f" (offered: {', '.join(offered)})" if offered else ""
 
     def _item(self, depth: Any) -> tuple[Any, float]:
         """(depth in mm, arrival time) of an SDK depth frame, counted as received."""
@@ -359,6 +420,26 @@ class FrameSource:
             pass
 
 
+def _stream_text(stream: tuple[int, int, int]) -> str:
+    w, h, fps = stream
+    return f"{w}x{h}" + (f"@{fps}" if fps else "")
+
+
+def parse_stream(text: str) -> tuple[int, int, int]:
+    """``--stream WxH[@FPS]`` as (width, height, fps); fps 0: any rate."""
+    size, _, rate = str(text).strip().lower().partition("@")
+    try:
+        w, h = (int(v) for v in size.split("x"))
+        fps = int(rate) if rate else 0
+    except ValueError:
+        raise InputError(
+            f"--stream must be WxH or WxH@FPS (e.g. 424x240@90), got {text!r}"
+        ) from None
+    if w < 1 or h < 1 or fps < 0:
+        raise InputError(f"--stream needs a positive size and rate, got {text!r}")
+    return w, h, fps
+
+
 def live(
     output: LiveOutputOpt,
     scale: ScaleOpt,
@@ -376,6 +457,7 @@ def live(
     max_frames: MaxFramesOpt = None,
     seconds: SecondsOpt = None,
     camera_motion: CameraMotionOpt = CameraMotion.flow,
+    stream: StreamOpt = None,
     valid_range: ValidRangeOpt = None,
     max_memory: MaxMemoryOpt = None,
     overwrite: LiveOverwriteOpt = False,
@@ -407,7 +489,8 @@ def live(
     out_fmt = fmt(output_format)
     io.check_output_path([] if recording is None else [recording], output, overwrite, fmt=out_fmt)
     mem = pre.memory_limit(max_memory)
-    source = FrameSource(recording, real_time=not no_real_time)
+    wanted = None if stream is None else parse_stream(stream)
+    source = FrameSource(recording, real_time=not no_real_time, stream=wanted)
     stats: dict[str, Any] = {"done": 0, "latency_ms": [], "last_status": 0.0}
     start = time.perf_counter()
     try:
