@@ -326,3 +326,23 @@ def test_live_stream_option(tmp_path, capsys, real_time):
                                   "--stream", stream)  # fmt: skip
         assert_user_error(rc, stdout, err, message)
         assert not bad.exists()
+
+
+@needs_sdk
+def test_the_preview_never_writes_over_the_recording_or_into_the_output(tmp_path, capsys):
+    """(A preview named as the recording replaced it with a picture.)"""
+    import shutil
+
+    rec = tmp_path / "rec.db3"
+    shutil.copy(FIXTURE, rec)
+    before = rec.read_bytes()
+    for out, preview, message in (
+        ("o.npy", "rec.db3", "must name a .png file"),
+        ("o.npy", "o.npy", "must name a .png file"),
+        ("frames", "frames/p.png", "would write into the output"),
+    ):
+        args = ["-o", tmp_path / out, "--preview", tmp_path / preview]
+        rc, stdout, err = run_cli(capsys, "live", rec, "--no-real-time", "-r", "2", "-q", *args)
+        assert_user_error(rc, stdout, err, message)
+    assert rec.read_bytes() == before
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["rec.db3"]

@@ -488,6 +488,8 @@ def live(
     )
     out_fmt = fmt(output_format)
     io.check_output_path([] if recording is None else [recording], output, overwrite, fmt=out_fmt)
+    if preview is not None:
+        _check_preview(preview, recording, output)
     mem = pre.memory_limit(max_memory)
     wanted = None if stream is None else parse_stream(stream)
     source = FrameSource(recording, real_time=not no_real_time, stream=wanted)
@@ -660,6 +662,19 @@ class _Aborted(Exception):
 _ABORT = object()
 #: Outputs that may wait for the writer (beyond: the engine's helper waits).
 WRITE_QUEUE = 4
+
+
+def _check_preview(preview: Path, recording: Path | None, output: Path) -> None:
+    """The preview is a ``.png`` file apart from the recording and the output (a preview
+    named as the recording replaced it with a picture)."""
+    if Path(preview).suffix.lower() != ".png" or Path(preview).is_dir():
+        raise InputError(f"--preview must name a .png file, got {preview}")
+    where = Path(preview).resolve()
+    for other, what in ((recording, "the recording"), (output, "the output")):
+        if other is not None and (
+            where == Path(other).resolve() or Path(other).resolve() in where.parents
+        ):
+            raise InputError(f"--preview {preview} would write into {what} {other}")
 
 
 def _status(done: int, elapsed: float, latency_ms: float, dropped: int) -> None:
