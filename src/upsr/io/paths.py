@@ -19,7 +19,7 @@ from pathlib import Path
 from upsr.errors import InputError
 from upsr.io._base import PathLike
 
-__all__ = ["check_output_path"]
+__all__ = ["check_apart_from_inputs", "check_output_path"]
 
 
 def check_output_path(
@@ -45,26 +45,7 @@ def check_output_path(
     from upsr.io.video import _folder_output, _output_format
 
     out = Path(output_path)
-    if isinstance(input_paths, (str, os.PathLike)):
-        input_paths = [input_paths]
-    out_res = _resolve(out, "output")
-    for inp in input_paths:
-        inp = Path(inp)
-        in_res = _resolve(inp, "input")
-        same = out_res == in_res
-        if not same and os.path.exists(out) and os.path.exists(inp):
-            with contextlib.suppress(OSError):
-                same = os.path.samefile(out, inp)
-        if same:
-            raise InputError(f"output {out} is the input {inp}: choose another output path")
-        if out_res in in_res.parents:
-            raise InputError(
-                f"output folder {out} contains the input {inp}: choose another output path"
-            )
-        if in_res in out_res.parents and in_res.is_dir():
-            raise InputError(
-                f"output {out} is inside the input folder {inp.name or inp}: choose another output"
-            )
+    check_apart_from_inputs(input_paths, out)
     try:
         st_out = os.lstat(out)
     except (FileNotFoundError, NotADirectoryError):  # a parent that is a file: checked below
@@ -124,6 +105,34 @@ def check_output_path(
     if not os.access(anc, os.W_OK | os.X_OK):
         raise InputError(f"cannot create {out}: no permission to write in {anc}")
     return out
+
+
+def check_apart_from_inputs(
+    input_paths: Iterable[PathLike] | PathLike, output_path: PathLike, what: str = "output"
+) -> None:
+    """Refuse (:class:`~upsr.errors.InputError`) an output (a video, a picture, a folder of
+    point clouds) that is one of the inputs (same path after resolving symbolic links, or the
+    same file through a hard link), a folder that contains one, or that lies inside an input
+    folder: nothing is ever written into or over an input, ``--overwrite`` or not."""
+    out = Path(output_path)
+    if isinstance(input_paths, (str, os.PathLike)):
+        input_paths = [input_paths]
+    out_res = _resolve(out, what)
+    for inp in input_paths:
+        inp = Path(inp)
+        in_res = _resolve(inp, "input")
+        same = out_res == in_res
+        if not same and os.path.exists(out) and os.path.exists(inp):
+            with contextlib.suppress(OSError):
+                same = os.path.samefile(out, inp)
+        if same:
+            raise InputError(f"{what} {out} is the input {inp}: choose another path")
+        if out_res in in_res.parents:
+            raise InputError(f"{what} folder {out} contains the input {inp}: choose another path")
+        if in_res in out_res.parents and in_res.is_dir():
+            raise InputError(
+                f"{what} {out} is inside the input folder {inp.name or inp}: choose another path"
+            )
 
 
 def _resolve(p: Path, what: str) -> Path:

@@ -8,7 +8,7 @@ import cv2
 import numpy as np
 import pytest
 
-from tests.apps._util import scene
+from tests.apps._util import run_cli, scene
 from upsr.apps.cli.main import main
 from upsr.errors import InputError
 from upsr.geometry.intrinsics import parse_intrinsics
@@ -99,3 +99,21 @@ def test_render_view_shapes() -> None:
     assert img.shape == (48, 64, 3)
     with pytest.raises(InputError, match="no surface"):
         render_view(np.zeros((12, 16)), cam)
+
+
+def test_pictures_never_write_into_or_over_an_input(tmp_path, capsys) -> None:
+    """`upsr view FRAMES -o FRAMES/000.png --overwrite` replaced a depth frame with a picture;
+    `export-ply` wrote its PLY files among the input's frames."""
+    frames = tmp_path / "frames"
+    frames.mkdir()
+    for k in range(3):
+        cv2.imwrite(str(frames / f"{k:03d}.png"), np.full((20, 24), 1500 + k, np.uint16))
+    before = {p.name: p.read_bytes() for p in frames.iterdir()}
+    for args in (
+        ["view", frames, "-o", frames / "000.png", "--overwrite"],
+        ["compare", frames, frames, "-o", frames / "001.png", "--overwrite", "--scale", "1"],
+        ["export-ply", frames, "-o", frames, "--intrinsics", "20,20,12,10", "--overwrite"],
+    ):
+        rc, _, err = run_cli(capsys, *args)
+        assert rc == 2 and "input" in err and len(err.strip().splitlines()) == 1, err
+    assert {p.name: p.read_bytes() for p in frames.iterdir()} == before

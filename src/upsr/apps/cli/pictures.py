@@ -184,9 +184,11 @@ def compare(
     from tqdm import tqdm
 
     from upsr.io import video as io
+    from upsr.io.paths import check_apart_from_inputs
     from upsr.viz.pictures import ComparisonWriter, comparison_frame, picture_kind
 
     kind = picture_kind(output)
+    check_apart_from_inputs([p for p in (lowres, upsr_path, truth) if p is not None], output)
     if output.exists() and not overwrite:
         raise InputError(f"output {output} already exists (use --overwrite to replace it)")
     if error_max is not None and not (math.isfinite(error_max) and error_max > 0):
@@ -267,11 +269,13 @@ def view(
     from upsr.apps._camera import input_camera
     from upsr.geometry.camera import PinholeCamera
     from upsr.io import video as io
+    from upsr.io.paths import check_apart_from_inputs
     from upsr.viz.colormaps import write_png
     from upsr.viz.pictures import render_view
 
     if output.suffix.lower() != ".png":
         raise InputError(f"{output}: the view is written as a .png file")
+    check_apart_from_inputs(input_path, output)
     if output.exists() and not overwrite:
         raise InputError(f"output {output} already exists (use --overwrite to replace it)")
     if not 16 <= width <= MAX_VIEW_WIDTH:  # the picture is width x about width px

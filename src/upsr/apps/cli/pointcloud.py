@@ -84,6 +84,7 @@ def export_ply(
 
     from upsr.apps._camera import input_camera
     from upsr.io import video as io
+    from upsr.io.paths import check_apart_from_inputs
     from upsr.io.pointcloud import write_ply
     from upsr.io.registry import require
     from upsr.viz.pointcloud_colors import color_for_depth
@@ -97,6 +98,7 @@ def export_ply(
             f"{input_path}: no camera intrinsics in the file: give --intrinsics FX,FY,CX,CY"
         )
     colours = _colour_source(color, info.n_frames)
+    check_apart_from_inputs([input_path] + ([color] if color is not None else []), out)
     if out.exists() and not out.is_dir():
         raise InputError(f"--out {out} exists and is not a folder")
     names = [out / f"frame_{t:06d}.ply" for t in range(info.n_frames)]
