@@ -2,9 +2,9 @@
 Samba meshes are at ``--data``, default ``../shared/data``), speed beside a busy process,
 ``upsr live`` on SDK recordings played in real time (with pyrealsense2), the flow grid, the
 synthetic scenes, the realistic sensor scenes (``--out docs/results`` writes them to
-docs/results/realistic), thin parts on a ToF sensor, the deblurring iterations and speckle
-removal, and the Samba accuracy tables. Each benchmark prints its table and writes
-``results.json`` under ``--out``."""
+docs/results/realistic), stray far values and ``--valid-range``, thin parts on a ToF
+sensor, the deblurring iterations and speckle removal, and the Samba accuracy tables. Each
+benchmark prints its table and writes ``results.json`` under ``--out``."""
 
 from __future__ import annotations
 
@@ -22,6 +22,7 @@ import load_eval
 import realistic_eval
 import samba_eval
 import speed_eval
+import stray_eval
 import synthetic_eval
 import thin_parts_eval
 
@@ -47,6 +48,8 @@ def main() -> int:
     synthetic_eval.main(["--out", str(out / "synthetic")])
     print("\n== realistic sensors (ToF footprint, Kinect, large and camera motion) ==", flush=True)
     realistic_eval.main(["--out", str(out / "realistic")])
+    print("\n== a sensor's stray far values and --valid-range ==", flush=True)
+    stray_eval.main(["--out", str(out / "stray")])
     print("\n== thin parts on a ToF sensor (random bars, with and without split) ==", flush=True)
     thin_parts_eval.main(["--out", str(out / "thin_parts")])
     print("\n== deblurring iterations and speckle removal ==", flush=True)
