@@ -620,3 +620,28 @@ def test_pickle_module_not_used_by_reader(tmp_path: Path, monkeypatch: pytest.Mo
             np.save(p, a, allow_pickle=True) if suffix == ".npy" else np.savez(p, a)
         with pytest.raises(InputError):
             io.read_video(p)
+
+
+def test_writer_stamps_each_frame_it_is_given(tmp_path: Path) -> None:
+    """write(frame, timestamp_ns): a live stream's times, known as the frames come."""
+    from upsr.io import read_timestamps
+
+    v = np.full((3, 4, 5), 1000.0, np.float32)
+    stamps = [1_000_000_000 + 33_000_000 * k for k in range(3)]
+    for name, fmt in (("a.npz", None), ("bag", "rosbag")):
+        with io.VideoWriter(tmp_path / name, fmt=fmt) as w:
+            for frame, stamp in zip(v, stamps, strict=True):
+                w.write(frame, timestamp_ns=stamp)
+        np.testing.assert_array_equal(read_timestamps(tmp_path / name), stamps)
+    for bad, message in (
+        ([10, 5, 20], "goes back in time"),
+        ([None, 5, 6], "frame 1 has a timestamp"),
+        ([5, None, 6], "frame 1 has no timestamp"),
+    ):
+        with pytest.raises(InputError, match=message), io.VideoWriter(tmp_path / "b.npz") as w:
+            for frame, stamp in zip(v, bad, strict=True):
+                w.write(frame, timestamp_ns=stamp)
+    with pytest.raises(InputError, match="given to the writer and to frame 0"):
+        with io.VideoWriter(tmp_path / "c.npz", timestamps_ns=[1, 2, 3]) as w:
+            w.write(v[0], timestamp_ns=5)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["a.npz", "bag"]

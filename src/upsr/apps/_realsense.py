@@ -194,15 +194,16 @@ class FrameSource:
             return ""
         return f" (offered: {', '.join(offered)})" if offered else ""
 
-    def _item(self, depth: Any) -> tuple[Any, float]:
-        """(depth in mm, arrival time) of an SDK depth frame, counted as received."""
+    def _item(self, depth: Any) -> tuple[Any, float, int]:
+        """(depth in mm, arrival time, the SDK's timestamp in ns) of an SDK depth frame,
+        counted as received."""
         import numpy as np
 
         mm = np.asanyarray(depth.get_data()).astype(np.float32)
         # (the unit as a recording read by `upsr run` gives it: the same frames)
         mm *= np.float32(self._units_mm(depth.get_units()))
         self.received += 1
-        return mm, time.perf_counter()
+        return mm, time.perf_counter(), round(depth.get_timestamp() * 1e6)
 
     def _on_frame(self, frame: Any) -> None:
         """The sensor's callback (the playback's thread): hand the frame over, waiting for
@@ -280,9 +281,10 @@ class FrameSource:
                 if self._stop.is_set():
                     return
 
-    def __iter__(self) -> Iterator[tuple[Any, float]]:
-        """(frame mm, arrival time) in order, until the recording ends or :meth:`close`
-        (started first where :meth:`start` was not called)."""
+    def __iter__(self) -> Iterator[tuple[Any, float, int]]:
+        """(frame mm, arrival time (``time.perf_counter``), the SDK's timestamp (ns)) in order,
+        until the recording ends or :meth:`close` (started first where :meth:`start` was not
+        called)."""
         self.start()
         while True:
             item = self._queue.get()

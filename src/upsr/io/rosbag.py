@@ -533,9 +533,12 @@ class FrameSink:
         )
         return self._ts.types["std_msgs/msg/Header"](stamp=t, frame_id=self._frame_id)
 
-    def write(self, frame_mm: np.ndarray, t: int) -> None:
-        """Append frame ``t`` (float32 mm, 0 = no measurement)."""
-        if self._stamps is not None:
+    def write(self, frame_mm: np.ndarray, t: int, stamp_ns: int | None = None) -> None:
+        """Append frame ``t`` (float32 mm, 0 = no measurement), stamped ``stamp_ns`` where
+        given."""
+        if stamp_ns is not None:
+            stamp = int(stamp_ns)
+        elif self._stamps is not None:
             if t >= len(self._stamps):
                 raise InputError(f"{self.dest}: frame {t} has no timestamp")
             stamp = self._stamps[t]

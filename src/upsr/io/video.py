@@ -369,7 +369,8 @@ class VideoWriter(AtomicWriter):
         :func:`upsr.io.read_frame_names`) instead of ``000000``, …; ignored by file outputs.
     timestamps_ns : sequence of int, optional
         Frame times (ns): ``.npz`` outputs store them as ``timestamps``; ROS bags stamp their
-        messages with them; other formats ignore them.
+        messages with them; other formats ignore them. Or give each frame's with
+        :meth:`write` (a live stream, whose times are known as the frames come), not both.
     camera : PinholeCamera, optional
         ROS bag outputs: the output camera, written as ``sensor_msgs/CameraInfo``.
 
@@ -410,6 +411,7 @@ class VideoWriter(AtomicWriter):
         self.overwrite = bool(overwrite)
         check_output_path((), self.path, self.overwrite, fmt=self.format)
         self.frames_written = 0
+        self._stamps: list[int] | None = None  # (the frames' own, given to write)
         self._shape: tuple[int, int] | None = None
         self._sink: Any = None
         self._temp: Path | None = None
@@ -456,12 +458,15 @@ class VideoWriter(AtomicWriter):
         if hasattr(self._sink, "set_meta"):  # ROS bags: stamps and CameraInfo
             self._sink.set_meta(timestamps_ns=self.timestamps_ns, camera=self.camera)
 
-    def write(self, frame: npt.ArrayLike) -> None:
-        """Append one (h, w) depth frame in mm (0 or NaN = no measurement)."""
+    def write(self, frame: npt.ArrayLike, timestamp_ns: int | None = None) -> None:
+        """Append one (h, w) depth frame in mm (0 or NaN = no measurement); with
+        ``timestamp_ns``, its time (every frame's then, non-decreasing; not with the
+        writer's ``timestamps_ns``)."""
         if self._closed:
             raise ValueError("write to a closed VideoWriter")
         t = self.frames_written
         f = as_depth_frame(frame, name=f"output frame {t}")
+        self._check_stamp(t, timestamp_ns)
         if self.n_frames is not None and t >= self.n_frames:
             raise InputError(f"{self.path}: more than n_frames={self.n_frames} frames written")
         if self._shape is None:
@@ -471,8 +476,28 @@ class VideoWriter(AtomicWriter):
             raise InputError(
                 f"output frame {t}: shape {f.shape} differs from the first frame's {self._shape}"
             )
-        self._sink.write(f, t)
+        if timestamp_ns is not None and self.format == "rosbag":  # (stamped with the frame)
+            self._sink.write(f, t, stamp_ns=int(timestamp_ns))
+        else:
+            self._sink.write(f, t)
         self.frames_written = t + 1
+
+    def _check_stamp(self, t: int, stamp: int | None) -> None:
+        """A frame's own timestamp: given for every frame or none, never going back."""
+        given = self._stamps is not None
+        if stamp is not None and self.timestamps_ns is not None:
+            raise InputError(f"{self.path}: timestamps given to the writer and to frame {t}")
+        if t > 0 and (stamp is not None) != given:
+            had = "no timestamp (the first had)" if given else "a timestamp (the first none)"
+            raise InputError(f"{self.path}: frame {t} has {had}")
+        if stamp is None:
+            return
+        stamp = int(stamp)
+        if self._stamps is None:
+            self._stamps = []
+        elif stamp < self._stamps[-1]:
+            raise InputError(f"{self.path}: frame {t}'s timestamp goes back in time")
+        self._stamps.append(stamp)
 
     # -- finishing -----------------------------------------------------------------------------
     def close(self) -> None:
@@ -496,7 +521,7 @@ class VideoWriter(AtomicWriter):
                 self._temp,
                 self.frames_written,
                 frame_names=self.frame_names,
-                timestamps_ns=self.timestamps_ns,
+                timestamps_ns=self.timestamps_ns if self._stamps is None else self._stamps,
             )
             self._install()
         except BaseException:

@@ -115,7 +115,7 @@ def test_a_recording_not_in_real_time_loses_no_frame_behind_a_slow_first_frame()
         source = FrameSource(FIXTURE, real_time=False)
         try:
             time.sleep(0.1)
-            got = [mm for mm, _t in source]
+            got = [mm for mm, *_ in source]
         finally:
             source.close()
         assert len(got) == len(expected) == 12
@@ -160,7 +160,7 @@ def test_live_in_tenths_of_a_mm_gives_the_frames_and_output_of_run(tmp_path, cap
     rec = Path(__file__).resolve().parents[2] / "io" / "data" / "realsense" / "rs259_100um.db3"
     source = FrameSource(rec, real_time=False)
     try:
-        got = np.stack([mm for mm, _t in source])
+        got = np.stack([mm for mm, *_ in source])
     finally:
         source.close()
     np.testing.assert_array_equal(got, read_video(rec))
@@ -275,11 +275,11 @@ def test_a_write_error_ends_live_with_one_line_and_no_output(tmp_path, capsys, m
     write = video.VideoWriter.write
     count = []
 
-    def failing(self, frame):
+    def failing(self, frame, timestamp_ns=None):
         count.append(1)
         if len(count) == 3:
             raise InputError("disk full")
-        return write(self, frame)
+        return write(self, frame, timestamp_ns)
 
     monkeypatch.setattr(video.VideoWriter, "write", failing)
     out = tmp_path / "o.npy"
@@ -346,3 +346,23 @@ def test_the_preview_never_writes_over_the_recording_or_into_the_output(tmp_path
         assert_user_error(rc, stdout, err, message)
     assert rec.read_bytes() == before
     assert sorted(p.name for p in tmp_path.iterdir()) == ["rec.db3"]
+
+
+@needs_sdk
+def test_live_stamps_its_output_with_the_sdks_times_as_run_does(tmp_path, capsys):
+    """Each output frame carries its SDK frame's time (a .npz's `timestamps`, a ROS 2 bag's
+    stamps): the recording's times, as `upsr run` reads and writes them."""
+    from upsr.io import read_timestamps
+
+    want = read_timestamps(FIXTURE)
+    assert want[1] == 33_333_333  # (the fixture's 30 frames/s)
+    for name, fmt in (("live.npz", []), ("bag", ["--format", "rosbag"])):
+        out = tmp_path / name
+        rc, _, err = run_cli(capsys, "live", FIXTURE, "--no-real-time", "-o", out, "-r", "2",
+                             "-q", *fmt)  # fmt: skip
+        assert rc == 0, err
+        np.testing.assert_array_equal(read_timestamps(out), want)
+    ref = tmp_path / "run.npz"
+    rc, _, err = run_cli(capsys, "run", FIXTURE, "-o", ref, "-r", "2", "--recursive", "-q")
+    assert rc == 0, err
+    np.testing.assert_array_equal(read_timestamps(ref), want)

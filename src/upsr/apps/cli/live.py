@@ -271,9 +271,9 @@ def _stream(
             _status(done, now - start, stats["latency_ms"][done - 1], source.dropped)
             stats["last_status"] = now
 
-    def emit(frame: Any, arrived: float, out: Any) -> None:  # (where the frame finished)
+    def emit(frame: Any, arrived: float, stamp: int, out: Any) -> None:  # (where it finished)
         stats["latency_ms"].append(1000.0 * (time.perf_counter() - arrived))
-        writer.put((frame, out))
+        writer.put((frame, out, stamp))
 
     writer = _Writer(opened, written)
     writer.start()
@@ -281,8 +281,8 @@ def _stream(
     complete = False
     try:
         try:
-            for frame, arrived in source:
-                engine.push_async(frame, then=functools.partial(emit, frame, arrived))
+            for frame, arrived, stamp in source:
+                engine.push_async(frame, then=functools.partial(emit, frame, arrived, stamp))
                 submitted += 1
                 if writer.error is not None or (
                     (max_frames is not None and submitted >= max_frames)
@@ -321,8 +321,9 @@ class _Writer(threading.Thread):
                 while (item := self._queue.get()) is not _CLOSE:
                     if item is _ABORT:
                         raise _Aborted  # (the writer discards what it wrote)
-                    writer.write(item[1])
-                    self._written(*item)
+                    frame, out, stamp = item
+                    writer.write(out, timestamp_ns=stamp)  # (the SDK's time of the frame)
+                    self._written(frame, out)
         except _Aborted:
             pass
         except BaseException as e:  # (raised on the caller's thread by finish)
