@@ -508,13 +508,8 @@ class RecursiveUPSR(TwoStagePipeline):
         cfg = self.config
         intrinsics = cfg.camera_intrinsics
         assert intrinsics is not None and self._prev_frame is not None
-        step = pair_motion(
-            self._prev_frame,
-            frame,
-            intrinsics,
-            noise_mm=self._noise(),
-            edge_mm=self._front.edge_mm,  # type: ignore[union-attr]
-        )
+        edge, noise = self._front.edge_mm, self._noise()  # type: ignore[union-attr]
+        step = pair_motion(self._prev_frame, frame, intrinsics, noise_mm=noise, edge_mm=edge)
         self._axial.append(along_axis(step))
         if len(self._axial) < self._axial.maxlen or not all(self._axial):  # type: ignore[operator]
             return flow
@@ -534,8 +529,17 @@ class RecursiveUPSR(TwoStagePipeline):
         cfg = self.config
         r = cfg.scale
         f = as_depth_frame(frame, name=f"frame {t}", valid_range_mm=cfg.valid_range_mm)
+        if f.shape != (self._shape or f.shape):
+            raise InputError(
+                f"frame {t}: shape {f.shape} differs from the first frame's {self._shape}"
+            )
+        self._shape = f.shape
+        if self._front is None and not (f > 0).any():
+            # a camera's first frames are often empty: the statistics wait for depth (from an
+            # empty frame they cost a room's surfaces 80 % for the whole video)
+            self._count = t + 1
+            return (None, f)
         if self._front is None:
-            self._shape = f.shape
             self._front = MotionFrontEnd(
                 cfg, f.shape[1], flow_backend=self._flow, residual_flow_backend=self._custom_flow
             )
@@ -543,12 +547,8 @@ class RecursiveUPSR(TwoStagePipeline):
             self._front.fix_statistics([f])
             self._first = f
             self._profile = trust_profile(f[None], cfg, self._front.edge_mm)
-        elif f.shape != self._shape:
-            raise InputError(
-                f"frame {t}: shape {f.shape} differs from the first frame's {self._shape}"
-            )
         front = self._front
-        self._any_valid = self._any_valid or bool((f > 0).any())
+        self._any_valid = True
         if cfg.remove_mixed == "auto" and t < cfg.n_frames:
             # does the sensor mix? The first N frames pooled as they arrive (one: too few edges)
             self._mixes += footprint_counts(f, front.edge_mm)
@@ -641,16 +641,19 @@ class RecursiveUPSR(TwoStagePipeline):
 
     def _finish(
         self,
-        fused: np.ndarray,
+        fused: np.ndarray | None,
         f: np.ndarray,
-        meas: np.ndarray,
-        anchor: np.ndarray,
-        noise: float,
-        thin: ThinParts | None,
-        remove_mixed: bool,
+        meas: np.ndarray | None = None,
+        anchor: np.ndarray | None = None,
+        noise: float = 0.0,
+        thin: ThinParts | None = None,
+        remove_mixed: bool = False,
     ) -> np.ndarray:
-        """The output frame from the new state (the deblurring and the rules after it)."""
+        """The output frame from the new state (the deblurring and the rules after it); 0
+        before any frame had depth (``fused`` None)."""
         cfg = self.config
+        if fused is None:
+            return np.zeros((f.shape[0] * cfg.scale, f.shape[1] * cfg.scale), np.float32)
         with self._timed("deblur"):
             if remove_mixed:
                 # the mixed pixels the state did not fill: split between their neighbours
