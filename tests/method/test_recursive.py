@@ -157,6 +157,14 @@ def test_a_cameras_empty_first_frames_change_nothing(workers):
     engine.push(empty[0])
     with pytest.raises(InputError, match="shape"):
         engine.push(np.full((8, 9), 1000.0))
+    # a first frame of scattered pixels (no noise estimate: 0) is its nearest upsampling, and
+    # the statistics come from the next frame
+    scattered = np.where(np.random.default_rng(1).random((12, 16)) < 0.05, video[0], 0.0)
+    engine = RecursiveUPSR(scale=2, workers=workers)
+    first = engine.push(scattered)
+    np.testing.assert_array_equal(first, np.repeat(np.repeat(scattered, 2, 0), 2, 1))
+    engine.push(video[1])
+    assert engine._front.noise_mm > 5.0  # (σ = 10 mm)
 
 
 def test_memory_is_independent_of_n_and_of_the_video_length():

@@ -60,3 +60,21 @@ def test_the_estimator_follows_the_noise_not_the_motion_of_the_camera(law):
     assert given_stats.trust_noise_mm == given_stats.reach_noise_mm == 25.0
     reach = UPSRConfig(scale=2, n_frames=9, reach_noise_mm=7.0)
     assert fix_video_statistics(MotionFrontEnd(reach, 64), frames, reach).reach_noise_mm == 7.0
+
+
+def test_enough_for_statistics():
+    """Neighbouring measurements to estimate a frame's noise from: not an empty frame, not a
+    few scattered pixels; a small frame needs half its pairs."""
+    from upsr.method.statistics import enough_for_statistics
+
+    full = np.full((20, 24), 1500.0)
+    assert enough_for_statistics(full)
+    assert not enough_for_statistics(np.zeros_like(full))
+    scattered = np.zeros_like(full)
+    scattered[::2, ::2] = 1500.0  # (no two neighbours)
+    assert not enough_for_statistics(scattered)
+    patch = np.zeros_like(full)
+    patch[:8, :8] = 1500.0  # 112 pairs
+    assert enough_for_statistics(patch)
+    assert enough_for_statistics(np.full((3, 3), 1500.0))  # (12 pairs, all a 3×3 has)
+    assert not enough_for_statistics(np.array([[1500.0, 0.0], [0.0, 0.0]]))

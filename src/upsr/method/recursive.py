@@ -115,7 +115,7 @@ from upsr.method.motion import FlowBackend, make_flow_backend
 from upsr.method.noise import NOISE_FREE_MM, temporal_noise_mm
 from upsr.method.pipeline import TwoStagePipeline
 from upsr.method.registration import _registered_state_kernel, flow_positions
-from upsr.method.statistics import trust_profile
+from upsr.method.statistics import enough_for_statistics, trust_profile
 from upsr.method.thin import ThinParts
 from upsr.method.trust import (
     OFFSET_GRID,
@@ -125,6 +125,7 @@ from upsr.method.trust import (
     reference_anchor,
     state_significance,
 )
+from upsr.method.upsampling import upsample_nearest
 from upsr.method.validation import as_depth_frame, no_valid_depth
 from upsr.method.windowed import STAGES
 
@@ -534,10 +535,10 @@ class RecursiveUPSR(TwoStagePipeline):
                 f"frame {t}: shape {f.shape} differs from the first frame's {self._shape}"
             )
         self._shape = f.shape
-        if self._front is None and not (f > 0).any():
-            # a camera's first frames are often empty: the statistics wait for depth (from an
-            # empty frame they cost a room's surfaces 80 % for the whole video)
-            self._count = t + 1
+        if self._front is None and not enough_for_statistics(f):
+            # a camera's first frames are often empty or scattered: the statistics wait for
+            # depth (from such a frame a room's surfaces were 80 % worse for the whole video)
+            self._count, self._any_valid = t + 1, self._any_valid or bool((f > 0).any())
             return (None, f)
         if self._front is None:
             self._front = MotionFrontEnd(
@@ -649,11 +650,11 @@ class RecursiveUPSR(TwoStagePipeline):
         thin: ThinParts | None = None,
         remove_mixed: bool = False,
     ) -> np.ndarray:
-        """The output frame from the new state (the deblurring and the rules after it); 0
-        before any frame had depth (``fused`` None)."""
+        """The output frame from the new state (the deblurring and the rules after it); the
+        frame itself, nearest-upsampled, before the video's statistics (``fused`` None)."""
         cfg = self.config
         if fused is None:
-            return np.zeros((f.shape[0] * cfg.scale, f.shape[1] * cfg.scale), np.float32)
+            return upsample_nearest(f, cfg.scale).astype(np.float32)
         with self._timed("deblur"):
             if remove_mixed:
                 # the mixed pixels the state did not fill: split between their neighbours
