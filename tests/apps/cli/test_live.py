@@ -366,3 +366,22 @@ def test_live_stamps_its_output_with_the_sdks_times_as_run_does(tmp_path, capsys
     rc, _, err = run_cli(capsys, "run", FIXTURE, "-o", ref, "-r", "2", "--recursive", "-q")
     assert rc == 0, err
     np.testing.assert_array_equal(read_timestamps(ref), want)
+
+
+@needs_sdk
+def test_a_camera_clock_stepping_back_does_not_end_the_stream(tmp_path, capsys, monkeypatch):
+    """The output's times never go back (the last one again), and the stream goes on."""
+    from upsr.apps.cli import live as live_cli
+
+    frames = live_cli.FrameSource.__iter__
+
+    def stepping_back(self):
+        for k, (mm, arrived, stamp) in enumerate(frames(self)):
+            yield mm, arrived, stamp - (200_000_000 if k == 4 else 0)
+
+    monkeypatch.setattr(live_cli.FrameSource, "__iter__", stepping_back)
+    out = tmp_path / "o.npz"
+    rc, _, err = run_cli(capsys, "live", FIXTURE, "--no-real-time", "-o", out, "-r", "2", "-q")
+    assert rc == 0, err
+    stamps = np.load(out)["timestamps"]
+    assert len(stamps) == 12 and (np.diff(stamps) >= 0).all() and stamps[4] == stamps[3]

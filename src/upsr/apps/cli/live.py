@@ -318,11 +318,15 @@ class _Writer(threading.Thread):
     def run(self) -> None:
         try:
             with self._opened() as writer:
+                last = 0
                 while (item := self._queue.get()) is not _CLOSE:
                     if item is _ABORT:
                         raise _Aborted  # (the writer discards what it wrote)
                     frame, out, stamp = item
-                    writer.write(out, timestamp_ns=stamp)  # (the SDK's time of the frame)
+                    # the SDK's time of the frame (a camera's clock may step back: then the
+                    # last time again, rather than a stream refused)
+                    last = max(last, stamp)
+                    writer.write(out, timestamp_ns=last)
                     self._written(frame, out)
         except _Aborted:
             pass
