@@ -2,9 +2,10 @@
 Samba meshes are at ``--data``, default ``../shared/data``), speed beside a busy process,
 ``upsr live`` on SDK recordings played in real time (with pyrealsense2), the flow grid, the
 synthetic scenes, the realistic sensor scenes (``--out docs/results`` writes them to
-docs/results/realistic), stray far values and ``--valid-range``, thin parts on a ToF
-sensor, the deblurring iterations and speckle removal, and the Samba accuracy tables. Each
-benchmark prints its table and writes ``results.json`` under ``--out``."""
+docs/results/realistic), stray far values and ``--valid-range``, close range and
+``--edge-mm``, thin parts on a ToF sensor, the deblurring iterations and speckle removal, and
+the Samba accuracy tables. Each benchmark prints its table and writes ``results.json`` under
+``--out``."""
 
 from __future__ import annotations
 
@@ -15,6 +16,7 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
+import close_range_eval
 import deblur_eval
 import flow_grid_eval
 import live_eval
@@ -48,6 +50,8 @@ def main() -> int:
     synthetic_eval.main(["--out", str(out / "synthetic")])
     print("\n== realistic sensors (ToF footprint, Kinect, large and camera motion) ==", flush=True)
     realistic_eval.main(["--out", str(out / "realistic")])
+    print("\n== a camera at close range and --edge-mm ==", flush=True)
+    close_range_eval.main(["--out", str(out / "close_range")])
     print("\n== a sensor's stray far values and --valid-range ==", flush=True)
     stray_eval.main(["--out", str(out / "stray")])
     print("\n== thin parts on a ToF sensor (random bars, with and without split) ==", flush=True)

@@ -136,3 +136,31 @@ def test_config_from_options_maps_every_option() -> None:
     assert dataclasses.replace(config_from_options(2, None), n_frames=9) == UPSRConfig.from_options(
         2, 9
     )
+
+
+def test_edge_mm_sets_the_fusions_and_the_deblurrings_step(tmp_path, capsys) -> None:
+    """--edge-mm MM: one depth step between surfaces for the fusion and the deblurring (a camera
+    at close range); the same output as the API given both; a bad value is one line."""
+    import numpy as np
+
+    import upsr
+    from tests.apps._util import run_cli
+    from upsr.apps.cli.options import config_from_options
+
+    cfg = config_from_options(2, 3, edge_mm=12.5)
+    assert cfg.edge_mm == cfg.deblur.edge_mm == 12.5
+    rng = np.random.default_rng(0)
+    xs = np.mgrid[0:20, 0:24][1].astype(np.float32)
+    video = np.stack([200 + xs + rng.normal(0, 1, xs.shape) for _ in range(4)]).astype(np.float32)
+    video[:, 6:14, 8:16] -= 30.0  # (a box 30 mm in front: one surface at the default 100 mm)
+    np.save(tmp_path / "in.npy", video)
+    rc, _, err = run_cli(capsys, "run", tmp_path / "in.npy", "-o", tmp_path / "o.npy", "-r", "2",
+                         "-n", "3", "-q", "--edge-mm", "12.5")  # fmt: skip
+    assert rc == 0, err
+    want = upsr.super_resolve(video, 2, 3, edge_mm=12.5, deblur_edge_mm=12.5)
+    np.testing.assert_array_equal(np.load(tmp_path / "o.npy"), want)
+    assert not np.array_equal(want, upsr.super_resolve(video, 2, 3))
+    for bad in ("0", "-3", "nan"):
+        rc, _, err = run_cli(capsys, "run", tmp_path / "in.npy", "-o", tmp_path / "b.npy", "-r",
+                             "2", "--edge-mm", bad)  # fmt: skip
+        assert rc == 2 and "--edge-mm must be a number > 0" in err, err

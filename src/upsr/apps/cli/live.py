@@ -40,6 +40,7 @@ from upsr.apps._realsense import FrameSource, parse_stream
 from upsr.apps.cli.options import (
     CameraMotion,
     CameraMotionOpt,
+    EdgeMmOpt,
     FlowPresetOpt,
     FlowScaleOpt,
     FramesOpt,
@@ -149,6 +150,7 @@ def live(
     camera_motion: CameraMotionOpt = CameraMotion.flow,
     stream: StreamOpt = None,
     valid_range: ValidRangeOpt = None,
+    edge_mm: EdgeMmOpt = None,
     max_memory: MaxMemoryOpt = None,
     overwrite: LiveOverwriteOpt = False,
     quiet: QuietOpt = False,
@@ -175,6 +177,7 @@ def live(
         no_deblur=no_deblur,
         recursive=True,
         valid_range=valid_range,
+        edge_mm=edge_mm,
     )
     out_fmt = fmt(output_format)
     io.check_output_path([] if recording is None else [recording], output, overwrite, fmt=out_fmt)

@@ -16,6 +16,7 @@ defaults shown in the help texts are written here and checked against
 
 from __future__ import annotations
 
+import math
 from enum import Enum
 from typing import TYPE_CHECKING, Annotated, Any
 
@@ -53,6 +54,7 @@ HELP_DEFAULTS: dict[str, Any] = {
     "flow": "dis",
     "flow_preset": "medium",
     "trust_k": 3.0,
+    "edge_mm": 100.0,
     "fusion_estimator": "auto",
     "trust_noise_profile": "auto",
 }
@@ -418,14 +420,22 @@ TrustKOpt = Annotated[
         f"[default: {_D['trust_k']:g}].",
     ),
 ]
+EdgeMmOpt = Annotated[
+    float | None,
+    typer.Option(
+        "--edge-mm",
+        metavar="MM",
+        help=f"Depth step between two surfaces [default: {_D['edge_mm']:g}, at least 4x the "
+        "noise]; lower it for a camera at close range (a D405 at 7-50 cm: 10-20).",
+    ),
+]
 ValidRangeOpt = Annotated[
     str | None,
     typer.Option(
         "--valid-range",
         metavar="MIN,MAX",
-        help="Depths (mm) outside MIN..MAX are no measurement, as a depth camera SDK's "
-        "threshold filter makes them (a sensor's stray near or far values) [default: every "
-        "depth > 0].",
+        help="Depths (mm) outside MIN..MAX are no measurement, as an SDK's threshold filter "
+        "makes them (a sensor's stray values) [default: every depth > 0].",
     ),
 ]
 NoTrustOpt = Annotated[
@@ -535,6 +545,7 @@ def config_from_options(
     no_edge_votes: bool = False,
     no_thin_parts: bool = False,
     valid_range: str | None = None,
+    edge_mm: float | None = None,
 ) -> UPSRConfig:
     """The :class:`UPSRConfig` of the method options shared by ``upsr run`` and ``upsr batch``
     (``None``: the default; ``frames=None``: N = 9)."""
@@ -596,6 +607,10 @@ def config_from_options(
         options["thin_parts"] = False
     if valid_range is not None:
         options["valid_range_mm"] = parse_valid_range(valid_range)
+    if edge_mm is not None:  # (the fusion's and the deblurring's: one step between surfaces)
+        if not (math.isfinite(edge_mm) and edge_mm > 0):
+            raise InputError(f"--edge-mm must be a number > 0 (mm), got {edge_mm:g}")
+        options["edge_mm"] = options["deblur_edge_mm"] = edge_mm
     return UPSRConfig.from_options(scale, DEFAULT_FRAMES if frames is None else frames, **options)
 
 
@@ -603,9 +618,8 @@ def parse_valid_range(text: str) -> tuple[float, float]:
     """``--valid-range MIN,MAX`` (mm) as two numbers (checked by :class:`UPSRConfig`)."""
     from upsr.errors import InputError
 
-    parts = str(text).split(",")
     try:
-        lo, hi = (float(p) for p in parts)
+        lo, hi = (float(p) for p in str(text).split(","))
     except ValueError:
         raise InputError(
             f"--valid-range must be MIN,MAX in mm (e.g. 300,4000), got {text!r}"
@@ -653,6 +667,7 @@ METHOD_OPTIONS: tuple[tuple[str, Any, Any], ...] = (
     ("no_edge_votes", NoEdgeVotesOpt, False),
     ("no_thin_parts", NoThinPartsOpt, False),
     ("valid_range", ValidRangeOpt, None),
+    ("edge_mm", EdgeMmOpt, None),
 )
 
 
