@@ -462,7 +462,7 @@ class RecursiveUPSR(TwoStagePipeline):
         self._estimator = "mean" if cfg.fusion_estimator == "auto" else cfg.fusion_estimator
         self._remove_mixed = cfg.remove_mixed is True
         self._mixes = np.zeros(2)  # footprint_counts of the frames so far (remove_mixed="auto")
-        self._any_valid = False  # (a video may end in empty frames, a lens covered)
+        self._any_valid = False  # (before the statistics; a video may end in empty frames)
         self._reset_pipeline()
 
     @property
@@ -549,7 +549,6 @@ class RecursiveUPSR(TwoStagePipeline):
             self._first = f
             self._profile = trust_profile(f[None], cfg, self._front.edge_mm)
         front = self._front
-        self._any_valid = True
         if cfg.remove_mixed == "auto" and t < cfg.n_frames:
             # does the sensor mix? The first N frames pooled as they arrive (one: too few edges)
             self._mixes += footprint_counts(f, front.edge_mm)
@@ -654,7 +653,7 @@ class RecursiveUPSR(TwoStagePipeline):
         frame itself, nearest-upsampled, before the video's statistics (``fused`` None)."""
         cfg = self.config
         if fused is None:
-            return upsample_nearest(f, cfg.scale).astype(np.float32)
+            return upsample_nearest(f, cfg.scale)
         with self._timed("deblur"):
             if remove_mixed:
                 # the mixed pixels the state did not fill: split between their neighbours
@@ -693,7 +692,7 @@ class RecursiveUPSR(TwoStagePipeline):
         """
         try:
             self.wait()
-            if self._count and not self._any_valid:
+            if self._count and self._front is None and not self._any_valid:
                 raise InputError(no_valid_depth(self.config.valid_range_mm))
             return []
         finally:

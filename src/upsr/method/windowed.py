@@ -243,7 +243,7 @@ class UPSR:
     def _ingest(self, frame: npt.ArrayLike) -> None:
         t = self._count
         cfg = self.config
-        f = as_depth_frame(frame, name=f"frame {t}", valid_range_mm=self.config.valid_range_mm)
+        f = as_depth_frame(frame, name=f"frame {t}", valid_range_mm=cfg.valid_range_mm)
         if self._front is None:
             self._shape = f.shape
             self._front = MotionFrontEnd(
