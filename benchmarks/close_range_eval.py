@@ -1,13 +1,16 @@
-"""A camera at close range (a D405 at 7–50 cm): the scenes of ``realistic_eval`` ten times nearer.
+"""A camera at close range (a D405 at 7–50 cm): the scenes of ``realistic_eval`` nearer.
 
 UP-SR's depth thresholds are in mm (``edge_mm`` = 100: the step that separates two surfaces,
-for the fusion, the mixed pixels and the deblurring), made for scenes metres away. Here the
-deforming body, the room and the galloping animal (:mod:`upsr.research.synth.realistic`, 64×56
-→ 128×112, Laplace noise) have their depth and noise scaled by 0.1: each is run with the
-defaults and with ``--edge-mm 10`` (``edge_mm`` and ``deblur_edge_mm`` scaled with the scene),
-beside nearest upsampling; the metrics' own thresholds are scaled too (discontinuities and
-flying pixels at 10 mm), and rmse and surface rmse are given in the unscaled scene's mm. The
-scenes unscaled with the defaults are the reference.
+for the fusion, the mixed pixels and the deblurring; the final smoothing's range std, 30 mm),
+made for scenes metres away; a video whose median depth is below ``near_depth_mm`` (1 m) has
+them scaled by its median depth / 1 m. Here the five realistic scenes
+(:mod:`upsr.research.synth.realistic`, 64×56 → 128×112, Laplace noise σ = 10 mm) have their
+depth and noise scaled by each ``--factors`` value (0.1: 24–39 cm median, 0.25: 59–98 cm):
+each is run in both modes with the defaults, with the thresholds unscaled
+(``near_depth_mm=None``: the defaults before the scaling) and with ``upsr run --edge-mm``
+at 100 mm times the factor, beside nearest upsampling; the metrics' own thresholds are scaled
+too (discontinuities and flying pixels at 100 mm times the factor), and rmse and surface rmse
+are given in the unscaled scene's mm. The scenes unscaled with the defaults are the reference.
 
 Example::
 
@@ -17,6 +20,7 @@ Example::
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 from collections.abc import Sequence
 from pathlib import Path
@@ -25,13 +29,16 @@ from typing import Any
 import numpy as np
 
 import upsr
+from upsr.apps.cli.options import config_from_options
+from upsr.method.config import UPSRConfig
 from upsr.research import baselines
 from upsr.research.metrics import evaluate
 from upsr.research.synth.realistic import degrade, make_realistic
 
 __all__ = ["main"]
 
-SCENES = ("deforming", "room", "gallop")
+SCENES = ("deforming", "room", "gallop", "toward_wall", "fan")
+MODES = ("windowed", "recursive")
 
 
 def _scores(out: np.ndarray, truth: np.ndarray, k: float) -> dict[str, float]:
@@ -44,51 +51,62 @@ def _scores(out: np.ndarray, truth: np.ndarray, k: float) -> dict[str, float]:
     }
 
 
+def _cases(k: float, mode: str) -> list[tuple[str, UPSRConfig]]:
+    recursive = mode == "recursive"
+    cases = [("defaults", config_from_options(2, 9, recursive=recursive))]
+    if k < 1.0:
+        unscaled = dataclasses.replace(cases[0][1], near_depth_mm=None)
+        edge = f"--edge-mm {100 * k:g}"
+        given = config_from_options(2, 9, recursive=recursive, edge_mm=100 * k)
+        cases += [("unscaled", unscaled), (edge, given)]
+    return cases
+
+
 def main(argv: Sequence[str] | None = None) -> dict[str, Any]:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    p.add_argument("--factor", type=float, default=0.1, help="depth scale of the near scenes")
+    p.add_argument("--factors", default="0.1,0.25", help="depth scales of the near scenes")
     p.add_argument("--out", type=Path, default=Path("results/bench/close_range"))
     args = p.parse_args(argv)
-    k = args.factor
+    factors = [float(f) for f in args.factors.split(",")]
     rows = []
     for scene in SCENES:
         video = make_realistic(scene, (56, 64), scale=2, n_frames=14)
         low = degrade(video, "laplace", np.random.default_rng(0), sigma_mm=10.0)
-        cases = (
-            ("metres", 1.0, "defaults", {}),
-            ("near", k, "defaults", {}),
-            ("near", k, f"--edge-mm {100 * k:g}", {"edge_mm": 100 * k, "deblur_edge_mm": 100 * k}),
-        )
-        for where, s, label, opts in cases:
-            frames, truth = low * s, video.truth * s
-            out = upsr.super_resolve(frames, 2, 9, **opts)
-            near = baselines.nearest(frames, 2)
-            rows.append(
-                {
-                    "scene": scene,
-                    "where": where,
-                    "options": label,
-                    "upsr": _scores(out, truth, s),
-                    "nearest": _scores(near, truth, s),
-                }
-            )
+        for k in (1.0, *factors):
+            frames, truth = low * k, video.truth * k
+            near = _scores(baselines.nearest(frames, 2), truth, k)
+            for mode in MODES:
+                for label, cfg in _cases(k, mode):
+                    out = upsr.super_resolve(frames, 2, 9, config=cfg)
+                    rows.append(
+                        {
+                            "scene": scene,
+                            "factor": k,
+                            "mode": mode,
+                            "options": label,
+                            "upsr": _scores(out, truth, k),
+                            "nearest": near,
+                        }
+                    )
         print(f"  {scene}: done", flush=True)
     lines = [
-        f"close range: the scenes at {k:g}× their depth (and noise), 64×56 → 128×112, r = 2",
+        "close range: the realistic scenes at a fraction of their depth (and noise), 64×56 → "
+        "128×112, r = 2, Laplace σ = 10 mm × the factor; rmse in the unscaled scene's mm",
         "",
-        "| scene | depth | options | rmse | surface rmse | edge % | flying % | nearest flying % |",
-        "|---|---|---|---|---|---|---|---|",
+        "| scene | factor | mode | options | rmse | surface rmse | edge % | flying % "
+        "| nearest flying % |",
+        "|---|---|---|---|---|---|---|---|---|",
     ]
     for row in rows:
         u, n = row["upsr"], row["nearest"]
         lines.append(
-            f"| {row['scene']} | {row['where']} | {row['options']} | {u['rmse']:.2f} | "
-            f"{u['surface_rmse']:.3f} | {u['edge_accuracy']:.2f} | {u['flying_pct']:.3f} | "
-            f"{n['flying_pct']:.3f} |"
+            f"| {row['scene']} | {row['factor']:g} | {row['mode']} | {row['options']} | "
+            f"{u['rmse']:.2f} | {u['surface_rmse']:.3f} | {u['edge_accuracy']:.2f} | "
+            f"{u['flying_pct']:.3f} | {n['flying_pct']:.3f} |"
         )
     print("\n" + "\n".join(lines))
     args.out.mkdir(parents=True, exist_ok=True)
-    result = {"factor": k, "rows": rows}
+    result = {"factors": factors, "rows": rows}
     (args.out / "results.json").write_text(json.dumps(result, indent=2))
     (args.out / "results.md").write_text("\n".join(lines) + "\n")
     return result

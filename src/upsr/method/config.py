@@ -215,7 +215,16 @@ class UPSRConfig:
         Fusion: registered samples further apart than this (mm) lie on different surfaces; the
         surface with the largest vote wins and only its samples are averaged by the median
         (never a depth between foreground and background). The threshold actually used is at
-        least 4× the noise std estimated once per video, so noise never splits a surface.
+        least 4× the noise std estimated once per video, so noise never splits a surface (and
+        scaled for a scene nearer than ``near_depth_mm``).
+    near_depth_mm : float or None
+        Beyond the paper: the depth thresholds in mm (``edge_mm``, the deblurring's
+        ``edge_mm`` and ``smooth_sigma_mm``) are made for scenes at this depth or farther. A
+        video whose first N frames have a median valid depth z̃ below it has them scaled by
+        z̃ / ``near_depth_mm`` (fixed once per video: :func:`upsr.method.frontend.depth_scale`):
+        a camera at close range (a D405 at 7–50 cm) then gets the thresholds the same scene
+        gets at this depth, not surfaces a few cm apart merged (flying pixels). Nothing
+        changes for scenes at 1 m or farther. ``None``: the thresholds as given.
     edge_weight_px : float or None
         Fusion at depth edges: a sample's vote is weighted by how close (in units of r px) the
         centre of the low-res pixel it comes from is to the registered position,
@@ -379,6 +388,7 @@ class UPSRConfig:
     speckle_px: int | None = None
     min_valid_fraction: float = 0.5
     edge_mm: float = 100.0
+    near_depth_mm: float | None = 1000.0
     edge_weight_px: float | None = 0.35
     edge_weight_floor: float = 0.25
     trust_k: float | None = 3.0
@@ -440,6 +450,7 @@ class UPSRConfig:
         _number("min_valid_fraction", self.min_valid_fraction, 0, 1, hi_open=True)
         _number("speckle_px", self.speckle_px, 0, MAX_SPECKLE_PX, integer=True, none=True)
         _number("edge_mm", self.edge_mm, 0, MAX_DEPTH_PARAM_MM, lo_open=True)
+        _number("near_depth_mm", self.near_depth_mm, 0, MAX_DEPTH_PARAM_MM, lo_open=True, none=True)
         _number("edge_weight_px", self.edge_weight_px, 0, MAX_SIGMA_PX, lo_open=True, none=True)
         _number("edge_weight_floor", self.edge_weight_floor, 0, 1)
         _number(

@@ -6,8 +6,8 @@ The chain that turns low-res depth frames into the consecutive flows the registr
    <upsr.method.config.UPSRConfig.flow_grid_scale>`; s = r in the paper) and the bilateral
    prefilter, for motion only (§5.2, :func:`upsr.method.motion.bilateral_prefilter_nearest`);
 2. one fixed 8-bit mapping of depth per video (:func:`upsr.method.motion.depth_to_u8`), its
-   range and the noise level fixed once from the first window (never per frame:
-   :meth:`MotionFrontEnd.fix_statistics`);
+   range, the noise level and the scale of the depth thresholds fixed once from the first
+   window (never per frame: :meth:`MotionFrontEnd.fix_statistics`, :func:`depth_scale`);
 3. optical flow between consecutive frames, both directions (eq. 16–17), with the motion that
    the depth does not support zeroed (:func:`upsr.method.motion.suppress_spurious_motion`);
    the same test for the residual flows of eq. 19 on the registered 8-bit guides.
@@ -19,6 +19,7 @@ multi-frame baselines (:func:`upsr.research.baselines.upsampled_flows`) and the 
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Callable, Iterable
 
 import numpy as np
@@ -39,7 +40,27 @@ from upsr.method.motion import (
 from upsr.method.noise import estimate_noise_mm
 from upsr.method.upsampling import upsample_nearest
 
-__all__ = ["MotionFrontEnd"]
+__all__ = ["MotionFrontEnd", "depth_scale"]
+
+
+def depth_scale(first_frames: np.ndarray, near_depth_mm: float | None) -> float:
+    """The factor k ≤ 1 of a video's depth thresholds in mm: its first frames' (T, h, w) mm
+    median valid depth over ``near_depth_mm``, at most 1.
+
+    UP-SR's thresholds in mm (the step between two surfaces, 100 mm; the final smoothing's
+    range std, 30 mm) are made for scenes a metre away or more; a camera at close range (a
+    D405 at 7–50 cm, a ToF sensor on a hand) sees steps of a few cm between surfaces, which
+    they merge and smooth across (flying pixels). Scaled by k, a scene at 30 cm gets the
+    thresholds the same scene gets at 1 m (beyond the paper, ``UPSRConfig.near_depth_mm``).
+    ``near_depth_mm`` None, or no valid depth: 1.
+    """
+    if near_depth_mm is None:
+        return 1.0
+    frames = np.asarray(first_frames)
+    valid = frames[frames > 0]
+    if valid.size == 0:
+        return 1.0
+    return float(min(1.0, float(np.median(valid)) / near_depth_mm))
 
 
 class MotionFrontEnd:
@@ -75,8 +96,15 @@ class MotionFrontEnd:
         (near, far) of the 8-bit mapping; None until :meth:`fix_statistics`.
     noise_mm : float or None
         Noise std of the video (mm); None until :meth:`fix_statistics`.
+    depth_scale : float
+        k ≤ 1, the factor of the depth thresholds in mm (:func:`depth_scale`); 1 until
+        :meth:`fix_statistics`.
     edge_mm : float
-        Depth step that separates surfaces: ``config.edge_mm``, at least 4× the noise.
+        Depth step that separates surfaces: k · ``config.edge_mm``, at least 4× the noise.
+    fixed_config : UPSRConfig
+        ``config`` with its thresholds as fixed for this video (k · ``edge_mm``, the
+        deblurring's k · ``edge_mm`` and k · ``smooth_sigma_mm``, ``near_depth_mm`` None):
+        what the steps after the fusion use, and what a chunk of the video runs with.
     thread_safe : bool
         Whether two flows may run at once (a built-in backend, not a given one).
     """
@@ -107,11 +135,13 @@ class MotionFrontEnd:
         self.prefilter_sigma_px = cfg.spatial_sigma_px * s / cfg.scale
         self.depth_range_mm: tuple[float, float] | None = cfg.depth_range_mm
         self.noise_mm: float | None = cfg.noise_mm
+        self.depth_scale = 1.0
         self.edge_mm = self._edge_for(self.noise_mm or 0.0)
+        self.fixed_config = cfg
 
     # -- per-video statistics ------------------------------------------------------------------
     def _edge_for(self, noise_mm: float) -> float:
-        return max(self.config.edge_mm, 4.0 * noise_mm)
+        return max(self.depth_scale * self.config.edge_mm, 4.0 * noise_mm)
 
     @property
     def ready(self) -> bool:
@@ -126,14 +156,28 @@ class MotionFrontEnd:
         estimate_noise: Callable[[np.ndarray], float] = estimate_noise_mm,
     ) -> None:
         """Fix what the config leaves open from the first window's low-res frames (h, w) mm:
-        the depth range of the 8-bit mapping (:func:`~upsr.method.motion.depth_range`) and the
-        noise (median over the frames of ``estimate_noise``), once per video."""
+        the depth range of the 8-bit mapping (:func:`~upsr.method.motion.depth_range`), the
+        noise (median over the frames of ``estimate_noise``) and the factor of the depth
+        thresholds (:func:`depth_scale`), once per video."""
         first = list(first_frames)
+        cfg = self.config
         if self.depth_range_mm is None:
             self.depth_range_mm = depth_range(np.stack(first))
         if self.noise_mm is None:
             self.noise_mm = float(np.median([estimate_noise(f) for f in first]))
-            self.edge_mm = self._edge_for(self.noise_mm)
+        k = self.depth_scale = depth_scale(np.stack(first), cfg.near_depth_mm)
+        self.edge_mm = self._edge_for(self.noise_mm)
+        d = cfg.deblur
+        self.fixed_config = dataclasses.replace(
+            cfg,
+            edge_mm=k * cfg.edge_mm,
+            near_depth_mm=None,
+            deblur=dataclasses.replace(
+                d,
+                edge_mm=None if d.edge_mm is None else k * d.edge_mm,
+                smooth_sigma_mm=None if d.smooth_sigma_mm is None else k * d.smooth_sigma_mm,
+            ),
+        )
 
     # -- per frame -----------------------------------------------------------------------------
     def prefilter(self, frame_mm: npt.ArrayLike) -> np.ndarray:

@@ -665,7 +665,7 @@ class RecursiveUPSR(TwoStagePipeline):
             return finish_frame(
                 finish_fused(
                     fused,
-                    cfg,
+                    self._front.fixed_config,  # type: ignore[union-attr]
                     noise_row_step=max(1, fused.size // NOISE_SAMPLE_PX),
                     noise_profile=self._profile,
                 ),

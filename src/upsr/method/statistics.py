@@ -152,7 +152,7 @@ def pinned_config(first_frames: np.ndarray, cfg: UPSRConfig) -> UPSRConfig:
     front = MotionFrontEnd(cfg, first_frames.shape[-1])
     stats = fix_video_statistics(front, first_frames, cfg)
     return dataclasses.replace(
-        cfg,
+        front.fixed_config,  # (its depth steps fixed too)
         depth_range_mm=front.depth_range_mm,
         noise_mm=front.noise_mm,
         fusion_estimator=stats.estimator,

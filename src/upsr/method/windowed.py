@@ -377,7 +377,11 @@ class UPSR:
             )  # fmt: skip
         with self._timed("deblur"):
             return finish_frame(
-                finish_fused(fused, cfg, noise_profile=stats.trust_noise_profile),
+                finish_fused(
+                    fused,
+                    self._front.fixed_config,  # type: ignore[union-attr]
+                    noise_profile=stats.trust_noise_profile,
+                ),
                 fused,
                 lowres[ref],
                 anchor,

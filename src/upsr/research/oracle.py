@@ -629,7 +629,7 @@ def super_resolve_straightforward(frames: npt.ArrayLike, config: UPSRConfig) -> 
         cfg, w, grid_scale=r, flow_backend=flow, residual_flow_backend=flow, blockwise=False
     )
     front.fix_statistics(video[:n], estimate_noise=estimate_noise_mm_numpy)
-    edge_mm = front.edge_mm
+    edge_mm, fixed = front.edge_mm, front.fixed_config  # (its thresholds fixed for the video)
     stats = fix_video_statistics(front, video[:n], cfg)
     trust_mm, reach_mm = stats.trust_noise_mm, stats.reach_noise_mm  # (a sample's noise)
     out = np.empty((t_total, h * r, w * r), np.float32)
@@ -687,9 +687,9 @@ def super_resolve_straightforward(frames: npt.ArrayLike, config: UPSRConfig) -> 
             keep_mean=stats.remove_mixed,
         )  # fmt: skip
         res = remove_speckles_opencv(
-            deblur_numpy(fused, cfg.deblur, scale=r, noise_profile=stats.trust_noise_profile),
+            deblur_numpy(fused, fixed.deblur, scale=r, noise_profile=stats.trust_noise_profile),
             cfg.speckle_size_px,
-            cfg.edge_mm,
+            fixed.edge_mm,
         )
         # the rules beyond the paper after the deblurring, as the engine applies them
         out[t] = finish_frame(

@@ -148,7 +148,7 @@ def test_edge_mm_sets_the_fusions_and_the_deblurrings_step(tmp_path, capsys) -> 
     from upsr.apps.cli.options import config_from_options
 
     cfg = config_from_options(2, 3, edge_mm=12.5)
-    assert cfg.edge_mm == cfg.deblur.edge_mm == 12.5
+    assert cfg.edge_mm == cfg.deblur.edge_mm == 12.5 and cfg.near_depth_mm is None
     rng = np.random.default_rng(0)
     xs = np.mgrid[0:20, 0:24][1].astype(np.float32)
     video = np.stack([200 + xs + rng.normal(0, 1, xs.shape) for _ in range(4)]).astype(np.float32)
@@ -157,9 +157,9 @@ def test_edge_mm_sets_the_fusions_and_the_deblurrings_step(tmp_path, capsys) -> 
     rc, _, err = run_cli(capsys, "run", tmp_path / "in.npy", "-o", tmp_path / "o.npy", "-r", "2",
                          "-n", "3", "-q", "--edge-mm", "12.5")  # fmt: skip
     assert rc == 0, err
-    want = upsr.super_resolve(video, 2, 3, edge_mm=12.5, deblur_edge_mm=12.5)
+    want = upsr.super_resolve(video, 2, 3, edge_mm=12.5, deblur_edge_mm=12.5, near_depth_mm=None)
     np.testing.assert_array_equal(np.load(tmp_path / "o.npy"), want)
-    assert not np.array_equal(want, upsr.super_resolve(video, 2, 3))
+    assert not np.array_equal(want, upsr.super_resolve(video, 2, 3, near_depth_mm=None))
     for bad in ("0", "-3", "nan"):
         rc, _, err = run_cli(capsys, "run", tmp_path / "in.npy", "-o", tmp_path / "b.npy", "-r",
                              "2", "--edge-mm", bad)  # fmt: skip

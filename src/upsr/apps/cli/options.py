@@ -425,8 +425,9 @@ EdgeMmOpt = Annotated[
     typer.Option(
         "--edge-mm",
         metavar="MM",
-        help=f"Depth step between two surfaces [default: {_D['edge_mm']:g}, at least 4x the "
-        "noise]; lower it for a camera at close range (a D405 at 7-50 cm: 10-20).",
+        help="Depth step between two surfaces, as given: no scaling by the scene's depth "
+        f"[default: {_D['edge_mm']:g}, times the median depth / 1 m for a scene nearer than "
+        "1 m; at least 4x the noise].",
     ),
 ]
 ValidRangeOpt = Annotated[
@@ -595,22 +596,17 @@ def config_from_options(
         options["fill_holes"] = True
     if mixed_removal is not None:
         options["remove_mixed"] = mixed_removal
-    if no_registration_check:
-        options["check_registration"] = False
-    if no_radial:
-        options["radial_compensation"] = False
-    if no_slopes:
-        options["follow_slopes"] = False
-    if no_edge_votes:
-        options["edge_votes"] = False
-    if no_thin_parts:
-        options["thin_parts"] = False
+    for off, name in ((no_registration_check, "check_registration"), (no_slopes, "follow_slopes"),
+                      (no_radial, "radial_compensation"), (no_edge_votes, "edge_votes"),
+                      (no_thin_parts, "thin_parts")):  # fmt: skip
+        if off:
+            options[name] = False
     if valid_range is not None:
         options["valid_range_mm"] = parse_valid_range(valid_range)
     if edge_mm is not None:  # (the fusion's and the deblurring's: one step between surfaces)
         if not (math.isfinite(edge_mm) and edge_mm > 0):
             raise InputError(f"--edge-mm must be a number > 0 (mm), got {edge_mm:g}")
-        options["edge_mm"] = options["deblur_edge_mm"] = edge_mm
+        options.update(edge_mm=edge_mm, deblur_edge_mm=edge_mm, near_depth_mm=None)
     return UPSRConfig.from_options(scale, DEFAULT_FRAMES if frames is None else frames, **options)
 
 

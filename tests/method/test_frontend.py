@@ -1,0 +1,82 @@
+"""The motion front-end's per-video statistics (upsr.method.frontend): the scale of the depth
+thresholds for a camera at close range."""
+
+import numpy as np
+import pytest
+
+import upsr
+from upsr.method.config import UPSRConfig
+from upsr.method.frontend import MotionFrontEnd, depth_scale
+from upsr.method.statistics import pinned_config
+
+
+def _box_video(near_mm: float, far_mm: float, n: int = 8, seed: int = 0) -> np.ndarray:
+    """A box ``near_mm`` away moving 1 px per frame across a wall ``far_mm`` away (0.5 mm
+    noise), 24×28."""
+    video = np.full((n, 24, 28), far_mm, np.float32)
+    for t in range(n):
+        video[t, 7:16, 6 + t : 15 + t] = near_mm
+    noise = np.random.default_rng(seed).normal(0.0, 0.5, video.shape)
+    return (video + noise).astype(np.float32)
+
+
+def _flying(out: np.ndarray, near_mm: float, far_mm: float, tol_mm: float = 5.0) -> int:
+    """Output pixels with depth within neither surface's ``tol_mm``."""
+    d = out[out > 0]
+    return int(((np.abs(d - near_mm) > tol_mm) & (np.abs(d - far_mm) > tol_mm)).sum())
+
+
+def test_depth_scale_is_the_median_depth_over_the_near_depth_at_most_one():
+    frames = np.full((3, 8, 8), 400.0, np.float32)
+    frames[:, :2] = 0.0  # no measurement: not counted
+    frames[:, 2, :] = 5000.0  # a far row moves the median nowhere
+    assert depth_scale(frames, 1000.0) == pytest.approx(0.4)
+    assert depth_scale(frames * 10, 1000.0) == 1.0  # 4 m: the thresholds as given
+    assert depth_scale(frames, None) == 1.0
+    assert depth_scale(np.zeros((2, 4, 4)), 1000.0) == 1.0  # nothing measured: as given
+
+
+def test_the_front_end_scales_the_thresholds_once_per_video():
+    cfg = UPSRConfig(scale=2, n_frames=3)
+    near = _box_video(220.0, 250.0, n=3)
+    front = MotionFrontEnd(cfg, near.shape[-1])
+    assert front.depth_scale == 1.0 and front.edge_mm == 100.0 and front.fixed_config is cfg
+    front.fix_statistics(near)
+    k = float(np.median(near)) / 1000.0
+    assert front.depth_scale == pytest.approx(k)
+    assert front.edge_mm == pytest.approx(max(100.0 * k, 4.0 * front.noise_mm))
+    fixed = front.fixed_config
+    assert fixed.near_depth_mm is None
+    assert fixed.edge_mm == pytest.approx(100.0 * k)
+    assert fixed.deblur.edge_mm == pytest.approx(100.0 * k)
+    assert fixed.deblur.smooth_sigma_mm == pytest.approx(30.0 * k)
+    # a chunk of the video runs with them as fixed (upsr batch)
+    pinned = pinned_config(near, cfg)
+    assert (pinned.edge_mm, pinned.deblur, pinned.near_depth_mm) == (
+        fixed.edge_mm,
+        fixed.deblur,
+        None,
+    )
+    # a scene a metre away or farther: nothing changes
+    far = MotionFrontEnd(cfg, near.shape[-1])
+    far.fix_statistics(near * 10)
+    assert far.depth_scale == 1.0 and far.fixed_config.edge_mm == 100.0
+    assert far.fixed_config.deblur == cfg.deblur
+
+
+@pytest.mark.parametrize("mode", ["windowed", "recursive"])
+def test_a_camera_at_close_range_keeps_its_surfaces_apart(mode):
+    """A box 3 cm in front of a wall 25 cm away: with the thresholds made for metres (one
+    surface at 100 mm, smoothed with a 30 mm range std) thousands of output pixels lie
+    between box and wall; scaled to the scene, none."""
+    video = _box_video(220.0, 250.0)
+    out = upsr.super_resolve(video, 2, 5, mode=mode)
+    assert _flying(out, 220.0, 250.0) == 0
+    unscaled = upsr.super_resolve(video, 2, 5, mode=mode, near_depth_mm=None)
+    assert _flying(unscaled, 220.0, 250.0) > 500
+    # the same scene 2.2 m away: the defaults as they were
+    far = _box_video(2200.0, 2500.0)
+    np.testing.assert_array_equal(
+        upsr.super_resolve(far, 2, 5, mode=mode),
+        upsr.super_resolve(far, 2, 5, mode=mode, near_depth_mm=None),
+    )
