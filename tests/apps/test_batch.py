@@ -48,6 +48,24 @@ def test_batch_in_process_equals_single_runs(videos, tmp_path: Path) -> None:
     assert [r.status for r in res.recordings] == ["skipped", "skipped"]
 
 
+def test_batch_of_a_near_scene_equals_its_single_run(tmp_path: Path) -> None:
+    """A camera at close range: every chunk runs with the depth thresholds the single run
+    scaled from the video's first frames (a chunk's own frames lie nearer or farther)."""
+    import numpy as np
+
+    import upsr
+    from upsr.research.synth.scenes import dynamic_scene
+
+    scene = dynamic_scene(n_frames=13, lowres_shape=(20, 24), scale=R, noise_sigma_mm=2, seed=1)
+    video = (scene.lowres * np.linspace(0.08, 0.2, 13)[:, None, None]).astype(np.float32)
+    np.save(tmp_path / "near.npy", video)
+    cfg = UPSRConfig(scale=R, n_frames=N)
+    res = run_batch([tmp_path / "near.npy"], tmp_path / "out", cfg, workers=1, chunk_frames=3,
+                    progress=False)  # fmt: skip
+    assert res.exit_code == 0
+    check_batch_output(tmp_path / "out", {"near": upsr.super_resolve(video, R, N)})
+
+
 def test_batch_reuses_finished_chunks(videos, tmp_path: Path, monkeypatch) -> None:
     from upsr.apps import batch
 
