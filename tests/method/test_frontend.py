@@ -1,5 +1,7 @@
 """The motion front-end's per-video statistics (upsr.method.frontend): the scale of the depth
-thresholds for a camera at close range."""
+thresholds for a camera at close range, the final smoothing at high noise."""
+
+import dataclasses
 
 import numpy as np
 import pytest
@@ -7,7 +9,7 @@ import pytest
 import upsr
 from upsr.method.config import UPSRConfig
 from upsr.method.frontend import MotionFrontEnd, depth_scale
-from upsr.method.statistics import pinned_config
+from upsr.method.statistics import first_frame_noise_mm, fix_video_statistics, pinned_config
 
 
 def _box_video(near_mm: float, far_mm: float, n: int = 8, seed: int = 0) -> np.ndarray:
@@ -80,3 +82,35 @@ def test_a_camera_at_close_range_keeps_its_surfaces_apart(mode):
         upsr.super_resolve(far, 2, 5, mode=mode),
         upsr.super_resolve(far, 2, 5, mode=mode, near_depth_mm=None),
     )
+
+
+def _noisy_planes(sigma_mm: float, n: int = 3) -> np.ndarray:
+    """A slanted plane 2–3 m away with a box, Laplacian noise of std ``sigma_mm``, 40×48."""
+    rng = np.random.default_rng(1)
+    clean = 2000.0 + 20.0 * np.mgrid[0:40, 0:48][1]
+    clean[10:25, 12:30] = 1500.0
+    noise = rng.laplace(0.0, sigma_mm / np.sqrt(2.0), (n, 40, 48))
+    return (clean + noise).astype(np.float32)
+
+
+def test_the_final_smoothing_is_at_least_a_samples_noise():
+    cfg = UPSRConfig(scale=2, n_frames=3)
+    front = MotionFrontEnd(cfg, 48)
+    front.fix_statistics(_noisy_planes(10.0))
+    front.smooth_at_least(12.0)  # below the configured 30 mm: as configured
+    assert front.fixed_config.deblur == cfg.deblur
+    front.smooth_at_least(49.0)
+    assert front.fixed_config.deblur.smooth_sigma_mm == 49.0
+    assert front.fixed_config.deblur.edge_mm == cfg.deblur.edge_mm
+    # with the video's statistics, from its own noise: both modes, and a chunk (upsr batch)
+    for sigma, want in ((10.0, 30.0), (50.0, 50.0)):
+        frames = _noisy_planes(sigma)
+        front = MotionFrontEnd(cfg, 48)
+        fix_video_statistics(front, frames, cfg)
+        assert front.fixed_config.deblur.smooth_sigma_mm == pytest.approx(want, rel=0.15)
+        pinned = pinned_config(frames, cfg)
+        assert pinned.deblur == front.fixed_config.deblur
+        engine = upsr.UPSR(2, 3, mode="recursive")
+        engine.push(frames[0])
+        assert engine._front.fixed_config.deblur.smooth_sigma_mm == pytest.approx(want, rel=0.15)
+    assert first_frame_noise_mm(frames[0], front, dataclasses.replace(cfg, noise_mm=7.0)) == 7.0

@@ -179,6 +179,17 @@ class MotionFrontEnd:
             ),
         )
 
+    def smooth_at_least(self, noise_mm: float) -> None:
+        """The final smoothing's range std (``fixed_config.deblur.smooth_sigma_mm``) at least
+        ``noise_mm``, a sample's noise in the video (once, with its statistics): at high
+        noise the fused surfaces keep more than 30 mm of it, which a narrower range leaves
+        (beyond the paper; steps of 4σ or less are one surface for the fusion already)."""
+        d = self.fixed_config.deblur
+        if d.smooth_sigma_mm is not None and noise_mm > d.smooth_sigma_mm:
+            self.fixed_config = dataclasses.replace(
+                self.fixed_config, deblur=dataclasses.replace(d, smooth_sigma_mm=noise_mm)
+            )
+
     # -- per frame -----------------------------------------------------------------------------
     def prefilter(self, frame_mm: npt.ArrayLike) -> np.ndarray:
         """A low-res frame (h, w) in mm, upsampled by s and bilateral-filtered: float32

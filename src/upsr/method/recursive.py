@@ -115,7 +115,7 @@ from upsr.method.motion import FlowBackend, make_flow_backend
 from upsr.method.noise import NOISE_FREE_MM, temporal_noise_mm
 from upsr.method.pipeline import TwoStagePipeline
 from upsr.method.registration import _registered_state_kernel, flow_positions
-from upsr.method.statistics import enough_for_statistics, trust_profile
+from upsr.method.statistics import enough_for_statistics, first_frame_noise_mm, trust_profile
 from upsr.method.thin import ThinParts
 from upsr.method.trust import (
     OFFSET_GRID,
@@ -546,6 +546,7 @@ class RecursiveUPSR(TwoStagePipeline):
             )
             # per-video statistics from the first frame (latency 0: nothing later is known)
             self._front.fix_statistics([f])
+            self._front.smooth_at_least(first_frame_noise_mm(f, self._front, cfg))
             self._first = f
             self._profile = trust_profile(f[None], cfg, self._front.edge_mm)
         front = self._front

@@ -35,6 +35,7 @@ __all__ = [
     "MIN_STATISTICS_PAIRS",
     "VideoStatistics",
     "enough_for_statistics",
+    "first_frame_noise_mm",
     "fix_video_statistics",
     "pinned_config",
     "trust_profile",
@@ -104,12 +105,16 @@ def fix_video_statistics(
         step = quantisation_step(first_frames, trust_mm, profile)
         tail = math.nan if d2 is None else tail_ratio(d2)
         estimator = choose_estimator(tail, quantised=step >= QUANTISED_STEPS)
+    sample_mm = spatial if d2 is None else spatial_noise_mm(d2, spatial)  # (from space)
     if cfg.reach_noise_mm is not None:
         reach_mm = cfg.reach_noise_mm
     elif not estimate_reach:
         reach_mm = trust_mm
     else:
-        reach_mm = min(trust_mm, spatial if d2 is None else spatial_noise_mm(d2, spatial))
+        reach_mm = min(trust_mm, sample_mm)
+    # the final smoothing's range: at least a sample's noise (never the temporal differences,
+    # which a moving camera's slanted surfaces inflate)
+    front.smooth_at_least(reach_mm if d2 is None else min(reach_mm, sample_mm))
     return VideoStatistics(estimator, trust_mm, reach_mm, bool(mixed), profile)
 
 
@@ -139,6 +144,20 @@ def enough_for_statistics(frame: np.ndarray) -> bool:
     h, w = valid.shape
     pairs = int((valid[:, 1:] & valid[:, :-1]).sum() + (valid[1:] & valid[:-1]).sum())
     return pairs >= min(MIN_STATISTICS_PAIRS, (h * (w - 1) + (h - 1) * w) // 2) and pairs > 0
+
+
+def first_frame_noise_mm(frame: np.ndarray, front: MotionFrontEnd, cfg: UPSRConfig) -> float:
+    """A sample's noise std (mm) from a video's first frame (h, w) alone (the recursive mode's
+    statistics): the given ``reach_noise_mm``, ``trust_noise_mm`` or ``noise_mm``, else from
+    its second differences (:func:`upsr.method.noise.spatial_noise_mm`, at least the
+    front-end's estimate)."""
+    for given in (cfg.reach_noise_mm, cfg.trust_noise_mm, cfg.noise_mm):
+        if given is not None:
+            return float(given)
+    spatial = front.noise_mm or 0.0
+    if not spatial > 0:
+        return spatial
+    return spatial_noise_mm(second_differences(frame[None], front.edge_mm, spatial), spatial)
 
 
 def pinned_config(first_frames: np.ndarray, cfg: UPSRConfig) -> UPSRConfig:
