@@ -629,9 +629,9 @@ def super_resolve_straightforward(frames: npt.ArrayLike, config: UPSRConfig) -> 
         cfg, w, grid_scale=r, flow_backend=flow, residual_flow_backend=flow, blockwise=False
     )
     front.fix_statistics(video[:n], estimate_noise=estimate_noise_mm_numpy)
-    edge_mm, fixed = front.edge_mm, front.fixed_config  # (its thresholds fixed for the video)
-    stats = fix_video_statistics(front, video[:n], cfg)
-    trust_mm, reach_mm = stats.trust_noise_mm, stats.reach_noise_mm  # (a sample's noise)
+    edge_mm = front.edge_mm
+    stats = fix_video_statistics(front, video[:n], cfg)  # (fixed_config: thresholds as fixed)
+    trust_mm, reach_mm, fixed = stats.trust_noise_mm, stats.reach_noise_mm, front.fixed_config
     out = np.empty((t_total, h * r, w * r), np.float32)
     for t in range(t_total):
         s = window_start(t, t_total, cfg)
