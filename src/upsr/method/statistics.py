@@ -61,6 +61,8 @@ class VideoStatistics(NamedTuple):
     remove_mixed: bool
     #: (σ₁, p) of a trust tolerance that grows with depth, or None (one σ).
     trust_noise_profile: tuple[float, float] | None = None
+    #: The factor of the depth thresholds in mm (< 1: a scene nearer than ``near_depth_mm``).
+    depth_scale: float = 1.0
 
 
 def fix_video_statistics(
@@ -115,7 +117,7 @@ def fix_video_statistics(
     # the final smoothing's range: at least a sample's noise (never the temporal differences,
     # which a moving camera's slanted surfaces inflate)
     front.smooth_at_least(reach_mm if d2 is None else min(reach_mm, sample_mm))
-    return VideoStatistics(estimator, trust_mm, reach_mm, bool(mixed), profile)
+    return VideoStatistics(estimator, trust_mm, reach_mm, bool(mixed), profile, front.depth_scale)
 
 
 def trust_profile(

@@ -524,5 +524,11 @@ def test_run_reports_the_per_video_choices(
     assert rc == 0, stderr
     line = [s for s in stderr.replace("\r", "\n").splitlines() if "fused by the" in s]
     assert len(line) == 1 and line[0].startswith("upsr: fused by the m")
-    assert "mm" in line[0] and "mixed pixels" in line[0]
+    assert "mm" in line[0] and "mixed pixels" in line[0] and "depth thresholds" not in line[0]
     assert len(stdout.strip().splitlines()) == 1
+    # a scene 10 times nearer (below 1 m): its thresholds scaled, said on the same line
+    near = tmp_path / "near.npy"
+    np.save(near, video() * 0.1)
+    rc, _, stderr = run_cli(capsys, "run", near, "-o", tmp_path / "n.npy", "-r", 2, "-n", 3)
+    assert rc == 0, stderr
+    assert "depth thresholds x0." in stderr and "(a near scene)" in stderr

@@ -236,8 +236,8 @@ def _summary(shape: tuple[int, int, int], cfg: Any, elapsed: float, output: Path
 
 
 def _choices(stats: Any) -> str:
-    """The per-video choices of ``fusion_estimator``, the trust and the mixed-pixel test, in
-    one line (``upsr.method.statistics.VideoStatistics``)."""
+    """The per-video choices of ``fusion_estimator``, the trust, the mixed-pixel test and the
+    scale of the depth thresholds, in one line (``upsr.method.statistics.VideoStatistics``)."""
     profile = stats.trust_noise_profile
     if profile is not None:
         noise = f"noise σ(z) = {profile[0]:.1f} mm·(z/1 m)^{profile[1]:.2f}"
@@ -246,7 +246,10 @@ def _choices(stats: Any) -> str:
         if stats.reach_noise_mm < stats.trust_noise_mm:  # (the reach, the radial offsets)
             noise += f", sample noise {stats.reach_noise_mm:.1f} mm"
     mixed = "mixed pixels removed" if stats.remove_mixed else "no mixed pixels"
-    return f"fused by the {stats.estimator}, {noise}, {mixed}"
+    near = f", depth thresholds x{stats.depth_scale:.2f} (a near scene)"
+    return f"fused by the {stats.estimator}, {noise}, {mixed}" + (
+        near if stats.depth_scale < 1 else ""
+    )
 
 
 def _check_color(
