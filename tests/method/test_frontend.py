@@ -36,6 +36,13 @@ def test_depth_scale_is_the_median_depth_over_the_near_depth_at_most_one():
     assert depth_scale(frames * 10, 1000.0) == 1.0  # 4 m: the thresholds as given
     assert depth_scale(frames, None) == 1.0
     assert depth_scale(np.zeros((2, 4, 4)), 1000.0) == 1.0  # nothing measured: as given
+    # a few stray values (an otherwise empty first window) scale nothing; a frame with
+    # enough neighbouring measurements does, on its own
+    strays = np.zeros((3, 40, 48), np.float32)
+    strays[:, ::7, ::9] = 5.0
+    assert depth_scale(strays, 1000.0) == 1.0
+    strays[2] = 400.0
+    assert depth_scale(strays, 1000.0) == pytest.approx(0.4)
 
 
 def test_the_front_end_scales_the_thresholds_once_per_video():

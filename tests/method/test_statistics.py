@@ -65,7 +65,7 @@ def test_the_estimator_follows_the_noise_not_the_motion_of_the_camera(law):
 def test_enough_for_statistics():
     """Neighbouring measurements to estimate a frame's noise from: not an empty frame, not a
     few scattered pixels; a small frame needs half its pairs."""
-    from upsr.method.statistics import enough_for_statistics
+    from upsr.method.frontend import enough_for_statistics
 
     full = np.full((20, 24), 1500.0)
     assert enough_for_statistics(full)

@@ -40,7 +40,23 @@ from upsr.method.motion import (
 from upsr.method.noise import estimate_noise_mm
 from upsr.method.upsampling import upsample_nearest
 
-__all__ = ["MotionFrontEnd", "depth_scale"]
+__all__ = ["MIN_STATISTICS_PAIRS", "MotionFrontEnd", "depth_scale", "enough_for_statistics"]
+
+#: :func:`enough_for_statistics`: the pairs of neighbouring measurements (along rows and
+#: columns) a frame needs before the recursive mode fixes the video's statistics from it (or
+#: half of a full frame's, for frames smaller than that).
+MIN_STATISTICS_PAIRS = 100
+
+
+def enough_for_statistics(frame: np.ndarray) -> bool:
+    """Whether a frame (h, w) mm holds enough neighbouring measurements to fix a video's
+    statistics from it (its noise is estimated from neighbouring pairs): a camera's first
+    frames are often empty or hold a few scattered pixels, whose noise estimate is 0 (a room's
+    surfaces 80 % worse for the whole video)."""
+    valid = np.asarray(frame) > 0
+    h, w = valid.shape
+    pairs = int((valid[:, 1:] & valid[:, :-1]).sum() + (valid[1:] & valid[:-1]).sum())
+    return pairs >= min(MIN_STATISTICS_PAIRS, (h * (w - 1) + (h - 1) * w) // 2) and pairs > 0
 
 
 def depth_scale(first_frames: np.ndarray, near_depth_mm: float | None) -> float:
@@ -52,15 +68,18 @@ def depth_scale(first_frames: np.ndarray, near_depth_mm: float | None) -> float:
     D405 at 7–50 cm, a ToF sensor on a hand) sees steps of a few cm between surfaces, which
     they merge and smooth across (flying pixels). Scaled by k, a scene at 30 cm gets the
     thresholds the same scene gets at 1 m (beyond the paper, ``UPSRConfig.near_depth_mm``).
-    ``near_depth_mm`` None, or no valid depth: 1.
+    Only the frames with enough neighbouring measurements count
+    (:func:`enough_for_statistics`): a few stray values of a few mm in an otherwise empty
+    first window would scale a scene metres away to thresholds below its noise.
+    ``near_depth_mm`` None, or no such frame: 1.
     """
     if near_depth_mm is None:
         return 1.0
-    frames = np.asarray(first_frames)
-    valid = frames[frames > 0]
-    if valid.size == 0:
+    frames = [f for f in np.asarray(first_frames) if enough_for_statistics(f)]
+    if not frames:
         return 1.0
-    return float(min(1.0, float(np.median(valid)) / near_depth_mm))
+    stack = np.stack(frames)
+    return float(min(1.0, float(np.median(stack[stack > 0])) / near_depth_mm))
 
 
 class MotionFrontEnd:

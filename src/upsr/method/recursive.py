@@ -108,14 +108,14 @@ from upsr.method.consistency import (
 from upsr.method.edges import state_votes
 from upsr.method.finishing import finish_frame, finish_fused
 from upsr.method.footprint import _share_of, footprint_counts, has_mixed_pixels
-from upsr.method.frontend import MotionFrontEnd
+from upsr.method.frontend import MotionFrontEnd, enough_for_statistics
 from upsr.method.memory import moving_caps, state_caps
 from upsr.method.mixed import remove_mixed_pixels, split_mixed_pixels
 from upsr.method.motion import FlowBackend, make_flow_backend
 from upsr.method.noise import NOISE_FREE_MM, temporal_noise_mm
 from upsr.method.pipeline import TwoStagePipeline
 from upsr.method.registration import _registered_state_kernel, flow_positions
-from upsr.method.statistics import enough_for_statistics, first_frame_noise_mm, trust_profile
+from upsr.method.statistics import first_frame_noise_mm, trust_profile
 from upsr.method.thin import ThinParts
 from upsr.method.trust import (
     OFFSET_GRID,

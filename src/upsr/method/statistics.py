@@ -32,19 +32,12 @@ from upsr.method.noise import (
 from upsr.method.validation import within_range
 
 __all__ = [
-    "MIN_STATISTICS_PAIRS",
     "VideoStatistics",
-    "enough_for_statistics",
     "first_frame_noise_mm",
     "fix_video_statistics",
     "pinned_config",
     "trust_profile",
 ]
-
-#: :func:`enough_for_statistics`: the pairs of neighbouring measurements (along rows and
-#: columns) a frame needs before the recursive mode fixes the video's statistics from it (or
-#: half of a full frame's, for frames smaller than that).
-MIN_STATISTICS_PAIRS = 100
 
 
 class VideoStatistics(NamedTuple):
@@ -135,17 +128,6 @@ def trust_profile(
         profile = noise_profile(first_frames, edge_mm)
     sigma_1m, power = (float(v) for v in profile)  # type: ignore[misc]
     return (sigma_1m, power) if power > 0 else None
-
-
-def enough_for_statistics(frame: np.ndarray) -> bool:
-    """Whether a frame (h, w) mm holds enough neighbouring measurements to fix a video's
-    statistics from it (its noise is estimated from neighbouring pairs): a camera's first
-    frames are often empty or hold a few scattered pixels, whose noise estimate is 0 (a room's
-    surfaces 80 % worse for the whole video)."""
-    valid = np.asarray(frame) > 0
-    h, w = valid.shape
-    pairs = int((valid[:, 1:] & valid[:, :-1]).sum() + (valid[1:] & valid[:-1]).sum())
-    return pairs >= min(MIN_STATISTICS_PAIRS, (h * (w - 1) + (h - 1) * w) // 2) and pairs > 0
 
 
 def first_frame_noise_mm(frame: np.ndarray, front: MotionFrontEnd, cfg: UPSRConfig) -> float:
