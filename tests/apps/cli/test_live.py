@@ -10,6 +10,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+import upsr
 from tests.apps._util import assert_user_error, run_cli
 
 DATA = Path(__file__).resolve().parents[1] / "data"
@@ -145,6 +146,26 @@ def test_live_bad_recording(tmp_path, capsys):
     for odd in (tmp_path / "dir.db3", Path("/dev/null")):
         rc, out, err = run_cli(capsys, "live", odd, "-o", tmp_path / "o.npy", "-r", "2")
         assert_user_error(rc, out, err, "not a regular file")
+
+
+@needs_sdk
+def test_live_at_close_range_equals_run_recursive(tmp_path, capsys):
+    """A camera 40 cm away (the recording's scene at a fifth of its depth, written by the
+    SDK): the depth thresholds are scaled to the scene in both commands alike."""
+    from upsr.research.synth.recording import write_realsense_recording
+
+    near = np.round(_frames() * 0.2)
+    rec = write_realsense_recording(tmp_path / "near.db3", near, units_m=1e-4)
+    out, ref = tmp_path / "live.npy", tmp_path / "run.npy"
+    rc, _, err = run_cli(capsys, "live", rec, "--no-real-time", "-o", out, "-r", "2", "-q")
+    assert rc == 0, err
+    rc, _, err = run_cli(capsys, "run", rec, "-o", ref, "-r", "2", "--recursive", "-q")
+    assert rc == 0, err
+    np.testing.assert_array_equal(np.load(out), np.load(ref))
+    assert not np.array_equal(  # (the scaled thresholds made a difference)
+        np.load(out), upsr.super_resolve(near.astype(np.float32), 2, 9, mode="recursive",
+                                         near_depth_mm=None)
+    )  # fmt: skip
 
 
 @needs_sdk
