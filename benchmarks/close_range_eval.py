@@ -4,13 +4,15 @@ UP-SR's depth thresholds are in mm (``edge_mm`` = 100: the step that separates t
 for the fusion, the mixed pixels and the deblurring; the final smoothing's range std, 30 mm),
 made for scenes metres away; a video whose median depth is below ``near_depth_mm`` (1 m) has
 them scaled by its median depth / 1 m. Here the five realistic scenes
-(:mod:`upsr.research.synth.realistic`, 64×56 → 128×112, Laplace noise σ = 10 mm) have their
-depth and noise scaled by each ``--factors`` value (0.1: 24–39 cm median, 0.25: 59–98 cm):
-each is run in both modes with the defaults, with the thresholds unscaled
-(``near_depth_mm=None``: the defaults before the scaling) and with ``upsr run --edge-mm``
-at 100 mm times the factor, beside nearest upsampling; the metrics' own thresholds are scaled
-too (discontinuities and flying pixels at 100 mm times the factor), and rmse and surface rmse
-are given in the unscaled scene's mm. The scenes unscaled with the defaults are the reference.
+(:mod:`upsr.research.synth.realistic`, σ = 10 mm) have their depth and noise scaled by each
+``--factors`` value (0.1: 24–39 cm median, 0.25: 59–98 cm), seen by point samples with
+Laplace noise (64×56 → 128×112) and by a time-of-flight sensor (footprint mixes at edges,
+Laplace noise; 64×56 → 256×224, r = 4). Each is run in both modes with the defaults, with
+the thresholds unscaled (``near_depth_mm=None``: the defaults before the scaling) and with
+``upsr run --edge-mm`` at 100 mm times the factor, beside nearest upsampling; the metrics'
+own thresholds are scaled too (discontinuities and flying pixels at 100 mm times the
+factor), and rmse and surface rmse are given in the unscaled scene's mm. The scenes unscaled
+with the defaults are the reference.
 
 Example::
 
@@ -21,6 +23,7 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
+import itertools
 import json
 from collections.abc import Sequence
 from pathlib import Path
@@ -41,8 +44,11 @@ SCENES = ("deforming", "room", "gallop", "toward_wall", "fan")
 MODES = ("windowed", "recursive")
 
 
-def _scores(out: np.ndarray, truth: np.ndarray, k: float) -> dict[str, float]:
-    m = evaluate(out[5:], truth[5:], 2, discontinuity_mm=100.0 * k, flying_mm=100.0 * k)
+SENSORS = (("laplace", 2), ("tof", 4))  # (sensor of ``degrade``, r)
+
+
+def _scores(out: np.ndarray, truth: np.ndarray, k: float, r: int) -> dict[str, float]:
+    m = evaluate(out[5:], truth[5:], r, discontinuity_mm=100.0 * k, flying_mm=100.0 * k)
     return {
         "rmse": m["rmse"] / k,
         "surface_rmse": m["surface_rmse"] / k,
@@ -51,13 +57,13 @@ def _scores(out: np.ndarray, truth: np.ndarray, k: float) -> dict[str, float]:
     }
 
 
-def _cases(k: float, mode: str) -> list[tuple[str, UPSRConfig]]:
+def _cases(k: float, mode: str, r: int) -> list[tuple[str, UPSRConfig]]:
     recursive = mode == "recursive"
-    cases = [("defaults", config_from_options(2, 9, recursive=recursive))]
+    cases = [("defaults", config_from_options(r, 9, recursive=recursive))]
     if k < 1.0:
         unscaled = dataclasses.replace(cases[0][1], near_depth_mm=None)
         edge = f"--edge-mm {100 * k:g}"
-        given = config_from_options(2, 9, recursive=recursive, edge_mm=100 * k)
+        given = config_from_options(r, 9, recursive=recursive, edge_mm=100 * k)
         cases += [("unscaled", unscaled), (edge, given)]
     return cases
 
@@ -69,38 +75,40 @@ def main(argv: Sequence[str] | None = None) -> dict[str, Any]:
     args = p.parse_args(argv)
     factors = [float(f) for f in args.factors.split(",")]
     rows = []
-    for scene in SCENES:
-        video = make_realistic(scene, (56, 64), scale=2, n_frames=14)
-        low = degrade(video, "laplace", np.random.default_rng(0), sigma_mm=10.0)
+    for (sensor, r), scene in itertools.product(SENSORS, SCENES):
+        video = make_realistic(scene, (56, 64), scale=r, n_frames=14)
+        low = degrade(video, sensor, np.random.default_rng(0), sigma_mm=10.0)
         for k in (1.0, *factors):
             frames, truth = low * k, video.truth * k
-            near = _scores(baselines.nearest(frames, 2), truth, k)
-            for mode in MODES:
-                for label, cfg in _cases(k, mode):
-                    out = upsr.super_resolve(frames, 2, 9, config=cfg)
-                    rows.append(
-                        {
-                            "scene": scene,
-                            "factor": k,
-                            "mode": mode,
-                            "options": label,
-                            "upsr": _scores(out, truth, k),
-                            "nearest": near,
-                        }
-                    )
-        print(f"  {scene}: done", flush=True)
+            near = _scores(baselines.nearest(frames, r), truth, k, r)
+            for mode, (label, cfg) in ((m, c) for m in MODES for c in _cases(k, m, r)):
+                out = upsr.super_resolve(frames, r, 9, config=cfg)
+                rows.append(
+                    {
+                        "sensor": sensor,
+                        "scene": scene,
+                        "factor": k,
+                        "mode": mode,
+                        "options": label,
+                        "upsr": _scores(out, truth, k, r),
+                        "nearest": near,
+                    }
+                )
+        print(f"  {sensor} {scene}: done", flush=True)
     lines = [
-        "close range: the realistic scenes at a fraction of their depth (and noise), 64×56 → "
-        "128×112, r = 2, Laplace σ = 10 mm × the factor; rmse in the unscaled scene's mm",
+        "close range: the realistic scenes at a fraction of their depth (and noise), 64×56 "
+        "point samples → 128×112 (laplace) and ToF footprints → 256×224 (tof), σ = 10 mm × the "
+        "factor; rmse in the unscaled scene's mm; flying pixels at 100 mm × the factor",
         "",
-        "| scene | factor | mode | options | rmse | surface rmse | edge % | flying % "
+        "| sensor | scene | factor | mode | options | rmse | surface rmse | edge % | flying % "
         "| nearest flying % |",
-        "|---|---|---|---|---|---|---|---|---|",
+        "|---|---|---|---|---|---|---|---|---|---|",
     ]
     for row in rows:
         u, n = row["upsr"], row["nearest"]
         lines.append(
-            f"| {row['scene']} | {row['factor']:g} | {row['mode']} | {row['options']} | "
+            f"| {row['sensor']} | {row['scene']} | {row['factor']:g} | {row['mode']} | "
+            f"{row['options']} | "
             f"{u['rmse']:.2f} | {u['surface_rmse']:.3f} | {u['edge_accuracy']:.2f} | "
             f"{u['flying_pct']:.3f} | {n['flying_pct']:.3f} |"
         )
