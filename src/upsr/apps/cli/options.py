@@ -427,7 +427,7 @@ EdgeMmOpt = Annotated[
         metavar="MM",
         help="Depth step between two surfaces, as given: no scaling by the scene's depth "
         f"[default: {_D['edge_mm']:g}, times the median depth / 1 m for a scene nearer than "
-        "1 m; at least 4x the noise].",
+        "1 m; at least 4x the noise]; a ToF camera nearer than 1 m: a tenth of its depth.",
     ),
 ]
 ValidRangeOpt = Annotated[
