@@ -246,10 +246,10 @@ def _choices(stats: Any) -> str:
         if stats.reach_noise_mm < stats.trust_noise_mm:  # (the reach, the radial offsets)
             noise += f", sample noise {stats.reach_noise_mm:.1f} mm"
     mixed = "mixed pixels removed" if stats.remove_mixed else "no mixed pixels"
-    near = f", depth thresholds x{stats.depth_scale:.2f} (a near scene)"
-    return f"fused by the {stats.estimator}, {noise}, {mixed}" + (
-        near if stats.depth_scale < 1 else ""
-    )
+    line = f"fused by the {stats.estimator}, {noise}, {mixed}"
+    if stats.depth_scale < 1:
+        line += f", depth thresholds x{stats.depth_scale:.2f} (a near scene)"
+    return line
 
 
 def _check_color(
