@@ -178,13 +178,13 @@ class MotionFrontEnd:
         the depth range of the 8-bit mapping (:func:`~upsr.method.motion.depth_range`), the
         noise (median over the frames of ``estimate_noise``) and the factor of the depth
         thresholds (:func:`depth_scale`), once per video."""
-        first = list(first_frames)
+        first = np.stack(list(first_frames))
         cfg = self.config
         if self.depth_range_mm is None:
-            self.depth_range_mm = depth_range(np.stack(first))
+            self.depth_range_mm = depth_range(first)
         if self.noise_mm is None:
             self.noise_mm = float(np.median([estimate_noise(f) for f in first]))
-        k = self.depth_scale = depth_scale(np.stack(first), cfg.near_depth_mm)
+        k = self.depth_scale = depth_scale(first, cfg.near_depth_mm)
         self.edge_mm = self._edge_for(self.noise_mm)
         d = cfg.deblur
         self.fixed_config = dataclasses.replace(
