@@ -7,9 +7,11 @@ from upsr.method.edges import (
     REVERT_MIN_SHARE,
     SURFACE_GAP,
     VOTE_FRAMES,
+    cell_ranges,
     edge_band,
     state_votes,
     vote_surface,
+    votes_may_move,
 )
 from upsr.method.fusion import register_and_fuse
 
@@ -88,6 +90,38 @@ def test_votes_never_add_depth_nor_remove_it():
     voted = register_and_fuse(low[None], maps, r, 0, edge_votes=True)
     assert (voted != nearest).any()  # the votes act on the edge before the wall
     np.testing.assert_array_equal(voted > 0, nearest > 0)
+
+
+def test_the_first_test_of_the_votes_never_skips_a_pixel_they_would_move():
+    """votes_may_move (each frame's nearest and farthest depth per cell of four samples) is
+    False only where vote_surface keeps the fusion's value: random windows of two surfaces
+    about the surface gap apart (a few mm either side of it), holes, removed samples (< 0),
+    radial offsets, frames that abstain (NaN) and positions anywhere in the frame."""
+    rng = np.random.default_rng(7)
+    edge = 100.0
+    gap = SURFACE_GAP * edge
+    skipped = moved = 0
+    for _ in range(4000):
+        n, h, w, r = rng.integers(1, 10), rng.integers(2, 6), rng.integers(2, 6), rng.choice([2, 4])
+        near = 1000.0
+        far = near + gap + rng.choice([-3.0, 0.0, 0.01, 3.0, 9.0, gap])
+        share = rng.random(4)
+        levels = rng.choice([near, far, 0.0, -1.0], (n, h, w), p=share / share.sum())
+        low = levels.astype(np.float32)
+        offsets = rng.choice([0.0, 0.0, 4.0, -6.0], n).astype(np.float32)
+        raw = np.where(rng.random(n) < 0.2, np.nan, 1.0).astype(np.float32)
+        px = rng.uniform(-0.5, w * r - 0.5, n).astype(np.float32)
+        py = rng.uniform(-0.5, h * r - 0.5, n).astype(np.float32)
+        fused = np.float32(rng.choice([0.0, near, far]) + rng.choice([0.0, -5.0, 5.0]))
+        floor = rng.choice([-np.inf, 900.0])
+        lo, hi = cell_ranges(low)
+        scratch = np.empty(4 * n, np.float32), np.empty(4 * n, np.float32)
+        voted = vote_surface(low, offsets, raw, px, py, r, edge, floor, fused, *scratch)
+        moved += voted != fused
+        if not votes_may_move(lo, hi, offsets, raw, px, py, r, edge, fused):
+            skipped += 1
+            assert voted == fused
+    assert skipped > 1000 and moved > 500  # (both outcomes are exercised)
 
 
 def test_several_frames_shifted_by_sub_pixel_motion_vote_together():

@@ -36,9 +36,11 @@ __all__ = [
     "REVERT_MIN_SHARE",
     "SURFACE_GAP",
     "VOTE_FRAMES",
+    "cell_ranges",
     "edge_band",
     "state_votes",
     "vote_surface",
+    "votes_may_move",
 ]
 
 #: :func:`vote_surface` moves a pixel to the winning surface only if the fusion's value lies
@@ -125,6 +127,71 @@ def _corner(i0, j0, fy, fx, h, w, c):  # pragma: no cover - numba
         min(max(j0 + dj, 0), w - 1),
         wy * (fx if dj == 1 else 1.0 - fx),
     )
+
+
+@nb.njit(cache=True, nogil=True, parallel=True)
+def _cell_ranges_kernel(lowres, lo, hi):  # pragma: no cover - numba
+    n, h, w = lowres.shape
+    for kc in nb.prange(n * (h + 1)):
+        k = kc // (h + 1)
+        c = kc % (h + 1)
+        for d in range(w + 1):
+            a = np.float32(np.inf)
+            b = np.float32(-np.inf)
+            for ii in (min(max(c - 1, 0), h - 1), min(c, h - 1)):
+                for jj in (min(max(d - 1, 0), w - 1), min(d, w - 1)):
+                    z = lowres[k, ii, jj]
+                    if z > 0:
+                        a = min(a, z)
+                        b = max(b, z)
+            lo[k, c, d] = a
+            hi[k, c, d] = b
+
+
+def cell_ranges(lowres: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The nearest and farthest depth (> 0) among the four low-res samples of each cell of
+    :func:`vote_surface` (the cell whose top-left sample is (i0, j0), −1 ≤ i0 < h,
+    −1 ≤ j0 < w, clamped to the frame as its corners are), at [k, i0 + 1, j0 + 1]; +inf /
+    −inf where none has depth. For :func:`votes_may_move`.
+
+    Parameters
+    ----------
+    lowres : ndarray float32 (N, h, w)
+
+    Returns
+    -------
+    lo, hi : ndarray float32 (N, h + 1, w + 1)
+    """
+    n, h, w = lowres.shape
+    lo = np.empty((n, h + 1, w + 1), np.float32)
+    hi = np.empty((n, h + 1, w + 1), np.float32)
+    _cell_ranges_kernel(lowres, lo, hi)
+    return lo, hi
+
+
+@nb.njit(cache=True, nogil=True, inline="always")
+def votes_may_move(cell_lo, cell_hi, offsets, raw, px, py, scale, edge_mm, fused):
+    # pragma: no cover - numba
+    """False when :func:`vote_surface` keeps ``fused`` for certain: no frame that votes has,
+    among the four samples around its position, a depth (less its offset) more than
+    :data:`SURFACE_GAP` edge thresholds from it (``cell_lo``, ``cell_hi`` of
+    :func:`cell_ranges`; a cheaper test than the votes' own, with the same outcome)."""
+    if not (fused > 0):
+        return False
+    inv_r = 1.0 / scale
+    gap = SURFACE_GAP * edge_mm
+    for k in range(raw.shape[0]):
+        if raw[k] != raw[k]:
+            continue
+        i0, j0, _, _ = _cell((py[k] + 0.5) * inv_r - 0.5, (px[k] + 0.5) * inv_r - 0.5)
+        off = offsets[k]
+        # (val − fused as vote_surface computes it, for the nearest and the farthest val:
+        # float32 subtraction is monotonic, so no other sample of the cell lies further out)
+        if (cell_lo[k, i0 + 1, j0 + 1] - off) - fused < -gap:
+            return True
+        if (cell_hi[k, i0 + 1, j0 + 1] - off) - fused > gap:
+            return True
+    return False
 
 
 @nb.njit(cache=True, nogil=True, inline="always")

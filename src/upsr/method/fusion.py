@@ -26,7 +26,7 @@ import numpy.typing as npt
 
 from upsr._numba import SAFE_FASTMATH
 from upsr.method.consistency import hole_backgrounds
-from upsr.method.edges import edge_band, vote_surface
+from upsr.method.edges import cell_ranges, edge_band, vote_surface, votes_may_move
 from upsr.method.registration import interpolation_tables, weight_table
 from upsr.method.sorting import (
     _centre_sorted,
@@ -182,6 +182,8 @@ def _register_fuse_kernel(
     min_trusted,
     use_mean,
     band,
+    cell_lo,
+    cell_hi,
     out,
 ):  # pragma: no cover - numba
     n = lowres.shape[0]
@@ -458,11 +460,18 @@ def _register_fuse_kernel(
                 network,
                 use_mean,
             )
-        # near a depth edge: the surface of the bilinear votes (edges.vote_surface)
+        # near a depth edge: the surface of the bilinear votes (edges.vote_surface), where
+        # some frame's samples around the position reach beyond the surface gap (a cheaper
+        # test with the same outcome first, edges.votes_may_move: most band pixels stop there)
         band_row = band[li]
         for q in range(m_on):
-            if band_row[on_low[q]]:
-                j = on[q]
+            if not band_row[on_low[q]]:
+                continue
+            j = on[q]
+            if votes_may_move(
+                cell_lo, cell_hi, offsets[:, li, on_low[q]], raw[:, q], px[:, q], py[:, q],
+                scale, edge_mm, out[i, j],
+            ):  # fmt: skip
                 out[i, j] = vote_surface(
                     lowres, offsets[:, li, on_low[q]], raw[:, q], px[:, q], py[:, q], scale,
                     edge_mm, on_floor[q], out[i, j], vals_4, wts_4,
@@ -668,9 +677,10 @@ def register_and_fuse(
     trust = (anchor, tolerance, offsets, alternatives, untrusted, lr, edge_mm)
     anc, tol, offs, alts, bad, nearest = _trust_inputs(*trust, ref if hole_floors else None)
     band = edge_band(lr[ref], edge_mm) if edge_votes else np.zeros((h, w), np.bool_)
+    cell_lo, cell_hi = cell_ranges(lr) if band.any() else (np.zeros((n, 1, 1), np.float32),) * 2
     out = np.empty((hh, ww), np.float32)
     _register_fuse_kernel(
         *geometry, *votes, *rules, still, anc, tol, offs, *alts, bad, nearest,
-        max(int(min_trusted), 1), estimator == "mean", band, out,
+        max(int(min_trusted), 1), estimator == "mean", band, cell_lo, cell_hi, out,
     )  # fmt: skip
     return out
