@@ -50,6 +50,7 @@ def test_a_cluster_of_like_mixes_never_reaches_the_output():
 )
 def test_what_is_not_a_cluster_of_like_mixes(case):
     z = _leg()
+    kw = {}
     if case == "nothing nearer":
         z[6:10, 5] = WALL  # a small part in front of the wall, nearest of all: as measured
     elif case == "at the border":
@@ -57,8 +58,11 @@ def test_what_is_not_a_cluster_of_like_mixes(case):
     elif case == "too wide":
         z[4:6, 5 : 5 + CLUSTER_SPAN_PX + 1] = 2330.0
     elif case == "too many":
+        # (the default CLUSTER_PX admits every cluster within the span: 3×3 = 9 pixels)
         z[4:7, 5:8] = 2330.0
         z[7:10, 5] = LEG
+        assert mixed_clusters(z, np.ones(z.shape, bool), 100.0).any()
+        kw = {"max_px": 8}
     elif case == "steep run":
         # a floor seen at a grazing angle: one row of pixels per step beyond the edge threshold
         z = np.repeat((1800.0 + 130.0 * np.arange(12, dtype=np.float32))[:, None], 12, axis=1)
@@ -69,7 +73,7 @@ def test_what_is_not_a_cluster_of_like_mixes(case):
         # without the step above)
         z[3:6, 5:7] = np.array([2470.0, 2330.0, 2180.0], np.float32)[:, None]
         assert mixed_clusters(np.where(z == 2470.0, WALL, z), np.ones(z.shape, bool), 100.0).any()
-    assert not mixed_clusters(z, np.ones(z.shape, bool), 100.0).any()
+    assert not mixed_clusters(z, np.ones(z.shape, bool), 100.0, **kw).any()
 
 
 def test_the_clusters_of_an_empty_or_flat_frame():
