@@ -40,7 +40,8 @@ __all__ = ["CLUSTER_PX", "CLUSTER_SPAN_PX", "mixed_clusters"]
 #: ToF σ = 10 mm, seed 0 (``benchmarks/realistic_eval.py --quick --no-oracle --tof-shape H W``):
 #: flying pixels at 60×80 1.67 → 0.88 %, at 112×128 1.76 → 1.39 %, at 120×160 2.65 → 2.12 %
 #: (windowed), its rmse +1–2 % (with 6 pixels). 9 (every cluster within the span, 6 Dec 2026):
-#: the same outputs on all scenes and sensors of seeds 0–7 (``--seed S``); on the animal half
+#: the same outputs on all scenes and sensors of seeds 0–7 (``--seed S``, also with
+#: ``--tof-sigma 20 --tof-dropout 0.01``); on the animal half
 #: a pixel off the pixel grid (``--scenes gallop room --frames 10 --seed S``, S = 0–3) its ToF
 #: flying pixels 0.98 / 1.16 → 0.81 / 0.85 % windowed, 0.95 / 1.19 → 0.72 / 0.79 % recursive
 #: on seeds 0 / 3 (seeds 1–2 and the room unchanged), rmse +0.2 … +1.5 %, edge accuracy −0.04
