@@ -157,6 +157,7 @@ class MotionFrontEnd:
         self.depth_scale = 1.0
         self.edge_mm = self._edge_for(self.noise_mm or 0.0)
         self.fixed_config = cfg
+        self._scaled = False  # (depth_scale and fixed_config fixed: once per video)
 
     # -- per-video statistics ------------------------------------------------------------------
     def _edge_for(self, noise_mm: float) -> float:
@@ -184,6 +185,9 @@ class MotionFrontEnd:
             self.depth_range_mm = depth_range(first)
         if self.noise_mm is None:
             self.noise_mm = float(np.median([estimate_noise(f) for f in first]))
+        if self._scaled:
+            return  # (a second call, e.g. the straightforward path's: nothing left to fix)
+        self._scaled = True
         k = self.depth_scale = depth_scale(first, cfg.near_depth_mm)
         self.edge_mm = self._edge_for(self.noise_mm)
         d = cfg.deblur
