@@ -64,11 +64,12 @@ Per frame t (only frame t and the state of t − 1 are read):
    follows its share over the last frames of the bilinear weight of frame t's four samples
    around it, carried as a third state image (:func:`~upsr.method.edges.state_votes`);
 7. the windowed engine's finishing steps (:mod:`upsr.method.finishing`: deblurring, its
-   first step from the noise of every k-th row of the state, :data:`NOISE_SAMPLE_PX`; speckle
-   removal, the speckle filter never erasing what frame t measured on a surface, frame t's
-   removed pixels split between their neighbours, blocks following their surface's slope,
-   optional hole filling) give the output; the state keeps the fused (not the deblurred)
-   depth, so the deblurring is never applied on top of itself.
+   first step from the noise of every k-th row of the state,
+   :data:`~upsr.method.finishing.NOISE_SAMPLE_PX`; speckle removal, the speckle filter never
+   erasing what frame t measured on a surface, frame t's removed pixels split between their
+   neighbours, blocks following their surface's slope, optional hole filling) give the
+   output; the state keeps the fused (not the deblurred) depth, so the deblurring is never
+   applied on top of itself.
 
 Relation to the windowed median (paper §5, eq. 28): on a static pixel the state with the mean
 estimator is the running mean of the last ≈ N samples (exactly the mean of all of them until N
@@ -156,9 +157,6 @@ STATE_NOISE_FACTOR = 0.75
 #: 0.94 → −0.36 / −0.72 / −0.53, the approaching camera's surface rmse 6–13 % lower at
 #: both, the rooms' 1–2 % higher at Laplace 10.
 STATE_SIGNIFICANCE = 3.0
-#: The deblurring's first step comes from the noise of about this many output pixels (every
-#: k-th row of a larger output: the estimate is made anew for every frame).
-NOISE_SAMPLE_PX = 65536
 
 
 # ---------------------------------------------------------------------------------------------
@@ -667,7 +665,6 @@ class RecursiveUPSR(TwoStagePipeline):
                 finish_fused(
                     fused,
                     self._front.fixed_config,  # type: ignore[union-attr]
-                    noise_row_step=max(1, fused.size // NOISE_SAMPLE_PX),
                     noise_profile=self._profile,
                 ),
                 fused,
