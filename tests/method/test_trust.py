@@ -498,29 +498,6 @@ def test_engine_keeps_a_thin_fast_bar():
     assert np.mean(np.abs(old[2 * R : -2 * R, 18 * R : 20 * R] - BAR) < 30) < 0.5
 
 
-def test_alternatives_are_on_the_side_of_their_neighbour_only():
-    from upsr.method.trust import alternatives_on_grid, side_of_centre, surface_alternatives
-
-    np.testing.assert_array_equal(side_of_centre(8, 4), [-1, -1, 1, 1, -1, -1, 1, 1])
-    np.testing.assert_array_equal(side_of_centre(6, 3), [-1, 0, 1, -1, 0, 1])
-    anchor = np.full((7, 9), WALL, np.float32)
-    anchor[:, :4] = 1000.0  # a wide foreground: columns 0..3
-    tol = np.full_like(anchor, 10.0)
-    near, near_tol, far, far_tol = surface_alternatives(anchor, tol, 100.0)
-    assert near.shape == (3, 3, 7, 9)
-    # the foreground's edge column 3: the wall competes only on its right side (sx = +1)
-    assert (far[:, 2, :, 3] == WALL).all() and (far[:, :2, :, 3] == 0).all()
-    assert (far_tol[:, 2, :, 3] == 10.0).all()
-    assert (near[:, 0, :, 4] == 1000.0).all() and (near[:, 1:, :, 4] == 0).all()
-    assert (near[1, 1] == 0).all() and (far[1, 1] == 0).all()  # never at the centre
-    grid_near, _, grid_far, _ = alternatives_on_grid((near, near_tol, far, far_tol), 4)
-    assert grid_far.shape == (28, 36)
-    np.testing.assert_array_equal(grid_far[:, 12:16] == WALL, np.tile([0, 0, 1, 1], (28, 1)) == 1)
-    np.testing.assert_array_equal(
-        grid_near[:, 16:20] == 1000.0, np.tile([1, 1, 0, 0], (28, 1)) == 1
-    )
-
-
 def test_two_noise_outliers_side_by_side_are_outvoted_a_near_speck_is_not():
     """Samba, r = 2, Laplacian σ = 50: two reference pixels side by side 3.5σ nearer than the
     surface around (each other's surface, beyond the edge threshold of the rest) rejected the
@@ -569,7 +546,7 @@ def test_a_thin_outlier_within_the_noise_of_the_surface_on_one_side_is_outvoted(
     frames[4] = ref
     out = _fuse_trusted(frames, 4, sigma=sigma, edge=edge)
     assert np.all(np.abs(out[3 * R : 4 * R, 3 * R : 4 * R] - 2870.0) < 2 * sigma)
-    from upsr.method.trust import surface_alternatives
+    from upsr.method.alternatives import surface_alternatives
 
     floor = np.repeat(np.arange(2000.0, 2000.0 + 7 * 130.0, 130.0)[:, None], 7, 1)
     anchor, tol = reference_anchor(floor.astype(np.float32), sigma, 3.0, edge)

@@ -13,6 +13,7 @@ mixed (flying) pixels     —                      :mod:`upsr.method.mixed`
 thin parts (ToF)          —                      :mod:`upsr.method.thin`
 clusters of like mixes    —                      :mod:`upsr.method.clusters`
 sample trust              —                      :mod:`upsr.method.trust`
+surfaces at an edge       —                      :mod:`upsr.method.alternatives`
 state memory per pixel    —                      :mod:`upsr.method.memory`
 temporal median           eq. 26–28              :mod:`upsr.method.fusion`
 L1 + BTV deblurring       eq. 29–30              :mod:`upsr.method.deblurring`
@@ -33,6 +34,7 @@ from upsr._lazy import attach
 __getattr__, __dir__, __all__ = attach(
     __name__,
     submodules=[
+        "alternatives",
         "clusters",
         "config",
         "consistency",

@@ -25,6 +25,7 @@ import numpy as np
 import numpy.typing as npt
 
 from upsr._numba import SAFE_FASTMATH
+from upsr.method.alternatives import surface_alternatives
 from upsr.method.consistency import hole_backgrounds
 from upsr.method.edges import cell_ranges, edge_band, vote_surface, votes_may_move
 from upsr.method.registration import interpolation_tables, weight_table
@@ -36,7 +37,7 @@ from upsr.method.sorting import (
     sorting_network,
 )
 from upsr.method.splat import splat_nearest, splat_points
-from upsr.method.trust import surface_alternatives, trust_arrays
+from upsr.method.trust import trust_arrays
 
 __all__ = [
     "OUTSIDE",
@@ -234,7 +235,7 @@ def _register_fuse_kernel(
         on_floor = np.empty(m_on, np.float32)
         # at a depth edge: the nearest and the farthest other surface among the low-res
         # neighbours on the pixel's side of the centre (0: none), whose samples compete
-        # (trust.surface_alternatives)
+        # (alternatives.surface_alternatives)
         on_ax = np.empty(m_on, np.float32)
         on_tx = np.empty(m_on, np.float32)
         on_ay = np.empty(m_on, np.float32)
@@ -639,7 +640,7 @@ def register_and_fuse(
         Estimate of the samples of the winning surface: their median (eq. 28, ML for Laplace
         noise) or their mean (ML for Gaussian noise; between quantisation steps).
     alternatives : tuple of 4 array_like (3, 3, h, w), optional
-        :func:`upsr.method.trust.surface_alternatives` (default: from anchor and tolerance).
+        :func:`upsr.method.alternatives.surface_alternatives` (default: from anchor and tolerance).
     untrusted : array_like bool (N, h, w), optional
         Frame k misregistered around reference pixel (i, j)
         (:func:`upsr.method.consistency.misregistered`): its samples there abstain like

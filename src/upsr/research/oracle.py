@@ -345,7 +345,7 @@ def _trusted_stack(
     """The trust rules of the fusion (:mod:`upsr.method.trust`), on the registered high-res
     stack: radial offsets subtracted, untrusted samples abstaining (NaN). Returns the stack,
     the anchor (high-res, 0: none), and the pixels where the output is the anchor."""
-    from upsr.method.trust import alternatives_on_grid, surface_alternatives
+    from upsr.method.alternatives import alternatives_on_grid, surface_alternatives
     from upsr.method.upsampling import upsample_nearest
 
     r = cfg.scale
