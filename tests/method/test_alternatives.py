@@ -26,3 +26,58 @@ def test_alternatives_are_on_the_side_of_their_neighbour_only():
     np.testing.assert_array_equal(
         grid_near[:, 16:20] == 1000.0, np.tile([1, 1, 0, 0], (28, 1)) == 1
     )
+
+
+def test_a_removed_mix_has_the_surfaces_around_it_continued_towards_it():
+    """A removed mixed pixel (anchor 0) between a slanted wall above and a box below: on
+    every side of its centre the box (nearest) and the wall continued one pixel down its
+    slope (farthest), with their tolerances; with the box rows removed too, the wall alone
+    is known and the near side is any depth up to the mix's own."""
+    from upsr.method.alternatives import OPEN_MM, mix_tolerance
+
+    anchor = np.zeros((5, 5), np.float32)
+    anchor[0], anchor[1] = 3200.0, 3100.0  # a wall receding 100 mm per row towards row 2
+    anchor[3:] = 1500.0
+    tol = np.where(anchor > 0, np.float32(20.0), np.float32(0.0))
+    mixes = np.zeros_like(anchor)
+    mixes[2] = 2200.0  # the removed row of mixes
+    near, near_tol, far, far_tol = surface_alternatives(anchor, tol, 150.0, mixes)
+    assert (near[:, :, 2, 2] == 1500.0).all() and (near_tol[:, :, 2, 2] == 20.0).all()
+    # the wall at row 1 (3100) continued to row 2 (3000): the interval between, plus τ
+    assert (far[:, :, 2, 2] == 3050.0).all() and (far_tol[:, :, 2, 2] == 70.0).all()
+    without = surface_alternatives(anchor, tol, 150.0)
+    assert all((a[:, :, 2, 2] == 0).all() for a in without)  # no rule without the mixes
+    np.testing.assert_array_equal(mix_tolerance(anchor, tol, mixes)[2], 20.0)
+    assert not mix_tolerance(anchor, tol, mixes)[[0, 1, 3, 4]].any()
+    anchor[3:] = 0.0  # the box not anchored: the wall alone is known, farther than the mix
+    near, near_tol, far, _ = surface_alternatives(anchor, tol, 150.0, mixes)
+    assert (far[:, :, 2, 2] == 3050.0).all()
+    lo, hi = near[0, 0, 2, 2] - near_tol[0, 0, 2, 2], near[0, 0, 2, 2] + near_tol[0, 0, 2, 2]
+    assert hi == 2200.0 and lo < -OPEN_MM  # any depth nearer than the mix
+
+
+def test_a_misregistered_sample_of_a_third_surface_never_fills_a_removed_mix():
+    """The ToF room: a mixed pixel between a wall and a box top, removed from the
+    reference, took the depth of another box 800 mm away whose samples the flow carried
+    there (flying pixels). Only samples of the surfaces around it, or near its own depth,
+    are taken; without ``mixes_mm`` the stray depth wins."""
+    from upsr.method.anchor import reference_anchor
+    from upsr.method.fusion import register_and_fuse
+    from upsr.method.mixed import ABSTAIN
+
+    r, box = 2, 1500.0
+    n, h, w, ref = 7, 6, 10, 3
+    frames = np.full((n, h, w), WALL, np.float32)
+    frames[:, :, :5] = box
+    frames[ref, :, 5] = ABSTAIN  # the reference's column of mixes, removed
+    for k, v in ((0, 2400.0), (1, 2400.0), (2, 2400.0), (4, 2400.0), (5, WALL), (6, box)):
+        frames[k, :, 5] = v  # four misregistered samples of a third surface, two true ones
+    anchor, tol = reference_anchor(np.maximum(frames[ref], 0), 3.0, 3.0, 100.0)
+    mixes = np.zeros((h, w), np.float32)
+    mixes[:, 5] = 2200.0
+    maps = np.zeros((n, h * r, w * r, 2), np.float32)
+    kw = {"anchor": anchor, "tolerance": tol, "edge_mm": 100.0, "min_trusted": 3}
+    out = register_and_fuse(frames, maps, r, ref, mixes_mm=mixes, **kw)[:, 5 * r : 6 * r]
+    assert np.isin(out, [box, WALL]).all()
+    before = register_and_fuse(frames, maps, r, ref, **kw)[:, 5 * r : 6 * r]
+    assert (before == 2400.0).all()

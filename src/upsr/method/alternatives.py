@@ -12,11 +12,18 @@ per high-res pixel.
 
 from __future__ import annotations
 
+import cv2
 import numba as nb
 import numpy as np
 import numpy.typing as npt
 
-__all__ = ["alternatives_on_grid", "side_of_centre", "surface_alternatives"]
+__all__ = [
+    "OPEN_MM",
+    "alternatives_on_grid",
+    "mix_tolerance",
+    "side_of_centre",
+    "surface_alternatives",
+]
 
 
 @nb.njit(cache=True, nogil=True, inline="always")
@@ -51,8 +58,58 @@ def _two_sided(anchor, i, j, a0, edge):  # pragma: no cover - numba
     return near and far
 
 
+#: Half-width (mm) of the "any depth beyond the mix" interval of :func:`surface_alternatives`.
+OPEN_MM = 5e5
+
+
+@nb.njit(cache=True, nogil=True, inline="always")
+def _mix_surfaces(anchor, tol, edge, m0, i, j, lo, tlo, hi, thi):  # pragma: no cover - numba
+    """The surfaces around the removed mixed pixel (i, j) of depth m0 (see
+    :func:`surface_alternatives`), on every side of its centre."""
+    h, w = anchor.shape
+    best_lo = np.inf
+    best_hi = -np.inf
+    c_lo = t_lo = c_hi = t_hi = 0.0
+    for a in range(max(i - 1, 0), min(i + 2, h)):
+        for b in range(max(j - 1, 0), min(j + 2, w)):
+            u = anchor[a, b]
+            if not u > 0:
+                continue
+            # the neighbour's surface continued one pixel towards (i, j): its slope from the
+            # pixel beyond it, when that one lies on its surface
+            e = u
+            a2 = 2 * a - i
+            b2 = 2 * b - j
+            if 0 <= a2 < h and 0 <= b2 < w:
+                u2 = anchor[a2, b2]
+                if u2 > 0 and abs(u2 - u) <= edge:
+                    e = 2 * u - u2
+            if u < best_lo:
+                best_lo = u
+                c_lo = 0.5 * (u + e)
+                t_lo = 0.5 * abs(u - e) + tol[a, b]
+            if u > best_hi:
+                best_hi = u
+                c_hi = 0.5 * (u + e)
+                t_hi = 0.5 * abs(u - e) + tol[a, b]
+    if best_hi < best_lo:
+        return  # no anchored neighbour: no candidates
+    if best_hi - best_lo <= edge:
+        # one surface known: the other lies beyond the mix's depth, away from it
+        if best_hi < m0:
+            c_hi = m0 + OPEN_MM
+            t_hi = OPEN_MM
+        elif best_lo > m0:
+            c_lo = m0 - OPEN_MM
+            t_lo = OPEN_MM
+    lo[:, :, i, j] = c_lo
+    tlo[:, :, i, j] = t_lo
+    hi[:, :, i, j] = c_hi
+    thi[:, :, i, j] = t_hi
+
+
 @nb.njit(cache=True, nogil=True)
-def _alternatives_kernel(anchor, tol, edge, lo, tlo, hi, thi):  # pragma: no cover - numba
+def _alternatives_kernel(anchor, tol, edge, mixes, lo, tlo, hi, thi):  # pragma: no cover - numba
     h, w = anchor.shape
     lo[:] = 0.0
     tlo[:] = 0.0
@@ -61,6 +118,9 @@ def _alternatives_kernel(anchor, tol, edge, lo, tlo, hi, thi):  # pragma: no cov
     for i in range(h):
         for j in range(w):
             a0 = anchor[i, j]
+            if mixes[i, j] > 0 and not a0 > 0:
+                _mix_surfaces(anchor, tol, edge, mixes[i, j], i, j, lo, tlo, hi, thi)
+                continue
             if not a0 > 0:
                 continue
             # a thin part (its surface at most 2 px wide across x, y or a diagonal: a neck
@@ -100,7 +160,10 @@ def _alternatives_kernel(anchor, tol, edge, lo, tlo, hi, thi):  # pragma: no cov
 
 
 def surface_alternatives(
-    anchor: npt.ArrayLike, tolerance: npt.ArrayLike, edge_mm: float
+    anchor: npt.ArrayLike,
+    tolerance: npt.ArrayLike,
+    edge_mm: float,
+    mixes_mm: npt.ArrayLike | None = None,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """The other surfaces next to each reference pixel at a depth edge, whose samples compete.
 
@@ -120,12 +183,25 @@ def surface_alternatives(
     other's surface) kept their blocks against every other frame; now that surface's
     samples compete. A small part far in front of the wall still keeps its own.
 
+    A mixed pixel of the reference that was removed (``mixes_mm``: its anchor is 0, so its
+    samples are not checked against its own surface) lies between surfaces around it: there
+    the nearest and the farthest anchored 8-neighbour, each continued one pixel towards it
+    (its slope from the pixel beyond it, when that one lies within ``edge_mm``: the interval
+    between the two plus its tolerance), on every side of the centre; with one surface
+    known, the other is any depth beyond the mix's own, away from it (an interval
+    :data:`OPEN_MM` wide). The fusion then takes no sample there that lies on neither side
+    nor near the mix's own depth (:func:`mix_tolerance`): a sample of a third surface the
+    flow misregistered (the ToF room: a box 800 mm from the wall and the box top whose mixes
+    it was, at their corner) gave flying pixels.
+
     Parameters
     ----------
     anchor, tolerance : array_like (h, w)
         From :func:`reference_anchor`.
     edge_mm : float
         Depth step that separates two surfaces.
+    mixes_mm : array_like (h, w), optional
+        The reference's measurement at its removed mixed pixels (mm), 0 elsewhere.
 
     Returns
     -------
@@ -140,8 +216,35 @@ def surface_alternatives(
     anc = np.ascontiguousarray(anchor, np.float32)
     tol = np.ascontiguousarray(tolerance, np.float32)
     outs = [np.empty((3, 3, *anc.shape), np.float32) for _ in range(4)]
-    _alternatives_kernel(anc, tol, float(edge_mm), *outs)
+    mixes = _mixes(mixes_mm, anc.shape)
+    _alternatives_kernel(anc, tol, float(edge_mm), mixes, *outs)
     return outs[0], outs[1], outs[2], outs[3]
+
+
+def _mixes(mixes_mm: npt.ArrayLike | None, shape: tuple[int, ...]) -> np.ndarray:
+    if mixes_mm is None:
+        return np.zeros(shape, np.float32)
+    m = np.ascontiguousarray(mixes_mm, np.float32).reshape(shape)
+    return np.where(np.isfinite(m), m, np.float32(0.0))
+
+
+def mix_tolerance(
+    anchor: npt.ArrayLike, tolerance: npt.ArrayLike, mixes_mm: npt.ArrayLike | None
+) -> np.ndarray:
+    """How far from a removed mixed pixel's own measurement (``mixes_mm``, see
+    :func:`surface_alternatives`) a sample may lie and still be taken there (a surface the
+    mixed-pixel test took for a mix: a strip seen at a grazing angle): the largest tolerance
+    of its anchored 8-neighbours; 0 elsewhere and where none is anchored (no rule there).
+
+    Returns
+    -------
+    ndarray float32 (h, w)
+    """
+    anc = np.ascontiguousarray(anchor, np.float32)
+    mixes = _mixes(mixes_mm, anc.shape)
+    anchored = np.where(anc > 0, np.asarray(tolerance, np.float32), np.float32(0.0))
+    largest = cv2.dilate(anchored, np.ones((3, 3), np.uint8))  # (outside: no neighbour)
+    return np.where((mixes > 0) & ~(anc > 0), largest, np.float32(0.0)).astype(np.float32)
 
 
 def side_of_centre(n_px: int, scale: int) -> np.ndarray:

@@ -25,8 +25,6 @@ import numpy as np
 import numpy.typing as npt
 
 from upsr._numba import SAFE_FASTMATH
-from upsr.method.alternatives import surface_alternatives
-from upsr.method.consistency import hole_backgrounds
 from upsr.method.edges import cell_ranges, edge_band, vote_surface, votes_may_move
 from upsr.method.registration import interpolation_tables, weight_table
 from upsr.method.sorting import (
@@ -37,7 +35,7 @@ from upsr.method.sorting import (
     sorting_network,
 )
 from upsr.method.splat import splat_nearest, splat_points
-from upsr.method.trust import trust_arrays
+from upsr.method.trust import fusion_inputs
 
 __all__ = [
     "OUTSIDE",
@@ -180,6 +178,8 @@ def _register_fuse_kernel(
     alt_thi,
     untrusted,
     hole_floor,
+    mix_raw,
+    mix_tol,
     min_trusted,
     use_mean,
     band,
@@ -240,11 +240,15 @@ def _register_fuse_kernel(
         on_tx = np.empty(m_on, np.float32)
         on_ay = np.empty(m_on, np.float32)
         on_ty = np.empty(m_on, np.float32)
+        on_mix = np.empty(m_on, np.float32)  # a removed mixed pixel's depth, its tolerance
+        on_mtol = np.empty(m_on, np.float32)  # (0: none, no rule)
         fi = np.float64(i)
         li = low_of[i]
         anc_row = anchor[li]
         tol_row = tol[li]
         floor_row = hole_floor[li]
+        mix_row = mix_raw[li]
+        mtol_row = mix_tol[li]
         sy = side_of[i]  # the side of its low-res pixel's centre the row lies on
         for q in range(m_on):
             j = on[q]
@@ -257,6 +261,8 @@ def _register_fuse_kernel(
             on_anc[q] = anc_row[lj]
             on_tol[q] = tol_row[lj]
             on_floor[q] = floor_row[lj]
+            on_mix[q] = mix_row[lj]
+            on_mtol[q] = mtol_row[lj]
             sx = side_of[j]
             on_ax[q] = alt_lo[sy, sx, li, lj]
             on_tx[q] = alt_tlo[sy, sx, li, lj]
@@ -359,10 +365,13 @@ def _register_fuse_kernel(
                 inside = at_ok[q] & (v >= 0) & fits
                 own_k = inside & (v > 0) & (a > 0) & (abs(vc - a) <= on_tol[q])
                 side = (abs(vc - on_ax[q]) <= on_tx[q]) | (abs(vc - on_ay[q]) <= on_ty[q])
-                valid = inside & (v > 0) & ((a <= 0) | own_k | side)
+                # at a removed mixed pixel: not on a surface around it nor near its depth
+                stray = (on_mtol[q] > 0) & ~side & (abs(vc - on_mix[q]) > on_mtol[q])
+                free = (a <= 0) & ~((v > 0) & stray)
+                valid = inside & (v > 0) & (free | own_k | side)
                 n_own[q] += 1 if own_k else 0
                 # not inside, or valid but not trusted by the reference's anchor: abstains
-                vote = inside & ((a <= 0) | valid)
+                vote = inside & (free | valid)
                 rk[q] = (vc if v > 0 else v) if vote else nan
                 sk[q] = vc if valid else inf
                 total[q] += vc if valid else 0.0
@@ -549,26 +558,6 @@ def temporal_median(
     return out
 
 
-def _trust_inputs(anchor, tolerance, offsets, alternatives, untrusted, lr, edge_mm, holes_of):
-    """The trust arrays of :func:`register_and_fuse` as its kernel reads them; the nearest
-    depth a sample may have at each reference pixel (``holes_of``: the reference's index, or
-    None for no limit)."""
-    n, h, w = lr.shape
-    nearest = np.full((h, w), -np.inf, np.float32)
-    if holes_of is not None:
-        bg = hole_backgrounds(lr[holes_of])
-        nearest = np.where(bg > 0, bg - np.float32(edge_mm), nearest).astype(np.float32)
-    anc, tol, offs = trust_arrays(anchor, tolerance, offsets, (n, h, w))
-    if alternatives is None:
-        alternatives = surface_alternatives(anc, tol, edge_mm)
-    alts = [np.ascontiguousarray(a, np.float32).reshape(3, 3, h, w) for a in alternatives]
-    if untrusted is None:
-        bad = np.zeros((n, h, w), np.bool_)
-    else:
-        bad = np.ascontiguousarray(untrusted, np.bool_).reshape(n, h, w)
-    return anc, tol, offs, alts, bad, nearest
-
-
 def register_and_fuse(
     lowres: npt.ArrayLike,
     maps: npt.ArrayLike,
@@ -591,6 +580,7 @@ def register_and_fuse(
     untrusted: npt.ArrayLike | None = None,
     hole_floors: bool = False,
     edge_votes: bool = False,
+    mixes_mm: npt.ArrayLike | None = None,
 ) -> np.ndarray:
     """Registration (eq. 20) and invalid-aware median fusion (eq. 28) in one compiled pass.
 
@@ -613,10 +603,8 @@ def register_and_fuse(
         SR factor r.
     ref : int, optional
         Index of the reference frame (default the middle one).
-    weight_sigma_px : float or None
-        σ of the vote weights (high-res px); ``None``: equal votes.
-    weight_floor : float
-        Smallest vote weight.
+    weight_sigma_px, weight_floor : float or None, float
+        σ of the vote weights (high-res px; ``None``: equal votes) and the smallest weight.
     guide, guide_bonus, min_valid_fraction, edge_mm
         As in :func:`temporal_median`.
     measured_only : bool
@@ -652,6 +640,9 @@ def register_and_fuse(
         Near the reference's depth edges (:func:`upsr.method.edges.edge_band`), the surface
         of each pixel from the bilinear votes of the four samples around every frame's
         registered position (:func:`upsr.method.edges.vote_surface`: sub-pixel edges).
+    mixes_mm : array_like (h, w), optional
+        The reference's removed mixed pixels' depth (0 elsewhere): there samples abstain
+        unless on a surface around them or near that depth (:mod:`upsr.method.alternatives`).
 
     Returns
     -------
@@ -676,12 +667,13 @@ def register_and_fuse(
     rules += (float(edge_mm), measured, _network(n))
     still = ref if not mp[ref].any() else -1  # the reference's map is zero: a shortcut
     trust = (anchor, tolerance, offsets, alternatives, untrusted, lr, edge_mm)
-    anc, tol, offs, alts, bad, nearest = _trust_inputs(*trust, ref if hole_floors else None)
+    trust += (ref if hole_floors else None, mixes_mm)
+    anc, tol, offs, alts, bad, nearest, mixes, mtol = fusion_inputs(*trust)
     band = edge_band(lr[ref], edge_mm) if edge_votes else np.zeros((h, w), np.bool_)
     cell_lo, cell_hi = cell_ranges(lr) if band.any() else (np.zeros((n, 1, 1), np.float32),) * 2
     out = np.empty((hh, ww), np.float32)
     _register_fuse_kernel(
-        *geometry, *votes, *rules, still, anc, tol, offs, *alts, bad, nearest,
+        *geometry, *votes, *rules, still, anc, tol, offs, *alts, bad, nearest, mixes, mtol,
         max(int(min_trusted), 1), estimator == "mean", band, cell_lo, cell_hi, out,
     )  # fmt: skip
     return out

@@ -24,13 +24,14 @@ import numba as nb
 import numpy as np
 import numpy.typing as npt
 
+from upsr.method.alternatives import mix_tolerance, surface_alternatives
 from upsr.method.anchor import (
     OWN_SURFACE_SIGMAS,
     TOLERANCE_FLOOR_MM,
     _sigma_and_power,
     reference_anchor,
 )
-from upsr.method.consistency import maps_at_centres, registered_samples
+from upsr.method.consistency import hole_backgrounds, maps_at_centres, registered_samples
 from upsr.method.mixed import ABSTAIN
 from upsr.method.sorting import _small_median, _twice_beyond, median_beyond
 
@@ -42,6 +43,7 @@ __all__ = [
     "abstain_lone_outliers",
     "far_offsets",
     "fill_holes",
+    "fusion_inputs",
     "radial_offsets",
     "reference_anchor",
     "significance",
@@ -464,6 +466,33 @@ def trust_arrays(
     else:
         offs = np.ascontiguousarray(offsets, np.float32).reshape(n, h, w)
     return anc, tol, offs
+
+
+def fusion_inputs(
+    anchor, tolerance, offsets, alternatives, untrusted, lr, edge_mm, holes_of, mixes_mm
+):
+    """The trust arrays of :func:`upsr.method.fusion.register_and_fuse` as its kernel reads
+    them: anchor, tolerance, offsets, the four alternatives (default: from the anchor and
+    the removed mixed pixels ``mixes_mm``), the misregistered samples, the nearest depth a
+    sample may have at each reference pixel (``holes_of``: the reference's index, or None for
+    no limit), and the removed mixed pixels' depths and tolerances (:func:`mix_tolerance`)."""
+    n, h, w = lr.shape
+    nearest = np.full((h, w), -np.inf, np.float32)
+    if holes_of is not None:
+        bg = hole_backgrounds(lr[holes_of])
+        nearest = np.where(bg > 0, bg - np.float32(edge_mm), nearest).astype(np.float32)
+    anc, tol, offs = trust_arrays(anchor, tolerance, offsets, (n, h, w))
+    if alternatives is None:
+        alternatives = surface_alternatives(anc, tol, edge_mm, mixes_mm)
+    alts = [np.ascontiguousarray(a, np.float32).reshape(3, 3, h, w) for a in alternatives]
+    if untrusted is None:
+        bad = np.zeros((n, h, w), np.bool_)
+    else:
+        bad = np.ascontiguousarray(untrusted, np.bool_).reshape(n, h, w)
+    mixes = np.zeros((h, w), np.float32)
+    if mixes_mm is not None:
+        mixes = np.nan_to_num(np.asarray(mixes_mm, np.float32).reshape(h, w), posinf=0.0)
+    return anc, tol, offs, alts, bad, nearest, mixes, mix_tolerance(anc, tol, mixes)
 
 
 def surface_support(reference: npt.ArrayLike, edge_mm: float) -> np.ndarray:

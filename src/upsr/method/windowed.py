@@ -368,6 +368,11 @@ class UPSR:
                 min_trusted=cfg.min_trusted_samples,
                 estimator=stats.estimator,
                 hole_floors=cfg.check_registration,
+                mixes_mm=(
+                    np.where(self._cleaned(t)[0] == ABSTAIN, self._lowres[t], np.float32(0.0))
+                    if stats.remove_mixed
+                    else None
+                ),
             )
             # stale hole fills, steep blocks' level, the reference's unfilled removed pixels
             fused = settle_fused(

@@ -313,48 +313,42 @@ def _abstaining(
     edge_mm: float,
     noise_mm: float,
     profile: tuple[float, float] | None = None,
-) -> tuple[np.ndarray, np.ndarray | None, np.ndarray | None]:
+) -> tuple[np.ndarray, np.ndarray | None, np.ndarray | None, np.ndarray]:
     """The window with its mixed pixels (``mixed``) and the reference's lone outliers (with
-    the trust test) abstaining, before anything is fused; and the reference's anchor and
-    tolerance (None without the trust test), computed once as by :class:`upsr.UPSR`."""
+    the trust test) abstaining, before anything is fused; the reference's anchor and
+    tolerance (None without the trust test), computed once as by :class:`upsr.UPSR`; and the
+    reference's measurement at its removed mixed pixels (0 elsewhere)."""
     from upsr.method.mixed import ABSTAIN, remove_mixed_pixels
     from upsr.method.trust import abstain_lone_outliers, reference_anchor
 
-    lowres = (
-        remove_mixed_pixels(measured, edge_mm, marker=ABSTAIN, thin_parts=cfg.thin_parts)
-        if mixed
-        else measured
-    )
+    lowres = measured
+    if mixed:
+        lowres = remove_mixed_pixels(measured, edge_mm, marker=ABSTAIN, thin_parts=cfg.thin_parts)
+    mixes = np.where(lowres[ref] == ABSTAIN, measured[ref], np.float32(0.0))
     if cfg.trust_k is None:
-        return lowres, None, None
+        return lowres, None, None, mixes
     anchor, tol = reference_anchor(
         lowres[ref], noise_mm, cfg.trust_k, edge_mm, noise_profile=profile,
         own_surface="except_rims", keep_steep=not mixed,
     )  # fmt: skip
-    return abstain_lone_outliers(lowres, ref, anchor), anchor, tol
+    return abstain_lone_outliers(lowres, ref, anchor), anchor, tol, mixes
 
 
-def _trusted_stack(
-    stack: np.ndarray,
-    anchor: np.ndarray,
-    tol: np.ndarray,
-    offsets: np.ndarray | None,
-    cfg,
-    edge_mm: float,
-):
+def _trusted_stack(stack, anchor, tol, offsets, cfg, edge_mm: float, mixes: np.ndarray):
     """The trust rules of the fusion (:mod:`upsr.method.trust`), on the registered high-res
     stack: radial offsets subtracted, untrusted samples abstaining (NaN). Returns the stack,
-    the anchor (high-res, 0: none), and the pixels where the output is the anchor."""
-    from upsr.method.alternatives import alternatives_on_grid, surface_alternatives
+    the anchor (high-res, 0: none), and the pixels where the output is the anchor. ``stack``
+    (N, r·h, r·w); ``anchor``, ``tol``, ``mixes`` (h, w); ``offsets`` (N, h, w) or None."""
+    from upsr.method.alternatives import alternatives_on_grid, mix_tolerance, surface_alternatives
     from upsr.method.upsampling import upsample_nearest
 
     r = cfg.scale
     up = lambda a: upsample_nearest(a, r)  # noqa: E731
     if offsets is None:
         offsets = np.zeros((stack.shape[0], *anchor.shape), np.float32)
-    alternatives = surface_alternatives(anchor, tol, edge_mm)
+    alternatives = surface_alternatives(anchor, tol, edge_mm, mixes)
     near, near_tol, far, far_tol = alternatives_on_grid(alternatives, r)
-    a_hr, t_hr = up(anchor), up(tol)
+    a_hr, t_hr, m_hr, mt_hr = up(anchor), up(tol), up(mixes), up(mix_tolerance(anchor, tol, mixes))
     v = stack
     inside = ~np.isnan(v)
     with np.errstate(invalid="ignore"):
@@ -362,8 +356,10 @@ def _trusted_stack(
         has = inside & (v > 0)
         own = has & (a_hr > 0) & (np.abs(vc - a_hr) <= t_hr)
         side = (np.abs(vc - near) <= near_tol) | (np.abs(vc - far) <= far_tol)
-    valid = has & ((a_hr <= 0) | own | side)
-    vote = inside & ((a_hr <= 0) | valid)
+        # a removed mixed pixel's samples: on a surface around it or near its own depth
+        free = (a_hr <= 0) & ~(has & (mt_hr > 0) & ~side & (np.abs(vc - m_hr) > mt_hr))
+    valid = has & (free | own | side)
+    vote = inside & (free | valid)
     out = np.where(vote, np.where(has, vc, v), np.float32(np.nan)).astype(np.float32)
     m, n_own = valid.sum(axis=0), own.sum(axis=0)
     k = cfg.min_trusted_samples
@@ -637,7 +633,7 @@ def super_resolve_straightforward(frames: npt.ArrayLike, config: UPSRConfig) -> 
         s = window_start(t, t_total, cfg)
         ref = t - s
         measured = video[s : s + n]
-        lowres, anchor, tol = _abstaining(
+        lowres, anchor, tol, mixes = _abstaining(
             measured, ref, stats.remove_mixed, cfg, edge_mm, trust_mm, stats.trust_noise_profile
         )
         caps = None if anchor is None else state_caps(anchor, tol, float(n), reach_mm, cfg.trust_k,
@@ -669,7 +665,7 @@ def super_resolve_straightforward(frames: npt.ArrayLike, config: UPSRConfig) -> 
         fallback = only_own = None
         if anchor is not None:
             stack, anchor_hr, fallback, only_own = _trusted_stack(
-                stack, anchor, tol, offsets, cfg, edge_mm
+                stack, anchor, tol, offsets, cfg, edge_mm, mixes
             )
         fuse = functools.partial(
             temporal_median_numpy, stack, ref, weights=weights, guide=guide,
