@@ -13,7 +13,8 @@ along the viewing ray, and the mixed ("flying") pixels of ToF sensors
 * :func:`radial_offsets`: per frame of the window, the depth offset of the frame registered to
   the reference (motion along the viewing ray), a masked median over a neighbourhood of one
   surface, subtracted from that frame's samples before trust and fusion;
-* :func:`fill_holes`: optional filling of pixels without depth from the background side.
+* :func:`fill_holes`: optional filling of pixels without depth from the background side;
+* :func:`fusion_inputs`: all of these as the compiled fusion reads them.
 """
 
 from __future__ import annotations
@@ -469,8 +470,16 @@ def trust_arrays(
 
 
 def fusion_inputs(
-    anchor, tolerance, offsets, alternatives, untrusted, lr, edge_mm, holes_of, mixes_mm
-):
+    anchor: npt.ArrayLike | None,
+    tolerance: npt.ArrayLike | None,
+    offsets: npt.ArrayLike | None,
+    alternatives: tuple[npt.ArrayLike, ...] | None,
+    untrusted: npt.ArrayLike | None,
+    lr: np.ndarray,
+    edge_mm: float,
+    holes_of: int | None,
+    mixes_mm: npt.ArrayLike | None,
+) -> tuple:
     """The trust arrays of :func:`upsr.method.fusion.register_and_fuse` as its kernel reads
     them: anchor, tolerance, offsets, the four alternatives (default: from the anchor and
     the removed mixed pixels ``mixes_mm``), the misregistered samples, the nearest depth a
