@@ -20,6 +20,7 @@ import numpy.typing as npt
 __all__ = [
     "OPEN_MM",
     "alternatives_on_grid",
+    "mix_depths",
     "mix_tolerance",
     "side_of_centre",
     "surface_alternatives",
@@ -216,12 +217,14 @@ def surface_alternatives(
     anc = np.ascontiguousarray(anchor, np.float32)
     tol = np.ascontiguousarray(tolerance, np.float32)
     outs = [np.empty((3, 3, *anc.shape), np.float32) for _ in range(4)]
-    mixes = _mixes(mixes_mm, anc.shape)
+    mixes = mix_depths(mixes_mm, anc.shape)
     _alternatives_kernel(anc, tol, float(edge_mm), mixes, *outs)
     return outs[0], outs[1], outs[2], outs[3]
 
 
-def _mixes(mixes_mm: npt.ArrayLike | None, shape: tuple[int, ...]) -> np.ndarray:
+def mix_depths(mixes_mm: npt.ArrayLike | None, shape: tuple[int, ...]) -> np.ndarray:
+    """``mixes_mm`` of :func:`surface_alternatives` as its kernels read it: float32 of
+    ``shape``, 0 (no removed mix) where it is None, NaN or infinite."""
     if mixes_mm is None:
         return np.zeros(shape, np.float32)
     m = np.ascontiguousarray(mixes_mm, np.float32).reshape(shape)
@@ -241,7 +244,9 @@ def mix_tolerance(
     ndarray float32 (h, w)
     """
     anc = np.ascontiguousarray(anchor, np.float32)
-    mixes = _mixes(mixes_mm, anc.shape)
+    mixes = mix_depths(mixes_mm, anc.shape)
+    if not (mixes > 0).any():
+        return np.zeros(anc.shape, np.float32)  # (every window of a sensor that does not mix)
     anchored = np.where(anc > 0, np.asarray(tolerance, np.float32), np.float32(0.0))
     largest = cv2.dilate(anchored, np.ones((3, 3), np.uint8))  # (outside: no neighbour)
     return np.where((mixes > 0) & ~(anc > 0), largest, np.float32(0.0)).astype(np.float32)

@@ -38,6 +38,7 @@ __all__ = [
     "SPLIT_MEAN_TOLERANCE",
     "mixed_pixels",
     "remove_mixed_pixels",
+    "removed_depths",
     "split_mixed_pixels",
 ]
 
@@ -390,6 +391,13 @@ def remove_mixed_pixels(
     if not found:
         return out, None
     return out, ThinParts(*(np.stack(a).reshape(z.shape) for a in zip(*found, strict=True)))
+
+
+def removed_depths(measured: np.ndarray, cleaned: np.ndarray) -> np.ndarray:
+    """The measurement at the pixels :func:`remove_mixed_pixels` marked :data:`ABSTAIN` in
+    ``cleaned`` (its result for ``measured``), 0 elsewhere: the ``mixes_mm`` of
+    :func:`upsr.method.fusion.register_and_fuse`."""
+    return np.where(cleaned == ABSTAIN, measured, np.float32(0.0)).astype(np.float32)
 
 
 @nb.njit(cache=True, nogil=True, inline="always")

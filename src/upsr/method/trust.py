@@ -25,7 +25,7 @@ import numba as nb
 import numpy as np
 import numpy.typing as npt
 
-from upsr.method.alternatives import mix_tolerance, surface_alternatives
+from upsr.method.alternatives import mix_depths, mix_tolerance, surface_alternatives
 from upsr.method.anchor import (
     OWN_SURFACE_SIGMAS,
     TOLERANCE_FLOOR_MM,
@@ -491,16 +491,14 @@ def fusion_inputs(
         bg = hole_backgrounds(lr[holes_of])
         nearest = np.where(bg > 0, bg - np.float32(edge_mm), nearest).astype(np.float32)
     anc, tol, offs = trust_arrays(anchor, tolerance, offsets, (n, h, w))
+    mixes = mix_depths(mixes_mm, (h, w))
     if alternatives is None:
-        alternatives = surface_alternatives(anc, tol, edge_mm, mixes_mm)
+        alternatives = surface_alternatives(anc, tol, edge_mm, mixes)
     alts = [np.ascontiguousarray(a, np.float32).reshape(3, 3, h, w) for a in alternatives]
     if untrusted is None:
         bad = np.zeros((n, h, w), np.bool_)
     else:
         bad = np.ascontiguousarray(untrusted, np.bool_).reshape(n, h, w)
-    mixes = np.zeros((h, w), np.float32)
-    if mixes_mm is not None:
-        mixes = np.nan_to_num(np.asarray(mixes_mm, np.float32).reshape(h, w), posinf=0.0)
     return anc, tol, offs, alts, bad, nearest, mixes, mix_tolerance(anc, tol, mixes)
 
 

@@ -54,7 +54,7 @@ from upsr.method.finishing import finish_frame, finish_fused, settle_fused
 from upsr.method.frontend import MotionFrontEnd
 from upsr.method.fusion import register_and_fuse, splat_points
 from upsr.method.memory import beyond_reach, state_caps
-from upsr.method.mixed import ABSTAIN, remove_mixed_pixels
+from upsr.method.mixed import ABSTAIN, remove_mixed_pixels, removed_depths
 from upsr.method.motion import FlowBackend, flow_backend_is_thread_safe, make_flow_backend
 from upsr.method.registration import (
     advance_positions,
@@ -369,7 +369,7 @@ class UPSR:
                 estimator=stats.estimator,
                 hole_floors=cfg.check_registration,
                 mixes_mm=(
-                    np.where(self._cleaned(t)[0] == ABSTAIN, self._lowres[t], np.float32(0.0))
+                    removed_depths(self._lowres[t], self._cleaned(t)[0])
                     if stats.remove_mixed
                     else None
                 ),

@@ -318,13 +318,13 @@ def _abstaining(
     the trust test) abstaining, before anything is fused; the reference's anchor and
     tolerance (None without the trust test), computed once as by :class:`upsr.UPSR`; and the
     reference's measurement at its removed mixed pixels (0 elsewhere)."""
-    from upsr.method.mixed import ABSTAIN, remove_mixed_pixels
+    from upsr.method.mixed import ABSTAIN, remove_mixed_pixels, removed_depths
     from upsr.method.trust import abstain_lone_outliers, reference_anchor
 
     lowres = measured
     if mixed:
         lowres = remove_mixed_pixels(measured, edge_mm, marker=ABSTAIN, thin_parts=cfg.thin_parts)
-    mixes = np.where(lowres[ref] == ABSTAIN, measured[ref], np.float32(0.0))
+    mixes = removed_depths(measured[ref], lowres[ref])
     if cfg.trust_k is None:
         return lowres, None, None, mixes
     anchor, tol = reference_anchor(
