@@ -124,6 +124,89 @@ def test_the_first_test_of_the_votes_never_skips_a_pixel_they_would_move():
     assert skipped > 1000 and moved > 500  # (both outcomes are exercised)
 
 
+def _votes_by_sorting(low, offsets, raw, px, py, r, edge, floor, fused):
+    """What vote_surface returns, in plain Python: every voting frame's four samples around
+    its position sorted by depth, cut into surfaces (gaps beyond ``edge``; "no depth" one of
+    its own), the heaviest surface (the first of equal ones) moves the pixel to its weighted
+    median when it has depth and lies wholly beyond the gap from ``fused``; None when the
+    two heaviest surfaces weigh the same."""
+    if not fused > 0:
+        return fused
+    n, h, w = low.shape
+    gap = SURFACE_GAP * edge
+    samples = []
+    for k in range(n):
+        if np.isnan(raw[k]):
+            continue
+        u, t = (float(py[k]) + 0.5) / r - 0.5, (float(px[k]) + 0.5) / r - 0.5
+        i0, j0 = int(np.floor(u)), int(np.floor(t))
+        for di in (0, 1):
+            for dj in (0, 1):
+                wt = (u - i0 if di else 1 - (u - i0)) * (t - j0 if dj else 1 - (t - j0))
+                wt = float(np.float32(wt))  # (as kept: float32, added up in float64)
+                z = low[k, min(max(i0 + di, 0), h - 1), min(max(j0 + dj, 0), w - 1)]
+                val = z - offsets[k] if z > 0 else np.float32(np.inf)
+                if wt > 0 and z >= 0 and val >= floor:
+                    samples.append((val, wt))
+    if not any(np.isfinite(val) and abs(val - fused) > gap for val, _ in samples):
+        return fused
+    samples.sort(key=lambda s: s[0])  # (stable)
+    runs, start = [], 0
+    for p in range(1, len(samples) + 1):
+        with np.errstate(invalid="ignore"):  # (inf − inf: no gap within "no depth")
+            if p == len(samples) or samples[p][0] - samples[p - 1][0] > edge:
+                runs.append(samples[start:p])
+                start = p
+    weights = sorted((sum(wt for _, wt in run) for run in runs), reverse=True)
+    if len(weights) > 1 and weights[0] - weights[1] < 1e-6:
+        return None  # equal surfaces: float rounding of their weights decides, not the rule
+    best = max(runs, key=lambda run: sum(wt for _, wt in run))
+    lo, hi = best[0][0], best[-1][0]
+    if lo == np.inf or lo - gap <= fused <= hi + gap:
+        return fused
+    half, acc = 0.5 * sum(wt for _, wt in best), 0.0
+    for val, wt in best:
+        acc += wt
+        if acc >= half:
+            return val
+    return hi
+
+
+def test_the_votes_keep_the_fusions_value_exactly_where_sorting_them_would():
+    """vote_surface (which decides most pixels without sorting their samples: the surface
+    near the fusion's value outweighs all samples beyond the gap on either side) against
+    its samples sorted into surfaces: random windows of three surfaces around the surface
+    gap apart, holes, removed samples, offsets, abstaining frames, positions anywhere."""
+    rng = np.random.default_rng(11)
+    edge = 100.0
+    gap = SURFACE_GAP * edge
+    kept = moved = 0
+    for _ in range(3000):
+        n, h, w, r = rng.integers(1, 10), rng.integers(2, 6), rng.integers(2, 6), rng.choice([2, 4])
+        mid = 2000.0
+        near = mid - gap - rng.choice([-30.0, 5.0, 60.0, gap])
+        far = mid + gap + rng.choice([-30.0, 5.0, 60.0, gap])
+        share = rng.random(5)
+        levels = rng.choice([near, mid, far, 0.0, -1.0], (n, h, w), p=share / share.sum())
+        low = (levels + rng.normal(0.0, 20.0, levels.shape) * (levels > 0)).astype(np.float32)
+        offsets = rng.choice([0.0, 0.0, 4.0, -6.0], n).astype(np.float32)
+        raw = np.where(rng.random(n) < 0.2, np.nan, 1.0).astype(np.float32)
+        px = rng.uniform(-0.5, w * r - 0.5, n).astype(np.float32)
+        py = rng.uniform(-0.5, h * r - 0.5, n).astype(np.float32)
+        fused = np.float32(rng.choice([0.0, near, mid, far]) + rng.normal(0.0, 20.0))
+        floor = rng.choice([-np.inf, near + 50.0])
+        scratch = np.empty(4 * n, np.float32), np.empty(4 * n, np.float32)
+        voted = vote_surface(low, offsets, raw, px, py, r, edge, floor, fused, *scratch)
+        expected = _votes_by_sorting(low, offsets, raw, px, py, r, edge, floor, fused)
+        if expected is None:
+            continue
+        assert voted == np.float32(expected)
+        far_samples = ((np.abs(low - fused) > gap) & (low > 0)).any()
+        kept += bool(voted == fused and fused > 0 and far_samples)
+        moved += bool(voted != fused)
+    assert kept > 500 and moved > 300  # (both outcomes are exercised)
+
+
 def test_several_frames_shifted_by_sub_pixel_motion_vote_together():
     """Three frames of a disc moving 1/3 low-res px per frame, registered with their exact
     motion: the votes place the edge better than one frame's."""
