@@ -389,7 +389,8 @@ def deblur(
         masks = _masks(z, dls, dms, edge, pos)
         spans = _valid_spans(mask)
         n_chunks = min(nb.get_num_threads(), z.shape[0])
-        xp, nxt = _padded(z, pad), _padded(np.zeros_like(z), pad)
+        xp = _padded(z, pad)
+        nxt = np.zeros_like(xp)
         scales = _step_scales(z, mask, noise_profile)
         for _ in range(cfg.iterations):
             step = np.float32(beta / norm)
