@@ -254,8 +254,8 @@ def vote_surface(lowres, offsets, raw, px, py, scale, edge_mm, floor, fused, val
     if w_near > 1.0001 * max(w_above, w_below):
         # a surface that moves the pixel lies wholly beyond the gap on one side, so it weighs
         # at most w_above or w_below; the surface holding the samples near the fusion's value
-        # weighs at least w_near, more: it wins over them, and the fusion's value stays
-        # (the same outcome as the sort below, which 99 % of the band's pixels left here skip)
+        # weighs at least w_near, more: it wins over them, and the fusion's value stays (the
+        # outcome of the sort below; 97–99 % of the pixels that reach it end here)
         return fused
     for p in range(1, m):  # insertion sort (stable; at most 4N samples)
         val = vals[p]
