@@ -92,6 +92,16 @@ def test_votes_never_add_depth_nor_remove_it():
     np.testing.assert_array_equal(voted > 0, nearest > 0)
 
 
+def _random_frames(rng, n, h, w, r):
+    """Radial offsets, frames that abstain (NaN) and positions anywhere in the frame for n
+    frames of h×w low-res pixels at scale r: the arguments of vote_surface after the frames."""
+    offsets = rng.choice([0.0, 0.0, 4.0, -6.0], n).astype(np.float32)
+    raw = np.where(rng.random(n) < 0.2, np.nan, 1.0).astype(np.float32)
+    px = rng.uniform(-0.5, w * r - 0.5, n).astype(np.float32)
+    py = rng.uniform(-0.5, h * r - 0.5, n).astype(np.float32)
+    return offsets, raw, px, py
+
+
 def test_the_first_test_of_the_votes_never_skips_a_pixel_they_would_move():
     """votes_may_move (each frame's nearest and farthest depth per cell of four samples) is
     False only where vote_surface keeps the fusion's value: random windows of two surfaces
@@ -108,10 +118,7 @@ def test_the_first_test_of_the_votes_never_skips_a_pixel_they_would_move():
         share = rng.random(4)
         levels = rng.choice([near, far, 0.0, -1.0], (n, h, w), p=share / share.sum())
         low = levels.astype(np.float32)
-        offsets = rng.choice([0.0, 0.0, 4.0, -6.0], n).astype(np.float32)
-        raw = np.where(rng.random(n) < 0.2, np.nan, 1.0).astype(np.float32)
-        px = rng.uniform(-0.5, w * r - 0.5, n).astype(np.float32)
-        py = rng.uniform(-0.5, h * r - 0.5, n).astype(np.float32)
+        offsets, raw, px, py = _random_frames(rng, n, h, w, r)
         fused = np.float32(rng.choice([0.0, near, far]) + rng.choice([0.0, -5.0, 5.0]))
         floor = rng.choice([-np.inf, 900.0])
         lo, hi = cell_ranges(low)
@@ -189,10 +196,7 @@ def test_the_votes_keep_the_fusions_value_exactly_where_sorting_them_would():
         share = rng.random(5)
         levels = rng.choice([near, mid, far, 0.0, -1.0], (n, h, w), p=share / share.sum())
         low = (levels + rng.normal(0.0, 20.0, levels.shape) * (levels > 0)).astype(np.float32)
-        offsets = rng.choice([0.0, 0.0, 4.0, -6.0], n).astype(np.float32)
-        raw = np.where(rng.random(n) < 0.2, np.nan, 1.0).astype(np.float32)
-        px = rng.uniform(-0.5, w * r - 0.5, n).astype(np.float32)
-        py = rng.uniform(-0.5, h * r - 0.5, n).astype(np.float32)
+        offsets, raw, px, py = _random_frames(rng, n, h, w, r)
         fused = np.float32(rng.choice([0.0, near, mid, far]) + rng.normal(0.0, 20.0))
         floor = rng.choice([-np.inf, near + 50.0])
         scratch = np.empty(4 * n, np.float32), np.empty(4 * n, np.float32)
