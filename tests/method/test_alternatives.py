@@ -81,3 +81,42 @@ def test_a_misregistered_sample_of_a_third_surface_never_fills_a_removed_mix():
     assert np.isin(out, [box, WALL]).all()
     before = register_and_fuse(frames, maps, r, ref, **kw)[:, 5 * r : 6 * r]
     assert (before == 2400.0).all()
+
+
+def _bar_in_front(width_px: int = 2) -> tuple[np.ndarray, np.ndarray]:
+    """A bar ``width_px`` columns wide at 1200 mm in front of the wall, tolerances 30 mm."""
+    anchor = np.full((9, 11), WALL, np.float32)
+    anchor[:, 4 : 4 + width_px] = 1200.0
+    return anchor, np.full_like(anchor, 30.0)
+
+
+def test_thin_fronts_are_thin_parts_standing_apart_from_a_surface_beside_them():
+    from upsr.method.alternatives import thin_fronts
+
+    anchor, tol = _bar_in_front(2)
+    np.testing.assert_array_equal(thin_fronts(anchor, tol, 100.0), anchor < WALL)
+    # three columns wide: not thin
+    assert not thin_fronts(*_bar_in_front(3), 100.0).any()
+    # a floor at a grazing angle (rows 150 mm apart, between a nearer and a farther row): no
+    floor = np.repeat(np.arange(9, dtype=np.float32)[:, None] * 150.0 + 2000.0, 11, axis=1)
+    assert not thin_fronts(floor, np.full_like(floor, 30.0), 100.0).any()
+    # two noise outliers side by side, within the two tolerances of the surface: no
+    specks = np.full((9, 11), WALL, np.float32)
+    specks[4, 4:6] = WALL - 150.0
+    assert not thin_fronts(specks, np.full_like(specks, 90.0), 100.0).any()
+    assert thin_fronts(specks, np.full_like(specks, 30.0), 100.0)[4, 4:6].all()
+
+
+def test_a_thin_part_the_motion_followed_has_the_surface_behind_it_compete():
+    """The bar keeps its own samples against the wall (no alternative at its pixels) unless
+    the motion followed it; then the wall competes on the side of each column's centre
+    that faces it, as at any edge."""
+    anchor, tol = _bar_in_front(2)
+    _, _, far, _ = surface_alternatives(anchor, tol, 100.0)
+    assert (far[:, :, :, 4:6] == 0).all()
+    followed = np.zeros(anchor.shape, bool)
+    followed[:, 4:6] = True
+    _, _, far, far_tol = surface_alternatives(anchor, tol, 100.0, followed=followed)
+    assert (far[:, 0, :, 4] == WALL).all() and (far[:, 2, :, 4] == 0).all()  # left column
+    assert (far[:, 2, :, 5] == WALL).all() and (far[:, 0, :, 5] == 0).all()  # right column
+    assert (far_tol[:, 0, :, 4] == 30.0).all()

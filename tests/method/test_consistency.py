@@ -230,3 +230,74 @@ def test_stale_fills_beside_a_nearer_surface_are_emptied_on_its_side_only():
         np.full((12, 18), WALL, np.float32), np.where(ref == -1, 0, ref), 3, 100.0
     )
     assert (odd[:, 6] == 0).all() and (odd[:, 7:9] == WALL).all()  # r = 3: the centre column
+
+
+def _bar_frames(shifts_px, r=4, h=12, w=16, x0=25.0, width_px=6.0):
+    """Point samples (r·h × r·w output grid, pixel centres) of a bar ``width_px`` output px
+    wide at 1200 mm in front of the wall, its left side at x0 + shift in each frame; and the
+    truth of each frame on the output grid."""
+    xs = np.arange(w * r, dtype=np.float64)
+    centres = (np.arange(w) + 0.5) * r - 0.5
+    low, truth = [], []
+    for s in shifts_px:
+        low.append(np.where((centres >= x0 + s) & (centres < x0 + s + width_px), 1200.0, WALL))
+        truth.append(np.where((xs >= x0 + s - 0.5) & (xs < x0 + s + width_px - 0.5), 1200.0, WALL))
+    low = np.repeat(np.asarray(low, np.float32)[:, None, :], h, axis=1)
+    truth = np.repeat(np.asarray(truth, np.float32)[:, None, :], h * r, axis=1)
+    return low, truth
+
+
+def test_thin_parts_followed_counts_the_frames_whose_sample_stays_on_the_part():
+    from upsr.method.consistency import thin_parts_followed
+
+    reg = np.full((5, 3, 6), WALL, np.float32)
+    reg[:, :, 2:4] = 1200.0  # a bar two pixels wide that every frame followed ...
+    reg[4, :, 2:4] = WALL  # ... but frame 4
+    reg[0, 0] = np.nan  # frame 0 outside the frame on row 0 (no evidence either way)
+    anchor = reg[2].copy()
+    tol = np.full_like(anchor, 30.0)
+    fronts = anchor < WALL
+    followed, lost = thin_parts_followed(reg, anchor, tol, fronts, 2, min_trusted=3)
+    np.testing.assert_array_equal(followed, fronts)
+    np.testing.assert_array_equal(lost[4], fronts)
+    assert not lost[[0, 1, 2, 3]].any()
+    # followed by one of the other four frames only: not followed, nothing abstains
+    reg[[0, 1], :, 2:4] = WALL
+    followed, lost = thin_parts_followed(reg, anchor, tol, fronts, 2, min_trusted=3)
+    assert not followed.any() and not lost.any()
+    # the radial offsets are subtracted first: a frame 500 mm nearer follows after them
+    reg[[0, 1, 4], :, 2:4] = 700.0
+    offsets = np.where(reg == 700.0, -500.0, 0.0).astype(np.float32)
+    followed, _ = thin_parts_followed(reg, anchor, tol, fronts, 2, offsets=offsets)
+    np.testing.assert_array_equal(followed, fronts)
+
+
+def test_a_thin_bar_the_motion_followed_keeps_its_width():
+    """A bar 6 output px wide moving 1 output px per frame, registered exactly: kept to its
+    own samples it fills the r×r blocks of its two reference pixels (8 px wide); with the
+    frames that followed it voting with the wall behind it, its edges land within a pixel.
+    A frame whose motion is wrong at the bar does not follow it and abstains there."""
+    from upsr.method.alternatives import thin_fronts
+    from upsr.method.consistency import thin_parts_followed
+
+    r, n, ref = 4, 7, 3
+    low, truth = _bar_frames(range(-3, 4))
+    maps = np.zeros((n, low.shape[1] * r, low.shape[2] * r, 2), np.float32)
+    maps[..., 0] = np.arange(-3, 4, dtype=np.float32)[:, None, None]  # exact motion
+    anchor, tol = low[ref], np.full(low.shape[1:], 30.0, np.float32)
+    common = dict(edge_mm=100.0, anchor=anchor, tolerance=tol, edge_votes=True)
+    common.update(weight_sigma_px=0.35 * r, min_trusted=3)
+    kept = register_and_fuse(low, maps, r, ref, **common)
+    reg = registered_samples(low, maps, r)
+    followed, lost = thin_parts_followed(reg, anchor, tol, thin_fronts(anchor, tol, 100.0), ref)
+    assert followed[:, 6:8].all()  # (frames whose nearest sample missed the bar abstain)
+    fused = register_and_fuse(low, maps, r, ref, untrusted=lost, followed=followed, **common)
+    wrong = lambda out: int((np.abs(out - truth[ref]) > 100).sum(axis=1).max())  # noqa: E731
+    assert wrong(kept) >= 2 and wrong(fused) <= 1
+    assert ((fused == 1200.0).sum(axis=1) >= 5).all()  # the bar kept along its whole length
+    assert np.isin(fused, [1200.0, WALL]).all()  # no depth between the two
+    # frame 6 registered as if nothing moved: it does not follow the bar, and abstains there
+    maps[6] = 0.0
+    reg = registered_samples(low, maps, r)
+    followed, lost = thin_parts_followed(reg, anchor, tol, thin_fronts(anchor, tol, 100.0), ref)
+    assert lost[6][:, 6].all() and not lost[6][:, 7].any()  # (column 7 lands on the bar)

@@ -24,6 +24,7 @@ __all__ = [
     "mix_tolerance",
     "side_of_centre",
     "surface_alternatives",
+    "thin_fronts",
 ]
 
 
@@ -41,6 +42,18 @@ def _run(anchor, i, j, di, dj, a0, edge, reach):  # pragma: no cover - numba
         if not (u > 0 and abs(u - a0) <= edge):
             return s - 1
     return reach
+
+
+@nb.njit(cache=True, nogil=True, inline="always")
+def _thin(anchor, i, j, a0, edge):  # pragma: no cover - numba
+    """Whether a0's surface at (i, j) is at most 2 px wide across x, y or a diagonal (a
+    neck seen at 45°)."""
+    thin = False
+    for di, dj in ((0, 1), (1, 0), (1, 1), (1, -1)):
+        wd = _run(anchor, i, j, -di, -dj, a0, edge, 2)
+        wd += 1 + _run(anchor, i, j, di, dj, a0, edge, 2)
+        thin = thin or wd < 3
+    return thin
 
 
 @nb.njit(cache=True, nogil=True, inline="always")
@@ -110,7 +123,9 @@ def _mix_surfaces(anchor, tol, edge, m0, i, j, lo, tlo, hi, thi):  # pragma: no 
 
 
 @nb.njit(cache=True, nogil=True)
-def _alternatives_kernel(anchor, tol, edge, mixes, lo, tlo, hi, thi):  # pragma: no cover - numba
+def _alternatives_kernel(
+    anchor, tol, edge, mixes, followed, lo, tlo, hi, thi
+):  # pragma: no cover - numba
     h, w = anchor.shape
     lo[:] = 0.0
     tlo[:] = 0.0
@@ -128,14 +143,12 @@ def _alternatives_kernel(anchor, tol, edge, mixes, lo, tlo, hi, thi):  # pragma:
             # seen at 45°) keeps its own samples against a surface beyond the tolerances of
             # both; within them, and every neighbour off its surface on one side of it (a
             # ridge, a speck: noise outliers side by side, not a floor at a grazing angle),
-            # the samples of that surface compete
-            thin = False
-            for di, dj in ((0, 1), (1, 0), (1, 1), (1, -1)):
-                wd = _run(anchor, i, j, -di, -dj, a0, edge, 2)
-                wd += 1 + _run(anchor, i, j, di, dj, a0, edge, 2)
-                thin = thin or wd < 3
+            # the samples of that surface compete; and so do all, where the motion followed
+            # the part (``followed``: the frames that did not follow it abstain there)
+            thin = _thin(anchor, i, j, a0, edge)
             if thin and _two_sided(anchor, i, j, a0, edge):
                 continue
+            thin = thin and not followed[i, j]
             # per side (sy, sx) of the pixel's centre: the neighbours on that side only
             for qy in range(3):
                 for qx in range(3):
@@ -165,6 +178,7 @@ def surface_alternatives(
     tolerance: npt.ArrayLike,
     edge_mm: float,
     mixes_mm: npt.ArrayLike | None = None,
+    followed: npt.ArrayLike | None = None,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """The other surfaces next to each reference pixel at a depth edge, whose samples compete.
 
@@ -182,7 +196,11 @@ def surface_alternatives(
     floor at a grazing angle, steeper per pixel than the edge threshold): noise outliers side
     by side (Samba, Laplacian σ = 50 mm: two pixels 3.5σ nearer than the surface, each the
     other's surface) kept their blocks against every other frame; now that surface's
-    samples compete. A small part far in front of the wall still keeps its own.
+    samples compete. A small part far in front of the wall still keeps its own, unless the
+    motion followed it (``followed``: :func:`thin_fronts`,
+    :func:`upsr.method.consistency.thin_parts_followed`): then the frames that did not follow
+    it abstain there and the surface behind competes in the others, which puts the part's
+    edges at sub-pixel positions instead of filling its r×r blocks.
 
     A mixed pixel of the reference that was removed (``mixes_mm``: its anchor is 0, so its
     samples are not checked against its own surface) lies between surfaces around it: there
@@ -203,6 +221,8 @@ def surface_alternatives(
         Depth step that separates two surfaces.
     mixes_mm : array_like (h, w), optional
         The reference's measurement at its removed mixed pixels (mm), 0 elsewhere.
+    followed : array_like bool (h, w), optional
+        The thin parts in front that the motion followed (see above); None: none.
 
     Returns
     -------
@@ -218,8 +238,55 @@ def surface_alternatives(
     tol = np.ascontiguousarray(tolerance, np.float32)
     outs = [np.empty((3, 3, *anc.shape), np.float32) for _ in range(4)]
     mixes = mix_depths(mixes_mm, anc.shape)
-    _alternatives_kernel(anc, tol, float(edge_mm), mixes, *outs)
+    fol = np.zeros(anc.shape, np.bool_)
+    if followed is not None:
+        fol = np.ascontiguousarray(followed, np.bool_).reshape(anc.shape)
+    _alternatives_kernel(anc, tol, float(edge_mm), mixes, fol, *outs)
     return outs[0], outs[1], outs[2], outs[3]
+
+
+@nb.njit(cache=True, nogil=True)
+def _fronts_kernel(anchor, tol, edge, out):  # pragma: no cover - numba
+    h, w = anchor.shape
+    for i in range(h):
+        for j in range(w):
+            a0 = anchor[i, j]
+            out[i, j] = False
+            if not (a0 > 0 and _thin(anchor, i, j, a0, edge)) or _two_sided(anchor, i, j, a0, edge):
+                continue
+            for a in range(max(i - 1, 0), min(i + 2, h)):
+                for b in range(max(j - 1, 0), min(j + 2, w)):
+                    u = anchor[a, b]
+                    if u > 0 and abs(u - a0) > edge and abs(u - a0) > tol[i, j] + tol[a, b]:
+                        out[i, j] = True
+
+
+def thin_fronts(anchor: npt.ArrayLike, tolerance: npt.ArrayLike, edge_mm: float) -> np.ndarray:
+    """The reference pixels of thin parts that stand apart from a surface beside them (a leg,
+    an arm, a bar in front of a wall): those that :func:`surface_alternatives` lets keep their
+    own samples against that surface unless the motion followed them.
+
+    The part's surface is at most 2 px wide across x, y or a diagonal; it does not lie between
+    a nearer and a farther surface (a floor at a grazing angle); an 8-neighbour off it lies
+    beyond the tolerances of both (not noise outliers side by side).
+
+    Parameters
+    ----------
+    anchor, tolerance : array_like (h, w)
+        From :func:`upsr.method.trust.reference_anchor` (anchor 0: no depth).
+    edge_mm : float
+        Depth step that separates two surfaces.
+
+    Returns
+    -------
+    ndarray bool (h, w)
+    """
+    anc = np.ascontiguousarray(anchor, np.float32)
+    anc = np.where(np.isfinite(anc), anc, np.float32(0.0))
+    tol = np.ascontiguousarray(tolerance, np.float32).reshape(anc.shape)
+    out = np.empty(anc.shape, np.bool_)
+    _fronts_kernel(anc, tol, float(edge_mm), out)
+    return out
 
 
 def mix_depths(mixes_mm: npt.ArrayLike | None, shape: tuple[int, ...]) -> np.ndarray:

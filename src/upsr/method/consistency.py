@@ -33,6 +33,7 @@ import numpy as np
 import numpy.typing as npt
 
 __all__ = [
+    "FOLLOWED_SHARE",
     "HOLE_REACH_PX",
     "MISMATCH_FRACTION",
     "MISMATCH_MIN_COUNT",
@@ -41,6 +42,7 @@ __all__ = [
     "maps_at_centres",
     "misregistered",
     "registered_samples",
+    "thin_parts_followed",
 ]
 
 #: How far (low-res px, through the hole) :func:`hole_backgrounds` looks for the depth around a
@@ -52,6 +54,9 @@ HOLE_REACH_PX = 8
 MISMATCH_MIN_COUNT = 2
 #: ... and the least share of the neighbourhood's checked interior pixels they must be.
 MISMATCH_FRACTION = 0.2
+#: Least share of a window's other frames that followed a thin part in front for the surface
+#: behind it to compete there (:func:`thin_parts_followed`).
+FOLLOWED_SHARE = 0.5
 
 
 @nb.njit(cache=True, nogil=True)
@@ -249,6 +254,73 @@ def misregistered(
         out,
     )
     return out
+
+
+def thin_parts_followed(
+    registered: npt.ArrayLike,
+    anchor: npt.ArrayLike,
+    tolerance: npt.ArrayLike,
+    fronts: npt.ArrayLike,
+    ref: int,
+    *,
+    offsets: npt.ArrayLike | None = None,
+    min_trusted: int = 1,
+    share: float = FOLLOWED_SHARE,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Which thin parts in front the motion followed, and the frames that did not follow them.
+
+    A thin part in front of a surface (:func:`upsr.method.alternatives.thin_fronts`) keeps its
+    own samples in the fusion, so that a fast leg the flow lost is not voted away by the wall
+    behind it; but where the flow did follow it, that fills its r×r blocks with it and widens
+    it by up to r/2 px on each side. At such a pixel, frame k followed the part when its
+    registered sample there (:func:`registered_samples`, minus the radial offset) lies within
+    the pixel's tolerance of its anchor. The part counts as followed where, among the other
+    frames with a sample in frame, at least ``share`` did, and with the reference at least
+    ``min_trusted``: there the frames that did not follow it abstain, and the surfaces around
+    it compete in the others (:func:`upsr.method.alternatives.surface_alternatives`,
+    ``followed``). Elsewhere nothing changes.
+
+    Parameters
+    ----------
+    registered : array_like (N, h, w)
+        :func:`registered_samples` of the window (NaN: outside the frame).
+    anchor, tolerance : array_like (h, w)
+        The reference's anchor and tolerance (:func:`upsr.method.trust.reference_anchor`).
+    fronts : array_like bool (h, w)
+        The thin parts in front (:func:`upsr.method.alternatives.thin_fronts`).
+    ref : int
+        Index of the reference frame.
+    offsets : array_like (N, h, w), optional
+        Radial offsets (mm, :func:`upsr.method.trust.radial_offsets`) subtracted first.
+    min_trusted : int
+        Fewest samples on the part's surface, the reference's included.
+    share : float
+        Least share of the other frames in frame that followed the part.
+
+    Returns
+    -------
+    followed : ndarray bool (h, w)
+    lost : ndarray bool (N, h, w)
+        True where frame k did not follow a followed part (never for ``ref``): its samples
+        there abstain, like those of a misregistered frame (:func:`misregistered`).
+    """
+    reg = np.asarray(registered, np.float32)
+    n = reg.shape[0]
+    if not 0 <= ref < n:
+        raise ValueError(f"ref must be in [0, {n}), got {ref}")
+    if offsets is not None:
+        reg = reg - np.asarray(offsets, np.float32).reshape(reg.shape)
+    anc = np.asarray(anchor, np.float32)
+    anc = np.where(np.isfinite(anc), anc, np.float32(0.0))
+    tol = np.asarray(tolerance, np.float32)
+    others = np.arange(n) != ref
+    inside = others[:, None, None] & ~np.isnan(reg)
+    with np.errstate(invalid="ignore"):
+        own = inside & (reg > 0) & (np.abs(reg - anc) <= tol)
+    n_own = own.sum(axis=0)
+    followed = np.asarray(fronts, np.bool_) & (anc > 0) & (n_own + 1 >= min_trusted)
+    followed &= n_own >= share * inside.sum(axis=0)
+    return followed, followed & inside & ~own
 
 
 def hole_backgrounds(reference: npt.ArrayLike, reach_px: int = HOLE_REACH_PX) -> np.ndarray:

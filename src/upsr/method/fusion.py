@@ -581,6 +581,7 @@ def register_and_fuse(
     hole_floors: bool = False,
     edge_votes: bool = False,
     mixes_mm: npt.ArrayLike | None = None,
+    followed: npt.ArrayLike | None = None,
 ) -> np.ndarray:
     """Registration (eq. 20) and invalid-aware median fusion (eq. 28) in one compiled pass.
 
@@ -643,6 +644,10 @@ def register_and_fuse(
     mixes_mm : array_like (h, w), optional
         The reference's removed mixed pixels' depth (0 elsewhere): there samples abstain
         unless on a surface around them or near that depth (:mod:`upsr.method.alternatives`).
+    followed : array_like bool (h, w), optional
+        Thin parts in front that the motion followed
+        (:func:`upsr.method.consistency.thin_parts_followed`; the frames that did not follow
+        them belong in ``untrusted``): the surfaces around them compete there.
 
     Returns
     -------
@@ -667,7 +672,7 @@ def register_and_fuse(
     rules += (float(edge_mm), measured, _network(n))
     still = ref if not mp[ref].any() else -1  # the reference's map is zero: a shortcut
     trust = (anchor, tolerance, offsets, alternatives, untrusted, lr, edge_mm)
-    trust += (ref if hole_floors else None, mixes_mm)
+    trust += (ref if hole_floors else None, mixes_mm, followed)
     anc, tol, offs, alts, bad, nearest, mixes, mtol = fusion_inputs(*trust)
     band = edge_band(lr[ref], edge_mm) if edge_votes else np.zeros((h, w), np.bool_)
     cell_lo, cell_hi = cell_ranges(lr) if band.any() else (np.zeros((n, 1, 1), np.float32),) * 2

@@ -39,6 +39,7 @@ import numpy.typing as npt
 
 from upsr.errors import InputError
 from upsr.method._parallel import WINDOWED_WORKERS, resolve_workers, window_pool
+from upsr.method.alternatives import thin_fronts
 from upsr.method.camera_motion import (
     agreeing,
     along_axis,
@@ -49,7 +50,12 @@ from upsr.method.camera_motion import (
     window_poses,
 )
 from upsr.method.config import UPSRConfig
-from upsr.method.consistency import maps_at_centres, misregistered, registered_samples
+from upsr.method.consistency import (
+    maps_at_centres,
+    misregistered,
+    registered_samples,
+    thin_parts_followed,
+)
 from upsr.method.finishing import finish_frame, finish_fused, settle_fused
 from upsr.method.frontend import MotionFrontEnd
 from upsr.method.fusion import register_and_fuse, splat_points
@@ -310,7 +316,7 @@ class UPSR:
                     noise_profile=stats.trust_noise_profile, tolerance_sigma_mm=noise,
                 )  # fmt: skip
                 lowres = abstain_lone_outliers(lowres, ref, anchor)
-            offsets = untrusted = None
+            offsets = untrusted = followed = None
             # each frame's motion at the low-res pixel centres (the radial test, the reach)
             needed = cfg.n_frames > 1 and (cfg.radial_compensation or caps is not None)
             centres = maps_at_centres(maps, (h, w)) if needed else None
@@ -326,6 +332,15 @@ class UPSR:
                     untrusted = misregistered(
                         registered, lowres[ref], ref, edge_mm=self._front.edge_mm, offsets=offsets
                     )
+                    if anchor is not None and not stats.remove_mixed:
+                        # thin parts in front that the motion followed: the frames that did
+                        # not follow them abstain there, the surfaces around them compete
+                        fronts = thin_fronts(anchor, tolerance, self._front.edge_mm)
+                        followed, lost = thin_parts_followed(
+                            registered, anchor, tolerance, fronts, ref, offsets=offsets,
+                            min_trusted=cfg.min_trusted_samples,
+                        )  # fmt: skip
+                        untrusted |= lost
                 if offsets is not None:
                     # an offset near the edge threshold (within which it is measured) is
                     # truncated: those samples abstain rather than bias the output
@@ -373,6 +388,7 @@ class UPSR:
                     if stats.remove_mixed
                     else None
                 ),
+                followed=followed,
             )
             # stale hole fills, steep blocks' level, the reference's unfilled removed pixels
             fused = settle_fused(

@@ -266,13 +266,17 @@ def _checked_stack(
     anchor: np.ndarray | None,
     profile: tuple[float, float] | None = None,
     caps: np.ndarray | None = None,
-) -> tuple[np.ndarray, np.ndarray | None]:
-    """The radial offsets of the window (or None) and the registered stack with the samples of
-    frames misregistered around a pixel, or with a radial offset too large to trust there, or
-    beyond the reach of a pixel that moved (:func:`upsr.method.memory.beyond_reach`, flow
-    grid = output grid), or nearer than a hole of the reference allows, abstaining (NaN, like
-    samples outside)."""
-    from upsr.method.consistency import hole_backgrounds
+    tol: np.ndarray | None = None,
+    mixed: bool = False,
+) -> tuple[np.ndarray, np.ndarray | None, np.ndarray | None]:
+    """The registered stack with the samples of frames misregistered around a pixel, or that
+    did not follow a thin part the others followed (without ``mixed`` pixels), or with a
+    radial offset too large to trust there, or beyond the reach of a pixel that moved
+    (:func:`upsr.method.memory.beyond_reach`, flow grid = output grid), or nearer than a hole
+    of the reference allows, abstaining (NaN, like samples outside); the radial offsets of
+    the window and the thin parts followed (or None)."""
+    from upsr.method.alternatives import thin_fronts
+    from upsr.method.consistency import hole_backgrounds, thin_parts_followed
     from upsr.method.memory import beyond_reach
     from upsr.method.trust import far_offsets, radial_offsets
     from upsr.method.upsampling import upsample_nearest
@@ -285,9 +289,16 @@ def _checked_stack(
             radius_px=cfg.radial_radius_px, anchor=anchor, noise_profile=profile,
         )  # fmt: skip
     bad = np.zeros(lowres.shape, bool)
+    followed = None
     if cfg.check_registration and n > 1:
         reg = registered_samples_numpy(lowres, maps, r)
         bad = misregistered_numpy(reg, lowres[ref], ref, edge_mm=edge_mm, offsets=offsets)
+        if anchor is not None and not mixed:
+            followed, lost = thin_parts_followed(
+                reg, anchor, tol, thin_fronts(anchor, tol, edge_mm), ref, offsets=offsets,
+                min_trusted=cfg.min_trusted_samples,
+            )  # fmt: skip
+            bad |= lost
     if offsets is not None:
         bad |= far_offsets(offsets, edge_mm)
     if caps is not None:
@@ -302,7 +313,7 @@ def _checked_stack(
         with np.errstate(invalid="ignore"):
             nearer = (bg > 0)[None] & (stack > 0) & (vc < bg[None] - np.float32(edge_mm))
         stack = np.where(nearer, np.nan, stack)
-    return stack.astype(np.float32), offsets
+    return stack.astype(np.float32), offsets, followed
 
 
 def _abstaining(
@@ -334,11 +345,12 @@ def _abstaining(
     return abstain_lone_outliers(lowres, ref, anchor), anchor, tol, mixes
 
 
-def _trusted_stack(stack, anchor, tol, offsets, cfg, edge_mm: float, mixes: np.ndarray):
+def _trusted_stack(stack, anchor, tol, offsets, cfg, edge_mm: float, mixes: np.ndarray, followed):
     """The trust rules of the fusion (:mod:`upsr.method.trust`), on the registered high-res
     stack: radial offsets subtracted, untrusted samples abstaining (NaN). Returns the stack,
     the anchor (high-res, 0: none), and the pixels where the output is the anchor. ``stack``
-    (N, r·h, r·w); ``anchor``, ``tol``, ``mixes`` (h, w); ``offsets`` (N, h, w) or None."""
+    (N, r·h, r·w); ``anchor``, ``tol``, ``mixes``, ``followed`` (h, w; the last may be None);
+    ``offsets`` (N, h, w) or None."""
     from upsr.method.alternatives import alternatives_on_grid, mix_tolerance, surface_alternatives
     from upsr.method.upsampling import upsample_nearest
 
@@ -346,7 +358,7 @@ def _trusted_stack(stack, anchor, tol, offsets, cfg, edge_mm: float, mixes: np.n
     up = lambda a: upsample_nearest(a, r)  # noqa: E731
     if offsets is None:
         offsets = np.zeros((stack.shape[0], *anchor.shape), np.float32)
-    alternatives = surface_alternatives(anchor, tol, edge_mm, mixes)
+    alternatives = surface_alternatives(anchor, tol, edge_mm, mixes, followed)
     near, near_tol, far, far_tol = alternatives_on_grid(alternatives, r)
     a_hr, t_hr, m_hr, mt_hr = up(anchor), up(tol), up(mixes), up(mix_tolerance(anchor, tol, mixes))
     v = stack
@@ -658,14 +670,14 @@ def super_resolve_straightforward(frames: npt.ArrayLike, config: UPSRConfig) -> 
         if cfg.splat_radius_px and n > 1:
             back = flows_to_reference(ref, bwd, fwd, (h * r, w * r))
             guide = splat_nearest(lowres, np.stack(back), r, cfg.splat_radius_px)
-        stack, offsets = _checked_stack(
+        stack, offsets, followed = _checked_stack(
             stack, lowres, maps, ref, cfg, edge_mm, reach_mm, anchor, stats.trust_noise_profile,
-            caps,
+            caps, tol, stats.remove_mixed,
         )  # fmt: skip
         fallback = only_own = None
         if anchor is not None:
             stack, anchor_hr, fallback, only_own = _trusted_stack(
-                stack, anchor, tol, offsets, cfg, edge_mm, mixes
+                stack, anchor, tol, offsets, cfg, edge_mm, mixes, followed
             )
         fuse = functools.partial(
             temporal_median_numpy, stack, ref, weights=weights, guide=guide,
