@@ -610,8 +610,7 @@ def register_and_fuse(
         As in :func:`temporal_median`.
     measured_only : bool
         Output 0 wherever no frame of the window measured the low-res pixel the output pixel
-        belongs to (never invent depth where the camera saw nothing, even when the motion
-        brings samples there).
+        belongs to (never invent depth where the camera saw nothing, whatever the motion).
     anchor, tolerance : array_like (h, w), optional
         Trust (beyond the paper, :func:`upsr.method.trust.reference_anchor`): where
         ``anchor`` > 0 (the reference measured depth), a sample is trusted only if it lies
@@ -631,9 +630,8 @@ def register_and_fuse(
     alternatives : tuple of 4 array_like (3, 3, h, w), optional
         :func:`upsr.method.alternatives.surface_alternatives` (default: from anchor and tolerance).
     untrusted : array_like bool (N, h, w), optional
-        Frame k misregistered around reference pixel (i, j)
-        (:func:`upsr.method.consistency.misregistered`): its samples there abstain like
-        samples outside the frame. ``None``: none.
+        Frame k misregistered around reference pixel (i, j) (:mod:`upsr.method.consistency`):
+        its samples there abstain like samples outside the frame. ``None``: none.
     hole_floors : bool
         Where the reference has no depth, samples over ``edge_mm`` nearer than the farthest
         depth around it (:func:`upsr.method.consistency.hole_backgrounds`) abstain.
@@ -645,9 +643,7 @@ def register_and_fuse(
         The reference's removed mixed pixels' depth (0 elsewhere): there samples abstain
         unless on a surface around them or near that depth (:mod:`upsr.method.alternatives`).
     followed : array_like bool (h, w), optional
-        Thin parts in front that the motion followed
-        (:func:`upsr.method.consistency.thin_parts_followed`; the frames that did not follow
-        them belong in ``untrusted``): the surfaces around them compete there.
+        :func:`upsr.method.consistency.thin_parts_followed` (with its frames in ``untrusted``).
 
     Returns
     -------

@@ -329,18 +329,9 @@ class UPSR:
                         noise_profile=stats.trust_noise_profile, centres=centres,
                     )  # fmt: skip
                 if cfg.check_registration:
-                    untrusted = misregistered(
-                        registered, lowres[ref], ref, edge_mm=self._front.edge_mm, offsets=offsets
+                    untrusted, followed = self._unfollowed(
+                        registered, lowres[ref], ref, anchor, tolerance, offsets
                     )
-                    if anchor is not None and not stats.remove_mixed:
-                        # thin parts in front that the motion followed: the frames that did
-                        # not follow them abstain there, the surfaces around them compete
-                        fronts = thin_fronts(anchor, tolerance, self._front.edge_mm)
-                        followed, lost = thin_parts_followed(
-                            registered, anchor, tolerance, fronts, ref, offsets=offsets,
-                            min_trusted=cfg.min_trusted_samples,
-                        )  # fmt: skip
-                        untrusted |= lost
                 if offsets is not None:
                     # an offset near the edge threshold (within which it is measured) is
                     # truncated: those samples abstain rather than bias the output
@@ -411,6 +402,29 @@ class UPSR:
                 noise_mm=reach_noise,
                 measured=measured[ref],
             )
+
+    def _unfollowed(
+        self,
+        registered: np.ndarray,
+        reference: np.ndarray,
+        ref: int,
+        anchor: np.ndarray | None,
+        tolerance: np.ndarray | None,
+        offsets: np.ndarray | None,
+    ) -> tuple[np.ndarray, np.ndarray | None]:
+        """The frames of the window the motion did not follow around each reference pixel
+        (misregistered), and on sensors that do not mix, those that did not follow a thin
+        part in front that the others followed; and those parts (None: none)."""
+        edge = self._front.edge_mm  # type: ignore[union-attr]
+        untrusted = misregistered(registered, reference, ref, edge_mm=edge, offsets=offsets)
+        if anchor is None or self._stats.remove_mixed:  # type: ignore[union-attr]
+            return untrusted, None
+        # there the frames that did not follow the part abstain, the surfaces around compete
+        followed, lost = thin_parts_followed(
+            registered, anchor, tolerance, thin_fronts(anchor, tolerance, edge), ref,
+            offsets=offsets, min_trusted=self.config.min_trusted_samples,
+        )  # fmt: skip
+        return untrusted | lost, followed
 
     def _cleaned(self, k: int) -> tuple[np.ndarray, ThinParts | None]:
         """Frame k with its mixed pixels marked to abstain, and its thin parts, once per
