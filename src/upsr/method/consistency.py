@@ -308,19 +308,24 @@ def thin_parts_followed(
     n = reg.shape[0]
     if not 0 <= ref < n:
         raise ValueError(f"ref must be in [0, {n}), got {ref}")
-    if offsets is not None:
-        reg = reg - np.asarray(offsets, np.float32).reshape(reg.shape)
     anc = np.asarray(anchor, np.float32)
-    anc = np.where(np.isfinite(anc), anc, np.float32(0.0))
-    tol = np.asarray(tolerance, np.float32)
-    others = np.arange(n) != ref
-    inside = others[:, None, None] & ~np.isnan(reg)
+    followed = np.zeros(anc.shape, np.bool_)
+    lost = np.zeros(reg.shape, np.bool_)
+    at = np.nonzero(np.asarray(fronts, np.bool_) & (np.nan_to_num(anc) > 0))
+    if not at[0].size:
+        return followed, lost
+    # at the thin parts only (few pixels): each frame's sample, the part's anchor, tolerance
+    samples = reg[:, at[0], at[1]]
+    if offsets is not None:
+        samples = samples - np.asarray(offsets, np.float32).reshape(reg.shape)[:, at[0], at[1]]
+    inside = (np.arange(n) != ref)[:, None] & ~np.isnan(samples)
     with np.errstate(invalid="ignore"):
-        own = inside & (reg > 0) & (np.abs(reg - anc) <= tol)
+        own = inside & (samples > 0) & (np.abs(samples - anc[at]) <= np.asarray(tolerance)[at])
     n_own = own.sum(axis=0)
-    followed = np.asarray(fronts, np.bool_) & (anc > 0) & (n_own + 1 >= min_trusted)
-    followed &= n_own >= share * inside.sum(axis=0)
-    return followed, followed & inside & ~own
+    ok = (n_own + 1 >= min_trusted) & (n_own >= share * inside.sum(axis=0))
+    followed[at] = ok
+    lost[:, at[0], at[1]] = ok & inside & ~own
+    return followed, lost
 
 
 def hole_backgrounds(reference: npt.ArrayLike, reach_px: int = HOLE_REACH_PX) -> np.ndarray:
