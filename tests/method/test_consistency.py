@@ -257,18 +257,18 @@ def test_thin_parts_followed_counts_the_frames_whose_sample_stays_on_the_part():
     anchor = reg[2].copy()
     tol = np.full_like(anchor, 30.0)
     fronts = anchor < WALL
-    followed, lost = thin_parts_followed(reg, anchor, tol, fronts, 2, min_trusted=3)
+    followed, lost = thin_parts_followed(reg, anchor, tol, fronts, 2, edge_mm=100.0, min_trusted=3)
     np.testing.assert_array_equal(followed, fronts)
     np.testing.assert_array_equal(lost[4], fronts)
     assert not lost[[0, 1, 2, 3]].any()
     # followed by one of the other four frames only: not followed, nothing abstains
     reg[[0, 1], :, 2:4] = WALL
-    followed, lost = thin_parts_followed(reg, anchor, tol, fronts, 2, min_trusted=3)
+    followed, lost = thin_parts_followed(reg, anchor, tol, fronts, 2, edge_mm=100.0, min_trusted=3)
     assert not followed.any() and not lost.any()
     # the radial offsets are subtracted first: a frame 500 mm nearer follows after them
     reg[[0, 1, 4], :, 2:4] = 700.0
     offsets = np.where(reg == 700.0, -500.0, 0.0).astype(np.float32)
-    followed, _ = thin_parts_followed(reg, anchor, tol, fronts, 2, offsets=offsets)
+    followed, _ = thin_parts_followed(reg, anchor, tol, fronts, 2, edge_mm=100.0, offsets=offsets)
     np.testing.assert_array_equal(followed, fronts)
 
 
@@ -289,7 +289,9 @@ def test_a_thin_bar_the_motion_followed_keeps_its_width():
     common.update(weight_sigma_px=0.35 * r, min_trusted=3)
     kept = register_and_fuse(low, maps, r, ref, **common)
     reg = registered_samples(low, maps, r)
-    followed, lost = thin_parts_followed(reg, anchor, tol, thin_fronts(anchor, tol, 100.0), ref)
+    followed, lost = thin_parts_followed(
+        reg, anchor, tol, thin_fronts(anchor, tol, 100.0), ref, edge_mm=100.0
+    )
     assert followed[:, 6:8].all()  # (frames whose nearest sample missed the bar abstain)
     fused = register_and_fuse(low, maps, r, ref, untrusted=lost, followed=followed, **common)
     wrong = lambda out: int((np.abs(out - truth[ref]) > 100).sum(axis=1).max())  # noqa: E731
@@ -299,5 +301,26 @@ def test_a_thin_bar_the_motion_followed_keeps_its_width():
     # frame 6 registered as if nothing moved: it does not follow the bar, and abstains there
     maps[6] = 0.0
     reg = registered_samples(low, maps, r)
-    followed, lost = thin_parts_followed(reg, anchor, tol, thin_fronts(anchor, tol, 100.0), ref)
+    followed, lost = thin_parts_followed(
+        reg, anchor, tol, thin_fronts(anchor, tol, 100.0), ref, edge_mm=100.0
+    )
     assert lost[6][:, 6].all() and not lost[6][:, 7].any()  # (column 7 lands on the bar)
+
+
+def test_a_frame_that_reaches_a_thin_part_at_one_pixel_only_did_not_follow_it():
+    """A rotating blade: a frame whose registered samples lie on the part at one pixel but
+    not at its neighbours along the part did not follow it there; the neighbours across a
+    part two pixels wide do not count (a sub-pixel shift takes an edge column's nearest
+    sample off the part)."""
+    from upsr.method.consistency import thin_parts_followed
+
+    reg = np.full((5, 5, 6), WALL, np.float32)
+    reg[:, :, 2:4] = 1200.0  # a vertical bar two columns wide, followed by frames 0, 1, 3
+    reg[4, :, 2:4] = WALL
+    reg[4, 2, 2:4] = 1200.0  # frame 4 reaches it on row 2 only
+    reg[1, :, 3] = WALL  # frame 1's nearest samples of the right column fell off the bar
+    anchor, tol = reg[2].copy(), np.full((5, 6), 30.0, np.float32)
+    followed, lost = thin_parts_followed(reg, anchor, tol, anchor < WALL, 2, edge_mm=100.0)
+    assert followed[:, 2:4].all()
+    assert lost[4, 2, 2:4].all()  # row 2: its neighbours above and below were not reached
+    assert not lost[1, :, 2].any()  # the left column: frame 1 followed it

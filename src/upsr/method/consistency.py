@@ -263,6 +263,7 @@ def thin_parts_followed(
     fronts: npt.ArrayLike,
     ref: int,
     *,
+    edge_mm: float,
     offsets: npt.ArrayLike | None = None,
     min_trusted: int = 1,
     share: float = FOLLOWED_SHARE,
@@ -274,8 +275,11 @@ def thin_parts_followed(
     behind it; but where the flow did follow it, that fills its r×r blocks with it and widens
     it by up to r/2 px on each side. At such a pixel, frame k followed the part when its
     registered sample there (:func:`registered_samples`, minus the radial offset) lies within
-    the pixel's tolerance of its anchor. The part counts as followed where, among the other
-    frames with a sample in frame, at least ``share`` did, and with the reference at least
+    the pixel's tolerance of its anchor, and so do its samples at the 8-neighbours that are
+    thin parts in front on the same surface (within ``edge_mm``; those in frame): a rotating
+    blade whose centre a frame reaches but not its length was not followed. The part counts
+    as followed where, among the other frames with a sample in frame, at least ``share`` did,
+    and with the reference at least
     ``min_trusted``: there the frames that did not follow it abstain, and the surfaces around
     it compete in the others (:func:`upsr.method.alternatives.surface_alternatives`,
     ``followed``). Elsewhere nothing changes.
@@ -290,6 +294,8 @@ def thin_parts_followed(
         The thin parts in front (:func:`upsr.method.alternatives.thin_fronts`).
     ref : int
         Index of the reference frame.
+    edge_mm : float
+        Depth step that separates two surfaces.
     offsets : array_like (N, h, w), optional
         Radial offsets (mm, :func:`upsr.method.trust.radial_offsets`) subtracted first.
     min_trusted : int
@@ -321,11 +327,41 @@ def thin_parts_followed(
     inside = (np.arange(n) != ref)[:, None] & ~np.isnan(samples)
     with np.errstate(invalid="ignore"):
         own = inside & (samples > 0) & (np.abs(samples - anc[at]) <= np.asarray(tolerance)[at])
+    # a frame follows a part where it follows its neighbours along it too (not those across
+    # it: a sub-pixel shift takes the nearest sample of an edge column off a thin part)
+    h, w = anc.shape
+    index = np.full((h + 2, w + 2), -1, np.int64)
+    index[at[0] + 1, at[1] + 1] = np.arange(at[0].size)
+    along = own.copy()
+    for di, dj in ((0, 1), (1, 0), (1, 1), (1, -1)):
+        wide = _surface_width(anc, at, di, dj, edge_mm) >= 3
+        for sign in (-1, 1):
+            q = index[at[0] + 1 + sign * di, at[1] + 1 + sign * dj]
+            qq = np.maximum(q, 0)
+            same = wide & (q >= 0) & (np.abs(anc[at[0][qq], at[1][qq]] - anc[at]) <= edge_mm)
+            along &= ~same | own[:, qq] | ~inside[:, qq]
+    own = along
     n_own = own.sum(axis=0)
     ok = (n_own + 1 >= min_trusted) & (n_own >= share * inside.sum(axis=0))
     followed[at] = ok
     lost[:, at[0], at[1]] = ok & inside & ~own
     return followed, lost
+
+
+def _surface_width(anchor: np.ndarray, at: tuple, di: int, dj: int, edge_mm: float) -> np.ndarray:
+    """Width (px, at most 5) of each pixel ``at``'s surface along (di, dj): the pixel and up to
+    2 on each side within ``edge_mm`` of it (not beyond the image border)."""
+    h, w = anchor.shape
+    width = np.ones(at[0].size, np.int64)
+    for sign in (-1, 1):
+        going = np.ones(at[0].size, np.bool_)
+        for step in (1, 2):
+            a, b = at[0] + sign * step * di, at[1] + sign * step * dj
+            inside = (a >= 0) & (a < h) & (b >= 0) & (b < w)
+            u = anchor[np.clip(a, 0, h - 1), np.clip(b, 0, w - 1)]
+            going &= inside & (u > 0) & (np.abs(u - anchor[at]) <= edge_mm)
+            width += going
+    return width
 
 
 def hole_backgrounds(reference: npt.ArrayLike, reach_px: int = HOLE_REACH_PX) -> np.ndarray:

@@ -422,7 +422,7 @@ class UPSR:
         # there the frames that did not follow the part abstain, the surfaces around compete
         followed, lost = thin_parts_followed(
             registered, anchor, tolerance, thin_fronts(anchor, tolerance, edge), ref,
-            offsets=offsets, min_trusted=self.config.min_trusted_samples,
+            edge_mm=edge, offsets=offsets, min_trusted=self.config.min_trusted_samples,
         )  # fmt: skip
         return untrusted | lost, followed
 

@@ -296,8 +296,8 @@ def _checked_stack(
         bad = misregistered_numpy(reg, lowres[ref], ref, edge_mm=edge_mm, offsets=offsets)
         if anchor is not None and not mixed:
             followed, lost = thin_parts_followed(
-                reg, anchor, tol, thin_fronts(anchor, tol, edge_mm), ref, offsets=offsets,
-                min_trusted=cfg.min_trusted_samples,
+                reg, anchor, tol, thin_fronts(anchor, tol, edge_mm), ref, edge_mm=edge_mm,
+                offsets=offsets, min_trusted=cfg.min_trusted_samples,
             )  # fmt: skip
             bad |= lost
     if offsets is not None:
