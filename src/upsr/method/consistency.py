@@ -275,14 +275,16 @@ def thin_parts_followed(
     behind it; but where the flow did follow it, that fills its r×r blocks with it and widens
     it by up to r/2 px on each side. At such a pixel, frame k followed the part when its
     registered sample there (:func:`registered_samples`, minus the radial offset) lies within
-    the pixel's tolerance of its anchor, and so do its samples at the 8-neighbours that are
-    thin parts in front on the same surface (within ``edge_mm``; those in frame): a rotating
-    blade whose centre a frame reaches but not its length was not followed. The part counts
-    as followed where, among the other frames with a sample in frame, at least ``share`` did,
-    and with the reference at least
-    ``min_trusted``: there the frames that did not follow it abstain, and the surfaces around
-    it compete in the others (:func:`upsr.method.alternatives.surface_alternatives`,
-    ``followed``). Elsewhere nothing changes.
+    the pixel's tolerance of its anchor, and so do its samples at the neighbours along the
+    part: the 8-neighbours that are thin parts in front on its surface (within ``edge_mm``), in
+    the directions where that surface is 3 px wide or more (not across the part, where a
+    sub-pixel shift takes an edge column's nearest sample off it); a rotating blade whose
+    centre a frame reaches but not its length was not followed. The part counts as followed
+    where, among the other frames with a sample in frame, at least ``share`` did, and with the
+    reference at least ``min_trusted``: there the frames that did not follow it abstain, and
+    the surfaces around it compete in the others
+    (:func:`upsr.method.alternatives.surface_alternatives`, ``followed``). Elsewhere nothing
+    changes.
 
     Parameters
     ----------
