@@ -316,54 +316,83 @@ def thin_parts_followed(
     n = reg.shape[0]
     if not 0 <= ref < n:
         raise ValueError(f"ref must be in [0, {n}), got {ref}")
-    anc = np.asarray(anchor, np.float32)
+    anc = np.ascontiguousarray(anchor, np.float32)
+    anc = np.where(np.isnan(anc), np.float32(0.0), anc)
+    tol = np.ascontiguousarray(tolerance, np.float32).reshape(anc.shape)
+    offs = np.zeros(reg.shape, np.float32)
+    if offsets is not None:
+        offs = np.ascontiguousarray(offsets, np.float32).reshape(reg.shape)
+    fronts = np.ascontiguousarray(fronts, np.bool_).reshape(anc.shape)
     followed = np.zeros(anc.shape, np.bool_)
     lost = np.zeros(reg.shape, np.bool_)
-    at = np.nonzero(np.asarray(fronts, np.bool_) & (np.nan_to_num(anc) > 0))
-    if not at[0].size:
-        return followed, lost
-    # at the thin parts only (few pixels): each frame's sample, the part's anchor, tolerance
-    samples = reg[:, at[0], at[1]]
-    if offsets is not None:
-        samples = samples - np.asarray(offsets, np.float32).reshape(reg.shape)[:, at[0], at[1]]
-    inside = (np.arange(n) != ref)[:, None] & ~np.isnan(samples)
-    with np.errstate(invalid="ignore"):
-        own = inside & (samples > 0) & (np.abs(samples - anc[at]) <= np.asarray(tolerance)[at])
-    # a frame follows a part where it follows its neighbours along it too (not those across
-    # it: a sub-pixel shift takes the nearest sample of an edge column off a thin part)
-    h, w = anc.shape
-    index = np.full((h + 2, w + 2), -1, np.int64)
-    index[at[0] + 1, at[1] + 1] = np.arange(at[0].size)
-    along = own.copy()
-    for di, dj in ((0, 1), (1, 0), (1, 1), (1, -1)):
-        wide = _surface_width(anc, at, di, dj, edge_mm) >= 3
-        for sign in (-1, 1):
-            q = index[at[0] + 1 + sign * di, at[1] + 1 + sign * dj]
-            qq = np.maximum(q, 0)
-            same = wide & (q >= 0) & (np.abs(anc[at[0][qq], at[1][qq]] - anc[at]) <= edge_mm)
-            along &= ~same | own[:, qq] | ~inside[:, qq]
-    own = along
-    n_own = own.sum(axis=0)
-    ok = (n_own + 1 >= min_trusted) & (n_own >= share * inside.sum(axis=0))
-    followed[at] = ok
-    lost[:, at[0], at[1]] = ok & inside & ~own
+    _followed_kernel(
+        np.ascontiguousarray(reg), offs, anc, tol, fronts, int(ref), float(edge_mm),
+        int(min_trusted), float(share), followed, lost,
+    )  # fmt: skip
     return followed, lost
 
 
-def _surface_width(anchor: np.ndarray, at: tuple, di: int, dj: int, edge_mm: float) -> np.ndarray:
-    """Width (px, at most 5) of each pixel ``at``'s surface along (di, dj): the pixel and up to
-    2 on each side within ``edge_mm`` of it (not beyond the image border)."""
-    h, w = anchor.shape
-    width = np.ones(at[0].size, np.int64)
+@nb.njit(cache=True, nogil=True, inline="always")
+def _follows(reg, offs, anc, tol, k, ref, i, j):  # pragma: no cover - numba
+    """(in frame, on the part's surface) for frame k's registered sample at (i, j)."""
+    v = reg[k, i, j] - offs[k, i, j]
+    inside = k != ref and not np.isnan(v)
+    return inside, inside and v > 0 and abs(v - anc[i, j]) <= tol[i, j]
+
+
+@nb.njit(cache=True, nogil=True, inline="always")
+def _wide(anc, i, j, di, dj, edge):  # pragma: no cover - numba
+    """Whether the surface of (i, j) reaches 3 px or more along (di, dj): the pixel and up
+    to 2 on each side within ``edge`` of it (not beyond the image border)."""
+    h, w = anc.shape
+    a0 = anc[i, j]
+    width = 1
     for sign in (-1, 1):
-        going = np.ones(at[0].size, np.bool_)
         for step in (1, 2):
-            a, b = at[0] + sign * step * di, at[1] + sign * step * dj
-            inside = (a >= 0) & (a < h) & (b >= 0) & (b < w)
-            u = anchor[np.clip(a, 0, h - 1), np.clip(b, 0, w - 1)]
-            going &= inside & (u > 0) & (np.abs(u - anchor[at]) <= edge_mm)
-            width += going
-    return width
+            a, b = i + sign * step * di, j + sign * step * dj
+            if not (0 <= a < h and 0 <= b < w):
+                break
+            u = anc[a, b]
+            if not (u > 0 and abs(u - a0) <= edge):
+                break
+            width += 1
+    return width >= 3
+
+
+@nb.njit(cache=True, nogil=True)
+def _followed_kernel(
+    reg, offs, anc, tol, fronts, ref, edge, min_trusted, share, followed, lost
+):  # pragma: no cover - numba
+    n, h, w = reg.shape
+    for i in range(h):
+        for j in range(w):
+            if not (fronts[i, j] and anc[i, j] > 0):
+                continue
+            n_in = 0
+            n_own = 0
+            for k in range(n):
+                inside, own = _follows(reg, offs, anc, tol, k, ref, i, j)
+                # ... and at its neighbours along it (not across it: a sub-pixel shift takes
+                # the nearest sample of an edge column off a thin part)
+                for di, dj in ((0, 1), (1, 0), (1, 1), (1, -1)):
+                    if not (own and _wide(anc, i, j, di, dj, edge)):
+                        continue
+                    for sign in (-1, 1):
+                        a, b = i + sign * di, j + sign * dj
+                        if not (0 <= a < h and 0 <= b < w and fronts[a, b] and anc[a, b] > 0):
+                            continue
+                        if abs(anc[a, b] - anc[i, j]) > edge:
+                            continue
+                        q_in, q_own = _follows(reg, offs, anc, tol, k, ref, a, b)
+                        own = own and (q_own or not q_in)
+                n_in += inside
+                n_own += own
+                lost[k, i, j] = inside and not own
+            ok = n_own + 1 >= min_trusted and n_own >= share * n_in
+            followed[i, j] = ok
+            if not ok:
+                for k in range(n):
+                    lost[k, i, j] = False
 
 
 def hole_backgrounds(reference: npt.ArrayLike, reach_px: int = HOLE_REACH_PX) -> np.ndarray:
