@@ -29,15 +29,15 @@ __all__ = [
 
 
 @nb.njit(cache=True, nogil=True, inline="always")
-def _run(anchor, i, j, di, dj, a0, edge, reach):  # pragma: no cover - numba
+def _run(anchor, i, j, di, dj, a0, edge, reach, border=True):  # pragma: no cover - numba
     """How many pixels beyond (i, j) in direction (di, dj), up to ``reach``, lie on a0's
-    surface (the image border counts as the surface going on)."""
+    surface (with ``border``, the image border counts as the surface going on)."""
     h, w = anchor.shape
     for s in range(1, reach + 1):
         a = i + s * di
         b = j + s * dj
         if a < 0 or a >= h or b < 0 or b >= w:
-            return reach
+            return reach if border else s - 1
         u = anchor[a, b]
         if not (u > 0 and abs(u - a0) <= edge):
             return s - 1
@@ -54,6 +54,13 @@ def _thin(anchor, i, j, a0, edge):  # pragma: no cover - numba
         wd += 1 + _run(anchor, i, j, di, dj, a0, edge, 2)
         thin = thin or wd < 3
     return thin
+
+
+@nb.njit(cache=True, nogil=True, inline="always")
+def _apart(anchor, tol, i, j, a, b, edge):  # pragma: no cover - numba
+    """Whether (a, b) lies on another surface than (i, j), beyond the tolerances of both."""
+    d = abs(anchor[a, b] - anchor[i, j])
+    return anchor[a, b] > 0 and d > edge and d > tol[i, j] + tol[a, b]
 
 
 @nb.njit(cache=True, nogil=True, inline="always")
@@ -161,7 +168,7 @@ def _alternatives_kernel(
                             u = anchor[a, b]
                             if not (u > 0 and abs(u - a0) > edge):
                                 continue
-                            if thin and abs(u - a0) > tol[i, j] + tol[a, b]:
+                            if thin and _apart(anchor, tol, i, j, a, b, edge):
                                 continue
                             if u < best_lo:
                                 best_lo = u
@@ -256,9 +263,7 @@ def _fronts_kernel(anchor, tol, edge, out):  # pragma: no cover - numba
                 continue
             for a in range(max(i - 1, 0), min(i + 2, h)):
                 for b in range(max(j - 1, 0), min(j + 2, w)):
-                    u = anchor[a, b]
-                    if u > 0 and abs(u - a0) > edge and abs(u - a0) > tol[i, j] + tol[a, b]:
-                        out[i, j] = True
+                    out[i, j] = out[i, j] or _apart(anchor, tol, i, j, a, b, edge)
 
 
 def thin_fronts(anchor: npt.ArrayLike, tolerance: npt.ArrayLike, edge_mm: float) -> np.ndarray:

@@ -32,6 +32,8 @@ import numba as nb
 import numpy as np
 import numpy.typing as npt
 
+from upsr.method.alternatives import _run
+
 __all__ = [
     "FOLLOWED_SHARE",
     "HOLE_REACH_PX",
@@ -340,51 +342,41 @@ def _follows(reg, offs, anc, tol, k, ref, i, j):  # pragma: no cover - numba
     return inside, inside and v > 0 and abs(v - anc[i, j]) <= tol[i, j]
 
 
-@nb.njit(cache=True, nogil=True, inline="always")
-def _wide(anc, i, j, di, dj, edge):  # pragma: no cover - numba
-    """Whether the surface of (i, j) reaches 3 px or more along (di, dj): the pixel and up
-    to 2 on each side within ``edge`` of it (not beyond the image border)."""
-    h, w = anc.shape
-    a0 = anc[i, j]
-    width = 1
-    for sign in (-1, 1):
-        for step in (1, 2):
-            a, b = i + sign * step * di, j + sign * step * dj
-            if not (0 <= a < h and 0 <= b < w):
-                break
-            u = anc[a, b]
-            if not (u > 0 and abs(u - a0) <= edge):
-                break
-            width += 1
-    return width >= 3
-
-
 @nb.njit(cache=True, nogil=True)
 def _followed_kernel(
     reg, offs, anc, tol, fronts, ref, edge, min_trusted, share, followed, lost
 ):  # pragma: no cover - numba
     n, h, w = reg.shape
+    along = np.empty((8, 2), np.int64)
     for i in range(h):
         for j in range(w):
             if not (fronts[i, j] and anc[i, j] > 0):
                 continue
+            # its neighbours along it: thin parts on its surface in the directions where that
+            # surface is 3 px wide or more, not beyond the image border (not across it: a
+            # sub-pixel shift takes the nearest sample of an edge column off a thin part)
+            a0 = anc[i, j]
+            m = 0
+            for di, dj in ((0, 1), (1, 0), (1, 1), (1, -1)):
+                wide = _run(anc, i, j, -di, -dj, a0, edge, 2, False)
+                wide += 1 + _run(anc, i, j, di, dj, a0, edge, 2, False)
+                if wide < 3:
+                    continue
+                for sign in (-1, 1):
+                    a, b = i + sign * di, j + sign * dj
+                    if 0 <= a < h and 0 <= b < w and fronts[a, b] and anc[a, b] > 0:
+                        if abs(anc[a, b] - a0) <= edge:
+                            along[m, 0] = a
+                            along[m, 1] = b
+                            m += 1
             n_in = 0
             n_own = 0
             for k in range(n):
                 inside, own = _follows(reg, offs, anc, tol, k, ref, i, j)
-                # ... and at its neighbours along it (not across it: a sub-pixel shift takes
-                # the nearest sample of an edge column off a thin part)
-                for di, dj in ((0, 1), (1, 0), (1, 1), (1, -1)):
-                    if not (own and _wide(anc, i, j, di, dj, edge)):
-                        continue
-                    for sign in (-1, 1):
-                        a, b = i + sign * di, j + sign * dj
-                        if not (0 <= a < h and 0 <= b < w and fronts[a, b] and anc[a, b] > 0):
-                            continue
-                        if abs(anc[a, b] - anc[i, j]) > edge:
-                            continue
-                        q_in, q_own = _follows(reg, offs, anc, tol, k, ref, a, b)
-                        own = own and (q_own or not q_in)
+                for q in range(m):
+                    a, b = along[q, 0], along[q, 1]
+                    q_in, q_own = _follows(reg, offs, anc, tol, k, ref, a, b)
+                    own = own and (q_own or not q_in)
                 n_in += inside
                 n_own += own
                 lost[k, i, j] = inside and not own

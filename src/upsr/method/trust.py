@@ -484,9 +484,9 @@ def fusion_inputs(
     """The trust arrays of :func:`upsr.method.fusion.register_and_fuse` as its kernel reads
     them: anchor, tolerance, offsets, the four alternatives (default: from the anchor and
     the removed mixed pixels ``mixes_mm`` and the thin parts the motion ``followed``), the
-    misregistered samples, the nearest depth a
-    sample may have at each reference pixel (``holes_of``: the reference's index, or None for
-    no limit), and the removed mixed pixels' depths and tolerances (:func:`mix_tolerance`)."""
+    misregistered samples, the nearest depth a sample may have at each reference pixel
+    (``holes_of``: the reference's index, or None for no limit), and the removed mixed
+    pixels' depths and tolerances (:func:`mix_tolerance`)."""
     n, h, w = lr.shape
     nearest = np.full((h, w), -np.inf, np.float32)
     if holes_of is not None:
