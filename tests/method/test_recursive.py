@@ -189,15 +189,20 @@ def test_memory_is_independent_of_n_and_of_the_video_length():
 
 def test_static_scene_converges_to_the_temporal_mean():
     clean, video = _wall(8, 10.0)
-    out = upsr.super_resolve(video, 2, 9, mode="recursive", fusion_estimator="mean", **RAW)
+    engine = RecursiveUPSR(scale=2, n_frames=9, fusion_estimator="mean", **RAW)
+    out = [engine.push(frame) for frame in video]
     # fewer frames than the cap: the running mean of the samples, the first frame's anchor
-    # (where the state started) counting 2 (restarts aside)
+    # one more (the state started from the mean of it and the measurement, counting 2; from
+    # it alone for an outlier) where the pixel never restarted (its count 2 + 7)
     from upsr.method.trust import reference_anchor
 
-    anchor, _ = reference_anchor(video[0], 10.0, 3.0, 100.0)
-    mean = _ramp((2 * anchor + video[1:].sum(axis=0)) / (len(video) + 1), 2)
+    anchor, tol = reference_anchor(video[0], 10.0, 3.0, 100.0, own_surface="always")
+    start = np.where(np.abs(video[0] - anchor) <= tol, anchor + video[0], 2 * anchor)
+    mean = _ramp((start + video[1:].sum(axis=0)) / (len(video) + 1), 2)
+    kept = engine.state[1] == len(video) + 1
+    assert kept.mean() > 0.95
     close = np.abs(out[-1] - mean) < 0.05
-    assert close.mean() > 0.97
+    assert close[kept].mean() > 0.985
     truth = _ramp(clean, 2)
     rmse = np.sqrt(np.mean((out[-1] - truth) ** 2))
     assert rmse < 1.25 * 10.0 / np.sqrt(8)
@@ -240,6 +245,30 @@ def test_disagreement_restarts_the_pixel():
     # the other half keeps its history
     np.testing.assert_allclose(out[:, 18:], 2000.0, atol=1e-3)
     assert (count[:, 18:] == 7).all()
+
+
+def test_a_restart_is_the_mean_of_the_measurement_and_its_anchor_unless_it_is_an_outlier():
+    """The anchor alone (a median of up to 9 samples) keeps the error of a quantised sensor's
+    steps or of a slope's crease; the measurement alone, its noise (docs/notes/recursive.md)."""
+    from upsr.method.recursive import recursive_update
+    from upsr.method.trust import reference_anchor
+
+    meas = np.full((8, 8), 2000.0, np.float32)
+    meas[2, 2] = 2020.0  # within the tolerance of its anchor (k·σ = 30 mm)
+    meas[5, 5] = 2060.0  # beyond it: an outlier
+    anchor, tol = reference_anchor(meas, 10.0, 3.0, 100.0, own_surface="always")
+    assert anchor[2, 2] == anchor[5, 5] == 2000.0
+    assert tol[2, 2] >= 20.0 and tol[5, 5] < 60.0
+    r = 2
+    empty = np.zeros((8 * r, 8 * r), np.float32)
+    flow = np.zeros((8 * r, 8 * r, 2), np.float32)
+    depth, count = recursive_update(
+        empty, empty, flow, meas, anchor, tol, scale=r, cap=9.0, sigma_mm=10.0
+    )
+    np.testing.assert_allclose(depth[4:6, 4:6], 2010.0)
+    np.testing.assert_allclose(depth[10:12, 10:12], 2000.0)
+    np.testing.assert_allclose(depth[:2, :2], 2000.0)
+    assert (count[meas.repeat(r, 0).repeat(r, 1) > 0] == 2.0).all()
 
 
 def test_a_foreground_the_state_carried_into_a_background_block_is_not_kept():

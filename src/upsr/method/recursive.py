@@ -34,7 +34,8 @@ Per frame t (only frame t and the state of t − 1 are read):
 5. robust update, per pixel, with the trust rules of the windowed fusion:
 
    - no state there (0, or outside the previous frame) and a measurement: start from the
-     anchor, which counts as 2 samples (it is the median of up to 9 samples of the surface);
+     mean of the measurement m and the anchor, which counts as 2 samples (the anchor, the
+     median of up to 9 samples of the surface, alone where m lies beyond τ of it);
    - a state within τ of the anchor: update it with the measurement m and count ← min(count + 1,
      n*), where n* ≤ N is the pixel's cap of :func:`~upsr.method.memory.state_caps` (a slope's state
      gains the registration error times the slope every frame: on steep slopes the current frame
@@ -48,7 +49,7 @@ Per frame t (only frame t and the state of t − 1 are read):
      approximation of the median, whose step √2σ/n = 1/(n·f(median)) for Laplacian noise of std σ
      reaches the variance σ²/(2n) of the sample median);
    - otherwise (disagreement beyond what the noise allows: something moved, appeared, or the
-     flow failed): the pixel restarts from the anchor, count 1;
+     flow failed): the pixel restarts the same way;
    - no measurement (0, or a mixed pixel): the state is kept with its count halved, and
      forgotten (0) once the count drops below 1, or at once where it lies more than the edge
      threshold nearer than everything the frame measured around its hole (the projector
@@ -273,8 +274,11 @@ def _update_kernel(
                 out_d[y, x] = _step(s - off, m, n, use_mean, sigma)
                 out_n[y, x] = n
             elif a > 0:
-                # restart: the anchor (a median of up to 9 samples of the surface) counts 2
-                out_d[y, x] = a
+                # restart, counting 2: the mean of the measurement and the anchor (a median of
+                # up to 9 samples of the surface, whose error a quantised sensor's steps or a
+                # slope's crease leave in it), the anchor alone where the measurement lies
+                # beyond the tolerance of it (an outlier)
+                out_d[y, x] = np.float32(0.5) * (a + m) if abs(m - a) <= tl else a
                 out_n[y, x] = min(2.0, cap[i, j])
             else:
                 out_d[y, x] = m
