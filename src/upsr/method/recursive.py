@@ -56,8 +56,11 @@ Per frame t (only frame t and the state of t − 1 are read):
      shadow beside a moving body: :func:`upsr.method.consistency.hole_backgrounds`), or,
      on the half of the block towards a neighbour that measured a surface more than the
      edge threshold nearer than the state (a body that moved into the hole, where the state
-     has the wall it saw before: the README's recursive section has the figures); 0 stays
-     0 where nothing is known;
+     has the wall it saw before: the README's recursive section has the figures), or, in a
+     hole of the frame (not a removed mixed pixel), where none of the 3×3 pixels around it
+     measured the state's surface (within the edge threshold): a dropout inside a surface
+     keeps it, a leg that moved away from where nothing returns (no wall behind the animal)
+     leaves no ghost; 0 stays 0 where nothing is known;
 
    so every pixel that frame t measured has depth in the output (the current frame anchors
    it), and a sample beyond τ never gets averaged in;
@@ -195,6 +198,19 @@ def _same_surface(depth, count, qx, qy, x0, y0, c0, thr):  # pragma: no cover - 
     return sd / sw, sn / sw
 
 
+@nb.njit(cache=True, nogil=True, inline="always")
+def _seen_around(meas, i, j, value, edge):  # pragma: no cover - numba
+    """Some pixel of the 3×3 around (i, j) measured a depth within ``edge`` of ``value``: the
+    surface a state holds in a hole of the frame is still seen beside the hole."""
+    h, w = meas.shape
+    for a in range(max(i - 1, 0), min(i + 2, h)):
+        for b in range(max(j - 1, 0), min(j + 2, w)):
+            u = meas[a, b]
+            if u > 0 and abs(u - value) <= edge:
+                return True
+    return False
+
+
 @nb.njit(cache=True, nogil=True, parallel=True, fastmath=SAFE_FASTMATH, error_model="numpy")
 def _update_kernel(
     depth,
@@ -211,6 +227,7 @@ def _update_kernel(
     sigma,
     edge,
     holes,
+    removed,
     out_d,
     out_n,
 ):  # pragma: no cover - numba
@@ -239,7 +256,9 @@ def _update_kernel(
             if not m > 0:
                 # no measurement: keep what is known, less and less confidently, unless it is
                 # nearer than all the frame measured around the hole (the projector shadow
-                # beside a moving body: the body is not there)
+                # beside a moving body: the body is not there) or, in a hole of the frame (not
+                # a removed mixed pixel), its surface is not seen around the hole (a leg that
+                # moved away from where nothing returns: no wall behind it)
                 if c0 > 0:
                     s, n = _same_surface(depth, count, qx, qy, x0, y0, c0, edge)
                     n *= 0.5
@@ -248,6 +267,7 @@ def _update_kernel(
                         n >= 1.0
                         and not (bg > 0 and s - off < bg - edge)
                         and not _nearer_beside(meas, i, j, di, dj, s - off - edge)
+                        and (removed[i, j] or _seen_around(meas, i, j, s - off, edge))
                     ):
                         out_d[y, x] = s - off
                         out_n[y, x] = n
@@ -301,6 +321,7 @@ def recursive_update(
     radial_radius_px: int | None = 2,
     noise_profile: tuple[float, float] | None = None,
     holes: np.ndarray | None = None,
+    removed: np.ndarray | None = None,
     share: np.ndarray | None = None,
     centres: np.ndarray | None = None,
 ) -> tuple[np.ndarray, ...]:
@@ -337,6 +358,10 @@ def recursive_update(
         :func:`upsr.method.consistency.hole_backgrounds` of the current frame: where it
         measured nothing, a state more than ``edge_mm`` nearer than this is forgotten.
         Default: those of ``measurement``.
+    removed : ndarray bool (h, w), optional
+        The pixels the frame measured that mixed-pixel removal emptied in ``measurement``:
+        not holes of the frame (a state there is kept while its count allows, even where its
+        surface is not measured in the 3×3 pixels around). Default: none.
     share : ndarray float32 (r·h, r·w), optional
         The previous state's surface shares: with it, the sub-pixel edge votes
         (:func:`upsr.method.edges.state_votes`) follow the update.
@@ -379,6 +404,8 @@ def recursive_update(
         offsets = off[0]
     if holes is None:
         holes = hole_backgrounds(meas)
+    if removed is None:
+        removed = np.zeros((h, w), np.bool_)
     caps = np.ascontiguousarray(np.broadcast_to(np.asarray(cap, np.float32), (h, w)))
     out_d = np.empty_like(d)
     out_n = np.empty_like(c)
@@ -386,7 +413,8 @@ def recursive_update(
         d, c, qx, qy, meas,
         np.ascontiguousarray(anchor, np.float32), np.ascontiguousarray(tolerance, np.float32),
         offsets, int(scale), caps, estimator == "mean", float(sigma_mm), float(edge_mm),
-        np.ascontiguousarray(holes, np.float32), out_d, out_n,
+        np.ascontiguousarray(holes, np.float32), np.ascontiguousarray(removed, np.bool_),
+        out_d, out_n,
     )  # fmt: skip
     if share is None:
         return out_d, out_n
@@ -633,6 +661,7 @@ class RecursiveUPSR(TwoStagePipeline):
                 noise_profile=self._profile,
                 # (the holes of the frame as measured: its removed mixed pixels are not holes)
                 holes=np.where(f > 0, np.float32(0.0), hole_backgrounds(meas)),
+                removed=(f > 0) & ~(meas > 0),
                 share=self._share,
                 centres=centres,
             )
