@@ -324,3 +324,18 @@ def test_a_frame_that_reaches_a_thin_part_at_one_pixel_only_did_not_follow_it():
     assert followed[:, 2:4].all()
     assert lost[4, 2, 2:4].all()  # row 2: its neighbours above and below were not reached
     assert not lost[1, :, 2].any()  # the left column: frame 1 followed it
+
+
+def test_enclosed_holes_are_holes_inside_measured_surroundings():
+    from upsr.method.consistency import enclosed_holes
+
+    frame = np.full((20, 30), 2000.0, np.float32)
+    frame[5, 5] = 0.0  # a dropout
+    frame[2:18, 12:14] = np.nan  # a projector shadow two pixels wide
+    frame[:, 22:] = 0.0  # nothing returns on the right
+    frame[0, 0] = 0.0  # a dropout in a corner: the window is what lies inside the image
+    got = enclosed_holes(frame)
+    assert got[5, 5] and got[0, 0] and got[2:18, 12:14].all()
+    assert not got[:, 22:].any()  # an open region (its first column: 4 of 9 columns measured)
+    assert not got[frame > 0].any()
+    np.testing.assert_array_equal(enclosed_holes(frame, share=1.0), np.zeros_like(got))

@@ -23,6 +23,7 @@ surface smoothing         —                      :mod:`upsr.method.smoothing`
 speckle removal           —                      :mod:`upsr.method.outliers`
 sliding-window engine     Table 1                :mod:`upsr.method.windowed`
 recursive (causal) engine —                      :mod:`upsr.method.recursive`
+its state's update        —                      :mod:`upsr.method.state_update`
 warm-up before a stream   —                      :mod:`upsr.method.warmup`
 ========================  =====================  ==========================================
 
@@ -51,6 +52,7 @@ __getattr__, __dir__, __all__ = attach(
         "registration",
         "resources",
         "smoothing",
+        "state_update",
         "statistics",
         "thin",
         "trust",
