@@ -7,7 +7,7 @@ import pytest
 
 import upsr
 from upsr.method.memory import REGISTRATION_ERROR_PX, level_to_reference, state_caps
-from upsr.method.recursive import recursive_update
+from upsr.method.state_update import recursive_update
 from upsr.method.trust import reference_anchor
 
 

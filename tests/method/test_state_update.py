@@ -56,3 +56,24 @@ def test_a_hole_keeps_the_state_only_where_its_surface_is_seen_around_it():
     holes = np.zeros((h, w), np.float32)  # (as the engine gives them: not holes)
     out, _ = recursive_update(*args, holes=holes, enclosed=enclosed, **kw)
     np.testing.assert_allclose(out[:, 17 * r : 18 * r], 2200.0)
+
+
+def test_a_foreground_the_state_carried_into_a_background_block_is_not_kept():
+    """A box's edge in the state two pixels inside a block whose sample, and every sample
+    beside it but the box's, measure the wall (the flow of a camera approaching fast drags the
+    box's depth over the wall beside it): the block is the wall again, not the box grown by
+    half a block, frame after frame."""
+    r = 4
+    low = np.full((4, 4), 2000.0, np.float32)
+    low[:, 0] = 1000.0  # the box: low-res column 0, high-res columns 0-3
+    depth = np.full((16, 16), 2000.0, np.float32)
+    depth[:, :6] = 1000.0  # the state's box reaches two pixels into column 1's block
+    count = np.full((16, 16), 5.0, np.float32)
+    anchor, tol = reference_anchor(low, 5.0, 3.0, 100.0)
+    flow = np.zeros((16, 16, 2), np.float32)
+    new, _ = recursive_update(
+        depth, count, flow, low, anchor, tol, scale=r, cap=9.0, sigma_mm=5.0,
+        radial_radius_px=None,
+    )  # fmt: skip
+    np.testing.assert_allclose(new[:, 4:], 2000.0, atol=1e-3)
+    np.testing.assert_allclose(new[:, :4], 1000.0, atol=1e-3)
