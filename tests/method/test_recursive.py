@@ -192,12 +192,14 @@ def test_static_scene_converges_to_the_temporal_mean():
     engine = RecursiveUPSR(scale=2, n_frames=9, fusion_estimator="mean", **RAW)
     out = [engine.push(frame) for frame in video]
     # fewer frames than the cap: the running mean of the samples, the first frame's anchor
-    # one more (the state started from the mean of it and the measurement, counting 2; from
-    # it alone for an outlier) where the pixel never restarted (its count 2 + 7)
+    # one more (the state started from the mean of it and the measurement, whose pull is
+    # limited to τ/3, counting 2; from it alone for an outlier) where the pixel never
+    # restarted (its count 2 + 7)
     from upsr.method.trust import reference_anchor
 
     anchor, tol = reference_anchor(video[0], 10.0, 3.0, 100.0, own_surface="always")
-    start = np.where(np.abs(video[0] - anchor) <= tol, anchor + video[0], 2 * anchor)
+    pull = video[0] - anchor
+    start = 2 * anchor + np.where(np.abs(pull) <= tol, np.clip(pull, -tol / 3, tol / 3), 0.0)
     mean = _ramp((start + video[1:].sum(axis=0)) / (len(video) + 1), 2)
     kept = engine.state[1] == len(video) + 1
     assert kept.mean() > 0.95

@@ -8,20 +8,23 @@ from upsr.method.trust import reference_anchor
 
 def test_a_restart_is_the_mean_of_the_measurement_and_its_anchor_unless_it_is_an_outlier():
     """The anchor alone (a median of up to 9 samples) keeps the error of a quantised sensor's
-    steps or of a slope's crease; the measurement alone, its noise (docs/notes/recursive.md)."""
+    steps or of a slope's crease; the measurement alone, its noise; the measurement's pull is
+    limited to τ/3, about σ (docs/notes/recursive.md)."""
     meas = np.full((8, 8), 2000.0, np.float32)
-    meas[2, 2] = 2020.0  # within the tolerance of its anchor (k·σ = 30 mm)
+    meas[2, 2] = 2006.0  # well within the tolerance of its anchor (k·σ = 30 mm)
+    meas[2, 5] = 2025.0  # within it, beyond τ/3
     meas[5, 5] = 2060.0  # beyond it: an outlier
     anchor, tol = reference_anchor(meas, 10.0, 3.0, 100.0, own_surface="always")
-    assert anchor[2, 2] == anchor[5, 5] == 2000.0
-    assert tol[2, 2] >= 20.0 and tol[5, 5] < 60.0
+    assert anchor[2, 2] == anchor[2, 5] == anchor[5, 5] == 2000.0
+    assert 18.0 <= tol[2, 2] and 25.0 <= tol[2, 5] < 75.0 and tol[5, 5] < 60.0
     r = 2
     empty = np.zeros((8 * r, 8 * r), np.float32)
     flow = np.zeros((8 * r, 8 * r, 2), np.float32)
     depth, count = recursive_update(
         empty, empty, flow, meas, anchor, tol, scale=r, cap=9.0, sigma_mm=10.0
     )
-    np.testing.assert_allclose(depth[4:6, 4:6], 2010.0)
+    np.testing.assert_allclose(depth[4:6, 4:6], 2003.0)  # the mean of the two
+    np.testing.assert_allclose(depth[4:6, 10:12], 2000.0 + tol[2, 5] / 6, rtol=1e-6)
     np.testing.assert_allclose(depth[10:12, 10:12], 2000.0)
     np.testing.assert_allclose(depth[:2, :2], 2000.0)
     assert (count[meas.repeat(r, 0).repeat(r, 1) > 0] == 2.0).all()

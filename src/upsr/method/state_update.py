@@ -181,11 +181,16 @@ def _update_kernel(
                 out_d[y, x] = _step(s - off, m, n, use_mean, sigma)
                 out_n[y, x] = n
             elif a > 0:
-                # restart, counting 2: the mean of the measurement and the anchor (a median of
-                # up to 9 samples of the surface, whose error a quantised sensor's steps or a
-                # slope's crease leave in it), the anchor alone where the measurement lies
-                # beyond the tolerance of it (an outlier)
-                out_d[y, x] = np.float32(0.5) * (a + m) if abs(m - a) <= tl else a
+                # restart, counting 2: the mean of the anchor (a median of up to 9 samples of
+                # the surface, whose error a quantised sensor's steps or a slope's crease leave
+                # in it) and the measurement, whose pull is limited to τ/3 (about σ: a
+                # heavy-tailed sample moves it by half a σ at most); the anchor alone where
+                # the measurement lies beyond τ of it (an outlier)
+                out_d[y, x] = (
+                    a + np.float32(0.5) * min(max(m - a, -tl / 3), tl / 3)
+                    if abs(m - a) <= tl
+                    else a
+                )
                 out_n[y, x] = min(2.0, cap[i, j])
             else:
                 out_d[y, x] = m
