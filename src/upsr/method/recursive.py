@@ -34,7 +34,8 @@ Per frame t (only frame t and the state of t − 1 are read):
 5. robust update, per pixel, with the trust rules of the windowed fusion:
 
    - no state there (0, or outside the previous frame) and a measurement: start from the
-     mean of the measurement m and the anchor, which counts as 2 samples (the anchor, the
+     mean of the anchor a and the measurement m, m's pull limited to τ/3 (a + clip(m − a,
+     ±τ/3)/2, a Huber-type mean of the two), which counts as 2 samples (the anchor, the
      median of up to 9 samples of the surface, alone where m lies beyond τ of it);
    - a state within τ of the anchor: update it with the measurement m and count ← min(count + 1,
      n*), where n* ≤ N is the pixel's cap of :func:`~upsr.method.memory.state_caps` (a slope's state
