@@ -411,7 +411,7 @@ def state_votes(
     output pixel, the **share** of its surface: the running mean (over at most
     :data:`VOTE_FRAMES` frames) of the bilinear weight that the frame's four samples around
     the pixel give that surface (:func:`vote_surface` with one frame). Near the frame's depth
-    edges (:func:`edge_band`), after the update (:func:`upsr.method.recursive.recursive_update`):
+    edges (:func:`edge_band`), after the update (:func:`upsr.method.state_update.recursive_update`):
 
     * where the update kept the state's surface, the pixel moves to the heaviest other
       sample once the share falls below one half (never to "no depth");

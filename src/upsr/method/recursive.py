@@ -28,9 +28,9 @@ Per frame t (only frame t and the state of t − 1 are read):
 4. radial compensation: the state's depth offset against frame t (motion along the viewing
    ray), the masked, significance-tested median of the differences over a neighbourhood of one
    surface (the rule of :func:`~upsr.method.trust.radial_offsets`, significant from at most
-   :data:`STATE_SIGNIFICANCE` standard errors; where the state as a whole moved along the
-   ray and the 5×5 neighbourhood is too noisy for it, from its wide neighbourhood), is
-   subtracted;
+   :data:`~upsr.method.state_update.STATE_SIGNIFICANCE` standard errors; where the state as
+   a whole moved along the ray and the 5×5 neighbourhood is too noisy for it, from its wide
+   neighbourhood), is subtracted;
 5. robust update, per pixel, with the trust rules of the windowed fusion:
 
    - no state there (0, or outside the previous frame) and a measurement: start from the
@@ -111,7 +111,7 @@ from upsr.method.mixed import remove_mixed_pixels, split_mixed_pixels
 from upsr.method.motion import FlowBackend, make_flow_backend
 from upsr.method.noise import NOISE_FREE_MM, temporal_noise_mm
 from upsr.method.pipeline import TwoStagePipeline
-from upsr.method.state_update import STATE_NOISE_FACTOR, STATE_SIGNIFICANCE, recursive_update
+from upsr.method.state_update import recursive_update
 from upsr.method.statistics import first_frame_noise_mm, trust_profile
 from upsr.method.thin import ThinParts
 from upsr.method.trust import reference_anchor
@@ -121,8 +121,6 @@ from upsr.method.windowed import STAGES
 
 __all__ = [
     "RADIAL_RADIUS_FACTOR",
-    "STATE_NOISE_FACTOR",
-    "STATE_SIGNIFICANCE",
     "RecursiveUPSR",
     "recursive_update",
 ]
