@@ -80,3 +80,48 @@ def test_a_foreground_the_state_carried_into_a_background_block_is_not_kept():
     )  # fmt: skip
     np.testing.assert_allclose(new[:, 4:], 2000.0, atol=1e-3)
     np.testing.assert_allclose(new[:, :4], 1000.0, atol=1e-3)
+
+
+def test_a_noise_outlier_of_the_frame_is_outvoted_by_the_state_until_it_persists():
+    """A noise outlier of the frame (``outliers``: it and the depth of the surface around it)
+    leaves a state on that surface there, its count halved, as a window's other frames
+    outvote it; a state that holds the outlier's surface, or another surface (a body that
+    arrived), is updated as without it; one that persists restarts the pixel once the count
+    has run out; ``kept`` says where the state won."""
+    r, h, w = 2, 6, 6
+    meas = np.full((h, w), 2000.0, np.float32)
+    meas[2, 2] = 2060.0  # an outlier the state does not hold
+    meas[3, 4] = 1950.0  # an outlier the state holds (a small object it followed)
+    meas[4, 1] = 2055.0  # an outlier where the state has another surface (the wall behind)
+    anchor, tol = reference_anchor(meas, 10.0, 3.0, 100.0, own_surface="always")
+    depth = np.full((h * r, w * r), 2000.0, np.float32)
+    depth[6:8, 8:10] = 1952.0
+    depth[8:10, 2:4] = 2800.0
+    count = np.full((h * r, w * r), 6.0, np.float32)
+    around, limit = np.zeros((h, w), np.float32), np.zeros((h, w), np.float32)
+    for i, j in ((2, 2), (3, 4), (4, 1)):
+        around[i, j], limit[i, j] = 2000.0, 35.0
+    outliers = (around, limit)
+    flow = np.zeros((h * r, w * r, 2), np.float32)
+    kw = {"scale": r, "cap": 9.0, "sigma_mm": 10.0, "radial_radius_px": None}
+    kept = np.ones((h, w), np.bool_)
+    new, n = recursive_update(
+        depth, count, flow, meas, anchor, tol, outliers=outliers, kept=kept, **kw
+    )
+    np.testing.assert_allclose(new[4:6, 4:6], 2000.0)
+    np.testing.assert_allclose(n[4:6, 4:6], 3.0)
+    assert kept[2, 2] and kept.sum() == 1
+    # without them the outlier is averaged in (+60/7 mm); where the state holds the
+    # outlier's surface or another one, the update is the same with and without them
+    plain, plain_n = recursive_update(depth, count, flow, meas, anchor, tol, **kw)
+    np.testing.assert_allclose(plain[4:6, 4:6], 2000.0 + 60.0 / 7.0, rtol=1e-6)
+    for block in (np.s_[6:8, 8:10], np.s_[8:10, 2:4]):
+        np.testing.assert_array_equal(new[block], plain[block])
+        np.testing.assert_array_equal(n[block], plain_n[block])
+    # it persists: the count halves frame after frame, then the pixel restarts from it
+    new, n = recursive_update(new, n, flow, meas, anchor, tol, outliers=outliers, **kw)
+    np.testing.assert_allclose(n[4:6, 4:6], 1.5, rtol=1e-4)
+    np.testing.assert_allclose(new[4:6, 4:6], 2000.0)
+    new, n = recursive_update(new, n, flow, meas, anchor, tol, outliers=outliers, **kw)
+    np.testing.assert_allclose(new[4:6, 4:6], 2060.0)
+    np.testing.assert_allclose(n[4:6, 4:6], 1.0)

@@ -16,9 +16,11 @@ from upsr.method.slopes import STEEP_RUN_RATIO, _steps_agree
 from upsr.method.sorting import _small_median
 
 __all__ = [
+    "OUTLIER_MAX_SIGMAS",
     "OWN_SURFACE",
     "OWN_SURFACE_SIGMAS",
     "TOLERANCE_FLOOR_MM",
+    "noise_outliers",
     "reference_anchor",
     "steep_runs",
 ]
@@ -198,6 +200,106 @@ def _anchor_kernel(
                         relief = max(relief, abs(u - a0))
             sig = sigma if power == 0.0 else sigma * (a0 / 1000.0) ** power
             tol[i, j] = max(k * sig + relief, floor)
+
+
+#: :func:`noise_outliers`: a sample this many σ or less from the median around it may be a
+#: noise outlier (Laplacian noise: a sample beyond 8 σ once in 10⁵); a small surface farther
+#: off is taken for what it is.
+OUTLIER_MAX_SIGMAS = 8.0
+
+
+@nb.njit(cache=True, nogil=True)
+def _members(z, i, j, v, c):  # pragma: no cover - numba
+    """(count, last) of the valid 8-neighbours of (i, j) nearer to ``v`` than to ``c``."""
+    h, w = z.shape
+    n = 0
+    last = -1
+    for a in range(max(i - 1, 0), min(i + 2, h)):
+        for b in range(max(j - 1, 0), min(j + 2, w)):
+            u = z[a, b]
+            if (a != i or b != j) and u > 0 and abs(u - v) < abs(u - c):
+                n += 1
+                last = a * w + b
+    return n, last
+
+
+@nb.njit(cache=True, nogil=True, parallel=True)
+def _outlier_kernel(z, sigma, power, around, limit):  # pragma: no cover - numba
+    h, w = z.shape
+    for i in nb.prange(h):
+        buf = np.empty(9, np.float32)
+        for j in range(w):
+            around[i, j] = 0.0
+            limit[i, j] = 0.0
+            v = z[i, j]
+            if not v > 0:
+                continue
+            m = 0
+            for a in range(max(i - 1, 0), min(i + 2, h)):
+                for b in range(max(j - 1, 0), min(j + 2, w)):
+                    if z[a, b] > 0:
+                        buf[m] = z[a, b]
+                        m += 1
+            if m < 9:
+                continue  # (beside a hole or the border: a slope's median is one-sided)
+            c = _small_median(buf, m)
+            # the spread of the samples around the median (a slope's relief, the noise)
+            for q in range(m):
+                buf[q] = abs(buf[q] - c)
+            spread = _small_median(buf, m)
+            sig = sigma if power == 0.0 else sigma * (c / 1000.0) ** power
+            dev = abs(v - c) - spread
+            if not (OWN_SURFACE_SIGMAS * sig < dev <= OUTLIER_MAX_SIGMAS * sig):
+                continue
+            # a surface of at most two pixels: v alone, or with one neighbour (nearer to v
+            # than to the median around) that has no other (a thin part has neighbours along
+            # it; its tip one that has two)
+            n, last = _members(z, i, j, v, c)
+            if n == 1:
+                n = _members(z, last // w, last % w, v, c)[0]
+            if n <= 1:
+                around[i, j] = c
+                limit[i, j] = OWN_SURFACE_SIGMAS * sig + spread
+
+
+def noise_outliers(
+    z: npt.ArrayLike, sigma_mm: float, *, noise_profile: tuple[float, float] | None = None
+) -> tuple[np.ndarray, np.ndarray]:
+    """Samples that may be noise outliers, and the surface around them.
+
+    An outlier lies off the median c of its 3×3 neighbours (all measured) by more than
+    :data:`OWN_SURFACE_SIGMAS`·σ and at most :data:`OUTLIER_MAX_SIGMAS`·σ beyond the spread of
+    those neighbours around c (the median of their distances to it: a slope's relief, the
+    noise), on a surface of at most two pixels (no 8-neighbour nearer to it than to c, or one,
+    which has no other). A pair of noise outliers beside each other (Laplacian σ = 30 mm: two
+    samples 3–5 σ off the same side, a few times per frame of a 64×56 sensor) has an anchor
+    of its own (:func:`reference_anchor`), as a thin part has; but a thin part has neighbours
+    along it. The recursive mode lets a state on the surface around outvote such samples, as
+    the windowed mode's other frames do. Without noise (σ = 0) nothing is an outlier.
+
+    Parameters
+    ----------
+    z : array_like (h, w)
+        A low-res frame (mm, 0: no measurement).
+    sigma_mm : float
+        Noise std (mm).
+    noise_profile : (float, float), optional
+        (σ₁, p): σ(c) = σ₁·(c / 1 m)^p at each median c instead of ``sigma_mm`` (p > 0).
+
+    Returns
+    -------
+    around : ndarray float32 (h, w)
+        c at the outliers, 0 elsewhere.
+    limit : ndarray float32 (h, w)
+        :data:`OWN_SURFACE_SIGMAS`·σ + the spread at the outliers (how far from c a depth
+        still lies on the surface around), 0 elsewhere.
+    """
+    a = np.ascontiguousarray(z, np.float32)
+    around = np.empty(a.shape, np.float32)
+    limit = np.empty(a.shape, np.float32)
+    sigma, power = _sigma_and_power(sigma_mm, noise_profile)
+    _outlier_kernel(a, sigma, power, around, limit)
+    return around, limit
 
 
 def steep_runs(z: npt.ArrayLike, edge_mm: float) -> np.ndarray:

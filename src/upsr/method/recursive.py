@@ -100,6 +100,7 @@ import numpy.typing as npt
 
 from upsr.errors import InputError
 from upsr.method._parallel import resolve_workers
+from upsr.method.anchor import noise_outliers
 from upsr.method.camera_motion import agreeing, along_axis, grid_intrinsics, pair_motion, pose_maps
 from upsr.method.config import UPSRConfig
 from upsr.method.consistency import enclosed_holes, hole_backgrounds, maps_at_centres
@@ -109,10 +110,10 @@ from upsr.method.frontend import MotionFrontEnd, enough_for_statistics
 from upsr.method.memory import moving_caps, state_caps
 from upsr.method.mixed import remove_mixed_pixels, split_mixed_pixels
 from upsr.method.motion import FlowBackend, make_flow_backend
-from upsr.method.noise import NOISE_FREE_MM, temporal_noise_mm
+from upsr.method.noise import NOISE_FREE_MM, second_differences, temporal_noise_mm
 from upsr.method.pipeline import TwoStagePipeline
 from upsr.method.state_update import recursive_update
-from upsr.method.statistics import first_frame_noise_mm, trust_profile
+from upsr.method.statistics import first_frame_noise_mm, noise_estimator, trust_profile
 from upsr.method.thin import ThinParts
 from upsr.method.trust import reference_anchor
 from upsr.method.upsampling import upsample_nearest
@@ -198,6 +199,7 @@ class RecursiveUPSR(TwoStagePipeline):
         self._remove_mixed = cfg.remove_mixed is True
         self._mixes = np.zeros(2)  # footprint_counts of the frames so far (remove_mixed="auto")
         self._any_valid = False  # (before the statistics; a video may end in empty frames)
+        self._heavy = False  # heavy-tailed noise (from the first frame)
         self._reset_pipeline()
 
     @property
@@ -255,6 +257,23 @@ class RecursiveUPSR(TwoStagePipeline):
         pose_maps(pre, grid_intrinsics(intrinsics, s), poses, 1, by_pose)
         return agreeing(flow, by_pose[0], s)
 
+    def _fix_statistics(self, f: np.ndarray) -> None:
+        """The per-video statistics from the first frame with depth (latency 0: nothing later
+        is known): the front-end's, the noise profile, whether the noise is heavy-tailed."""
+        cfg = self.config
+        self._front = front = MotionFrontEnd(
+            cfg, f.shape[1], flow_backend=self._flow, residual_flow_backend=self._custom_flow
+        )
+        front.fix_statistics([f])
+        sample_mm = first_frame_noise_mm(f, front, cfg)
+        front.smooth_at_least(sample_mm)
+        self._first = f
+        self._profile = trust_profile(f[None], cfg, front.edge_mm)
+        # heavy-tailed noise (not a quantised sensor's steps): its outliers are outvoted
+        spatial = front.noise_mm or 0.0
+        d2 = second_differences(f[None], front.edge_mm, spatial) if spatial > 0 else None
+        self._heavy = noise_estimator(f[None], sample_mm, self._profile, d2) == "median"
+
     def push(self, frame: npt.ArrayLike) -> np.ndarray:
         """Add the next low-res frame (h, w) in mm; return its high-res frame (r·h, r·w)."""
         return self._finish(*self._update(frame))
@@ -276,14 +295,7 @@ class RecursiveUPSR(TwoStagePipeline):
             self._count, self._any_valid = t + 1, self._any_valid or bool((f > 0).any())
             return (None, f)
         if self._front is None:
-            self._front = MotionFrontEnd(
-                cfg, f.shape[1], flow_backend=self._flow, residual_flow_backend=self._custom_flow
-            )
-            # per-video statistics from the first frame (latency 0: nothing later is known)
-            self._front.fix_statistics([f])
-            self._front.smooth_at_least(first_frame_noise_mm(f, self._front, cfg))
-            self._first = f
-            self._profile = trust_profile(f[None], cfg, self._front.edge_mm)
+            self._fix_statistics(f)
         front = self._front
         if cfg.remove_mixed == "auto" and t < cfg.n_frames:
             # does the sensor mix? The first N frames pooled as they arrive (one: too few edges)
@@ -370,7 +382,16 @@ class RecursiveUPSR(TwoStagePipeline):
                 enclosed=((f > 0) & ~(meas > 0)) | enclosed_holes(f),
                 share=self._share,
                 centres=centres,
+                # (a state on the surface around outvotes the frame's noise outliers)
+                outliers=noise_outliers(meas, noise, noise_profile=self._profile)
+                if k is not None and self._heavy and not remove_mixed
+                else None,
+                kept=(kept := np.empty(f.shape, np.bool_)),
             )
+            if kept.any():
+                # the finishing sees the samples the state outvoted as removed
+                meas = np.where(kept, np.float32(0.0), meas)
+                anchor = np.where(kept, np.float32(0.0), anchor)
         self._depth, self._conf = fused, conf
         self._share = share[0] if share else None
         self._prev_pre, self._prev_guide, self._prev_frame = pre, guide, f

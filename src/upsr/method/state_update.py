@@ -115,6 +115,9 @@ def _update_kernel(
     edge,
     holes,
     enclosed,
+    around,
+    around_tol,
+    kept,
     out_d,
     out_n,
 ):  # pragma: no cover - numba
@@ -140,6 +143,27 @@ def _update_kernel(
             c0 = 0.0
             if 0 <= xn < ww and 0 <= yn < hh:
                 c0 = depth[yn, xn]
+            c = around[i, j]
+            if (
+                c > 0
+                and c0 > 0
+                and abs(c0 - off - c) <= around_tol[i, j]
+                and abs(c0 - off - c) < abs(c0 - off - m)
+            ):
+                # a noise outlier of the frame (a surface of at most two pixels off the one
+                # around it) is outvoted by a state on the surface around, as by a window's
+                # other frames; the state's count halves, and one that persists (a small
+                # object) restarts the pixel once the count has run out
+                s, n = _same_surface(depth, count, qx, qy, x0, y0, c0, edge)
+                n *= 0.5
+                if n >= 1.0:
+                    out_d[y, x] = s - off
+                    out_n[y, x] = n
+                    kept[i, j] = True  # (only ever set: the threads of a block agree)
+                else:
+                    out_d[y, x] = m
+                    out_n[y, x] = 1.0
+                continue
             if not m > 0:
                 # no measurement: keep what is known, less and less confidently, unless it is
                 # nearer than all the frame measured around the hole (the projector shadow
@@ -197,6 +221,45 @@ def _update_kernel(
                 out_n[y, x] = 1.0
 
 
+def _state_offsets(
+    depth: np.ndarray,
+    positions: tuple[np.ndarray, np.ndarray],
+    flow: np.ndarray,
+    meas: np.ndarray,
+    anchor: np.ndarray,
+    *,
+    scale: int,
+    sigma_mm: float,
+    edge_mm: float,
+    radius_px: int,
+    noise_profile: tuple[float, float] | None,
+    centres: np.ndarray | None,
+) -> np.ndarray:
+    """The radial offset (h, w) of the registered state against the frame (step 4 of the
+    module): the significance-tested median of :func:`upsr.method.trust.radial_offsets`."""
+    h, w = meas.shape
+    sigma, power = _sigma_and_power(sigma_mm, noise_profile)
+    reg = np.empty((1, h, w), np.float32)
+    _registered_state_kernel(depth, *positions, int(scale), reg[0])
+    off = np.empty((1, h, w), np.float32)
+    # the state is far less noisy than a frame: the significance test of
+    # trust.radial_offsets (made for the difference of two noisy samples) with the std of
+    # the difference of a sample and a state of about N samples, ≈ 0.75 σ
+    # (-1: no frame of reg is the reference)
+    args = (reg, meas, anchor, -1, float(edge_mm), STATE_NOISE_FACTOR * sigma, power)
+    signif, along = state_significance(
+        flow, reg, meas, sigma_mm=sigma_mm, edge_mm=edge_mm, radius_px=radius_px,
+        noise_factor=STATE_NOISE_FACTOR, along_significance=STATE_SIGNIFICANCE,
+        centres=centres,
+    )  # fmt: skip
+    _offset_kernel(*args, signif, radius_px, off, *OFFSET_GRID)
+    if along:
+        # the state as a whole moved along the viewing ray (a camera walking): where the
+        # offset is not significant, that of the wide neighbourhood
+        off = _with_wide_offsets(off, args, radius_px)
+    return off[0]
+
+
 def recursive_update(
     depth: np.ndarray,
     count: np.ndarray,
@@ -216,6 +279,8 @@ def recursive_update(
     enclosed: np.ndarray | None = None,
     share: np.ndarray | None = None,
     centres: np.ndarray | None = None,
+    outliers: tuple[np.ndarray, np.ndarray] | None = None,
+    kept: np.ndarray | None = None,
 ) -> tuple[np.ndarray, ...]:
     """One step of the recursive fusion (see the module): the state (``depth``, ``count``) of
     the previous frame, registered and updated with the current frame's ``measurement``.
@@ -262,6 +327,13 @@ def recursive_update(
     centres : ndarray (1, h, w, 2), optional
         :func:`upsr.method.consistency.maps_at_centres` of ``flow[None]``, when already
         computed.
+    outliers : (ndarray, ndarray) float32 (h, w), optional
+        :func:`upsr.method.anchor.noise_outliers` of the frame: a state on the surface around
+        an outlier (nearer to it than to the sample) is kept there, its count halved (the
+        sample, counting 1, once the count runs out), as a window's other frames outvote it;
+        they take no part in the radial offsets. Default: none.
+    kept : ndarray bool (h, w), optional
+        Filled with the outliers where the state was kept.
 
     Returns
     -------
@@ -273,29 +345,20 @@ def recursive_update(
     meas = np.ascontiguousarray(measurement, np.float32)
     h, w = meas.shape
     qx, qy = flow_positions(fl, d.shape)
-    offsets = np.zeros((h, w), np.float32)
-    sigma, power = _sigma_and_power(sigma_mm, noise_profile)
+    zero = np.zeros((h, w), np.float32)
+    around, around_tol = (zero, zero) if outliers is None else outliers
+    if kept is None:
+        kept = np.empty((h, w), np.bool_)
+    kept[...] = False
+    offsets = zero
     if radial_radius_px and (d > 0).any():
-        reg = np.empty((1, h, w), np.float32)
-        _registered_state_kernel(d, qx, qy, int(scale), reg[0])
-        off = np.empty((1, h, w), np.float32)
-        # the state is far less noisy than a frame: the significance test of
-        # trust.radial_offsets (made for the difference of two noisy samples) with the std of
-        # the difference of a sample and a state of about N samples, ≈ 0.75 σ
-        # (-1: no frame of reg is the reference)
-        args = (reg, meas, anchor, -1, float(edge_mm), STATE_NOISE_FACTOR * sigma, power)
-        radius = int(radial_radius_px)
-        signif, along = state_significance(
-            fl, reg, meas, sigma_mm=sigma_mm, edge_mm=edge_mm, radius_px=radius,
-            noise_factor=STATE_NOISE_FACTOR, along_significance=STATE_SIGNIFICANCE,
+        # (the frame's outliers take no part)
+        offsets = _state_offsets(
+            d, (qx, qy), fl, np.where(around > 0, np.float32(0.0), meas),
+            np.where(around > 0, np.float32(0.0), anchor), scale=scale, sigma_mm=sigma_mm,
+            edge_mm=edge_mm, radius_px=int(radial_radius_px), noise_profile=noise_profile,
             centres=centres,
         )  # fmt: skip
-        _offset_kernel(*args, signif, radius, off, *OFFSET_GRID)
-        if along:
-            # the state as a whole moved along the viewing ray (a camera walking): where the
-            # offset is not significant, that of the wide neighbourhood
-            off = _with_wide_offsets(off, args, radius)
-        offsets = off[0]
     if holes is None:
         holes = hole_backgrounds(meas)
     if enclosed is None:
@@ -308,7 +371,8 @@ def recursive_update(
         np.ascontiguousarray(anchor, np.float32), np.ascontiguousarray(tolerance, np.float32),
         offsets, int(scale), caps, estimator == "mean", float(sigma_mm), float(edge_mm),
         np.ascontiguousarray(holes, np.float32), np.ascontiguousarray(enclosed, np.bool_),
-        out_d, out_n,
+        np.ascontiguousarray(around, np.float32), np.ascontiguousarray(around_tol, np.float32),
+        kept, out_d, out_n,
     )  # fmt: skip
     if share is None:
         return out_d, out_n

@@ -35,6 +35,7 @@ __all__ = [
     "VideoStatistics",
     "first_frame_noise_mm",
     "fix_video_statistics",
+    "noise_estimator",
     "pinned_config",
     "trust_profile",
 ]
@@ -97,9 +98,7 @@ def fix_video_statistics(
     if spatial > 0 and (estimator == "auto" or estimate_reach):
         d2 = second_differences(first_frames, front.edge_mm, spatial)
     if estimator == "auto":
-        step = quantisation_step(first_frames, trust_mm, profile)
-        tail = math.nan if d2 is None else tail_ratio(d2)
-        estimator = choose_estimator(tail, quantised=step >= QUANTISED_STEPS)
+        estimator = noise_estimator(first_frames, trust_mm, profile, d2)
     sample_mm = spatial if d2 is None else spatial_noise_mm(d2, spatial)  # (from space)
     if cfg.reach_noise_mm is not None:
         reach_mm = cfg.reach_noise_mm
@@ -111,6 +110,24 @@ def fix_video_statistics(
     # which a moving camera's slanted surfaces inflate)
     front.smooth_at_least(reach_mm if d2 is None else min(reach_mm, sample_mm))
     return VideoStatistics(estimator, trust_mm, reach_mm, bool(mixed), profile, front.depth_scale)
+
+
+def noise_estimator(
+    frames: np.ndarray,
+    noise_mm: float,
+    profile: tuple[float, float] | None,
+    differences: np.ndarray | None,
+) -> str:
+    """The estimator the shape of a video's noise asks for
+    (:func:`upsr.method.noise.choose_estimator`): ``"median"`` for heavy tails
+    (:func:`upsr.method.noise.tail_ratio` of the ``differences``, the
+    :func:`upsr.method.noise.second_differences` of ``frames``; None: noise-free), ``"mean"``
+    for Gaussian noise or depth quantised in steps of at least
+    :data:`~upsr.method.noise.QUANTISED_STEPS` stds of ``noise_mm`` (σ(z) with a
+    ``profile``)."""
+    step = quantisation_step(frames, noise_mm, profile)
+    tail = math.nan if differences is None else tail_ratio(differences)
+    return choose_estimator(tail, quantised=step >= QUANTISED_STEPS)
 
 
 def trust_profile(
