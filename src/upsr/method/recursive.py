@@ -63,6 +63,12 @@ Per frame t (only frame t and the state of t − 1 are read):
      it measured the state's surface (within the edge threshold): a leg that moved away from
      where nothing returns (no wall behind the animal) leaves no ghost; 0 stays 0 where
      nothing is known;
+   - a noise outlier of the frame (:func:`~upsr.method.anchor.noise_outliers`: a surface of
+     at most two pixels 3–8 σ off the median of its 3×3 neighbours; where the first frame's
+     noise is heavy-tailed, :func:`~upsr.method.statistics.noise_estimator`, and mixed pixels
+     are not removed) is outvoted by a state on the surface around it, kept with its count
+     halved, as a window's other frames outvote it (a small object that persists restarts
+     the pixel once the count has run out);
 
    so every pixel that frame t measured has depth in the output (the current frame anchors
    it), and a sample beyond τ never gets averaged in;
