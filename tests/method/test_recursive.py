@@ -248,10 +248,11 @@ def test_noise_outliers_of_one_frame_are_outvoted_by_the_state():
         assert (np.abs(out[11][block] - truth[block]) < 6.0).all()
 
 
-@pytest.mark.parametrize("law", ["gaussian", "quantised", "laplace"])
+@pytest.mark.parametrize("law", ["gaussian", "quantised", "none", "laplace"])
 def test_outliers_are_looked_for_only_in_heavy_tailed_noise(law, monkeypatch):
-    """Gaussian noise and a quantised sensor's steps have no outliers to outvote (a Kinect's
-    moving body: its surface 1–2 % worse with them outvoted); Laplacian noise has."""
+    """Gaussian noise, a quantised sensor's steps and noise-free depth have no outliers to
+    outvote (a Kinect's moving body: its surface 1–2 % worse with them outvoted); Laplacian
+    noise has."""
     import upsr.method.recursive as recursive
 
     calls = []
@@ -262,6 +263,8 @@ def test_outliers_are_looked_for_only_in_heavy_tailed_noise(law, monkeypatch):
     clean, video = _wall(3, 10.0, seed=6, laplace=law == "laplace", shape=(24, 32))
     if law == "quantised":
         video = clean[None] + 25.0 * np.round((video - clean[None]) / 25.0)
+    if law == "none":
+        video = np.repeat(clean[None], 3, axis=0)
     upsr.super_resolve(video.astype(np.float32), 2, 9, mode="recursive")
     assert bool(calls) == (law == "laplace")
 

@@ -275,10 +275,14 @@ class RecursiveUPSR(TwoStagePipeline):
         front.smooth_at_least(sample_mm)
         self._first = f
         self._profile = trust_profile(f[None], cfg, front.edge_mm)
-        # heavy-tailed noise (not a quantised sensor's steps): its outliers are outvoted
+        # heavy-tailed noise (not a quantised sensor's steps; noise-free depth has no
+        # outliers): its outliers are outvoted
         spatial = front.noise_mm or 0.0
         d2 = second_differences(f[None], front.edge_mm, spatial) if spatial > 0 else None
-        self._heavy = noise_estimator(f[None], sample_mm, self._profile, d2) == "median"
+        self._heavy = (
+            spatial >= NOISE_FREE_MM
+            and noise_estimator(f[None], sample_mm, self._profile, d2) == "median"
+        )
 
     def push(self, frame: npt.ArrayLike) -> np.ndarray:
         """Add the next low-res frame (h, w) in mm; return its high-res frame (r·h, r·w)."""
