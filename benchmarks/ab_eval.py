@@ -8,13 +8,16 @@ run is a new process with that folder first on ``PYTHONPATH`` and a numba cache 
 
 Cases: ``tof`` (issue #14's ToF stream, :func:`speed_eval.tof_benchmark`: 64×56 → 256×224,
 r = 4, N = 9, frames/s, the median of its three runs) and ``dense0`` … ``dense3`` (the dense
-rows of :data:`speed_eval.DENSE_CASES`, the windowed mode through ``push``, ``--frames``
-output frames timed after the first window: seconds per output frame). Same outputs are
+rows of :data:`speed_eval.DENSE_CASES`, ``--frames`` output frames timed after the first window:
+seconds per output frame; the windowed mode through ``push``, or with ``--mode`` the recursive
+mode frame by frame or pipelined on two threads). Same outputs are
 checked by the tests, not here.
 
 Example::
 
     .venv/bin/python benchmarks/ab_eval.py --revs 44f115a db9c0f9 --case dense3 --pairs 3
+    .venv/bin/python benchmarks/ab_eval.py --revs 4a8d055 bd45b38 --case dense0 \
+        --mode recursive_pipelined --pairs 5
 """
 
 from __future__ import annotations
@@ -41,7 +44,7 @@ import json, sys, time
 sys.path.insert(0, {bench!r})
 import numpy as np
 import speed_eval
-case, frames = {case!r}, {frames}
+case, frames, mode = {case!r}, {frames}, {mode!r}
 if case == "tof":
     r = speed_eval.tof_benchmark(150, {{}})
     print(json.dumps({{"fps": r["fps"], "fps_runs": r["fps_runs"],
@@ -51,8 +54,9 @@ else:
     _, name, shape, r, sensor, _ = speed_eval.DENSE_CASES[int(case[5:])]
     video = make_realistic(name, shape, scale=r, n_frames=9 + frames)
     low = degrade(video, sensor, np.random.default_rng(0), sigma_mm=10.0)
-    speed_eval._stream(low[:10], r, 9, "windowed", 9)  # compile for this shape
-    spf, _ = speed_eval._stream(low, r, 9, "windowed", 9)
+    path, pipelined = mode.split("_")[0], mode.endswith("pipelined")
+    speed_eval._stream(low[:10], r, 9, path, 9)  # compile for this shape
+    spf, _ = speed_eval._stream(low, r, 9, path, 9, pipelined=pipelined)
     print(json.dumps({{"s_per_frame": spf, "fps": 1.0 / spf}}))
 """
 
@@ -69,9 +73,9 @@ def _checkout(rev: str, into: Path) -> Path:
     return into / "src"
 
 
-def _run(src: Path, cache: Path, case: str, frames: int) -> dict[str, Any]:
+def _run(src: Path, cache: Path, case: str, frames: int, mode: str) -> dict[str, Any]:
     env = dict(os.environ, PYTHONPATH=str(src), NUMBA_CACHE_DIR=str(cache))
-    code = CHILD.format(bench=str(ROOT / "benchmarks"), case=case, frames=frames)
+    code = CHILD.format(bench=str(ROOT / "benchmarks"), case=case, frames=frames, mode=mode)
     done = subprocess.run(
         [sys.executable, "-c", code], env=env, check=True, capture_output=True, text=True
     )
@@ -84,6 +88,12 @@ def main(argv: Sequence[str] | None = None) -> int:
     p.add_argument("--case", default="tof", choices=("tof", "dense0", "dense1", "dense2", "dense3"))
     p.add_argument("--pairs", type=int, default=3, help="alternated pairs of timed runs")
     p.add_argument("--frames", type=int, default=24, help="timed output frames (dense cases)")
+    p.add_argument(
+        "--mode",
+        default="windowed",
+        choices=("windowed", "recursive", "recursive_pipelined"),
+        help="dense cases: the windowed mode, the recursive mode frame by frame or pipelined",
+    )
     p.add_argument("--out", default=None, help="folder for results.json (default: print only)")
     args = p.parse_args(argv)
     key = "fps" if args.case == "tof" else "s_per_frame"
@@ -92,10 +102,10 @@ def main(argv: Sequence[str] | None = None) -> int:
         trees = {rev: _checkout(rev, Path(tmp) / f"rev{i}") for i, rev in enumerate(args.revs)}
         caches = {rev: Path(tmp) / f"numba{i}" for i, rev in enumerate(args.revs)}
         for rev in args.revs:  # compile each revision's kernels into its cache, untimed
-            _run(trees[rev], caches[rev], args.case, 3)
+            _run(trees[rev], caches[rev], args.case, 3, args.mode)
         for pair in range(args.pairs):
             for rev in args.revs:
-                result = _run(trees[rev], caches[rev], args.case, args.frames)
+                result = _run(trees[rev], caches[rev], args.case, args.frames, args.mode)
                 runs[rev].append(result)
                 print(f"pair {pair + 1} {rev}: {key} {result[key]:.4f}", flush=True)
     summary = {

@@ -235,19 +235,28 @@ def _outlier_kernel(z, sigma, power, around, limit):  # pragma: no cover - numba
             if not v > 0:
                 continue
             m = 0
+            above = 0
+            below = 0
             for a in range(max(i - 1, 0), min(i + 2, h)):
                 for b in range(max(j - 1, 0), min(j + 2, w)):
-                    if z[a, b] > 0:
-                        buf[m] = z[a, b]
+                    u = z[a, b]
+                    if u > 0:
+                        buf[m] = u
                         m += 1
-            if m < 9:
-                continue  # (beside a hole or the border: a slope's median is one-sided)
+                        above += u > v
+                        below += u < v
+            # (beside a hole or the border a slope's median is one-sided; and a neighbour
+            # beyond v, away from the median, is nearer to v: an outlier has at most one)
+            if m < 9 or min(above, below) > 1:
+                continue
             c = _small_median(buf, m)
+            sig = sigma if power == 0.0 else sigma * (c / 1000.0) ** power
+            if not abs(v - c) > OWN_SURFACE_SIGMAS * sig:
+                continue
             # the spread of the samples around the median (a slope's relief, the noise)
             for q in range(m):
                 buf[q] = abs(buf[q] - c)
             spread = _small_median(buf, m)
-            sig = sigma if power == 0.0 else sigma * (c / 1000.0) ** power
             dev = abs(v - c) - spread
             if not (OWN_SURFACE_SIGMAS * sig < dev <= OUTLIER_MAX_SIGMAS * sig):
                 continue
