@@ -271,14 +271,14 @@ class RecursiveUPSR(TwoStagePipeline):
             cfg, f.shape[1], flow_backend=self._flow, residual_flow_backend=self._custom_flow
         )
         front.fix_statistics([f])
-        sample_mm = first_frame_noise_mm(f, front, cfg)
+        spatial = front.noise_mm or 0.0
+        d2 = second_differences(f[None], front.edge_mm, spatial) if spatial > 0 else None
+        sample_mm = first_frame_noise_mm(f, front, cfg, d2)
         front.smooth_at_least(sample_mm)
         self._first = f
         self._profile = trust_profile(f[None], cfg, front.edge_mm)
         # heavy-tailed noise (not a quantised sensor's steps; noise-free depth has no
         # outliers): its outliers are outvoted
-        spatial = front.noise_mm or 0.0
-        d2 = second_differences(f[None], front.edge_mm, spatial) if spatial > 0 else None
         self._heavy = (
             spatial >= NOISE_FREE_MM
             and noise_estimator(f[None], sample_mm, self._profile, d2) == "median"

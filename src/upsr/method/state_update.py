@@ -227,6 +227,7 @@ def _state_offsets(
     flow: np.ndarray,
     meas: np.ndarray,
     anchor: np.ndarray,
+    outliers: np.ndarray | None,
     *,
     scale: int,
     sigma_mm: float,
@@ -236,7 +237,11 @@ def _state_offsets(
     centres: np.ndarray | None,
 ) -> np.ndarray:
     """The radial offset (h, w) of the registered state against the frame (step 4 of the
-    module): the significance-tested median of :func:`upsr.method.trust.radial_offsets`."""
+    module): the significance-tested median of :func:`upsr.method.trust.radial_offsets`,
+    without the frame's ``outliers`` (bool (h, w), or None)."""
+    if outliers is not None:
+        meas = np.where(outliers, np.float32(0.0), meas)
+        anchor = np.where(outliers, np.float32(0.0), anchor)
     h, w = meas.shape
     sigma, power = _sigma_and_power(sigma_mm, noise_profile)
     reg = np.empty((1, h, w), np.float32)
@@ -352,12 +357,10 @@ def recursive_update(
     kept[...] = False
     offsets = zero
     if radial_radius_px and (d > 0).any():
-        # (the frame's outliers take no part)
         offsets = _state_offsets(
-            d, (qx, qy), fl, np.where(around > 0, np.float32(0.0), meas),
-            np.where(around > 0, np.float32(0.0), anchor), scale=scale, sigma_mm=sigma_mm,
-            edge_mm=edge_mm, radius_px=int(radial_radius_px), noise_profile=noise_profile,
-            centres=centres,
+            d, (qx, qy), fl, meas, anchor, None if outliers is None else around > 0,
+            scale=scale, sigma_mm=sigma_mm, edge_mm=edge_mm, radius_px=int(radial_radius_px),
+            noise_profile=noise_profile, centres=centres,
         )  # fmt: skip
     if holes is None:
         holes = hole_backgrounds(meas)

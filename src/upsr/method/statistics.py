@@ -147,18 +147,25 @@ def trust_profile(
     return (sigma_1m, power) if power > 0 else None
 
 
-def first_frame_noise_mm(frame: np.ndarray, front: MotionFrontEnd, cfg: UPSRConfig) -> float:
+def first_frame_noise_mm(
+    frame: np.ndarray,
+    front: MotionFrontEnd,
+    cfg: UPSRConfig,
+    differences: np.ndarray | None = None,
+) -> float:
     """A sample's noise std (mm) from a video's first frame (h, w) alone (the recursive mode's
     statistics): the given ``reach_noise_mm``, ``trust_noise_mm`` or ``noise_mm``, else from
     its second differences (:func:`upsr.method.noise.spatial_noise_mm`, at least the
-    front-end's estimate)."""
+    front-end's estimate; ``differences``: those of the frame, when already computed)."""
     for given in (cfg.reach_noise_mm, cfg.trust_noise_mm, cfg.noise_mm):
         if given is not None:
             return float(given)
     spatial = front.noise_mm or 0.0
     if not spatial > 0:
         return spatial
-    return spatial_noise_mm(second_differences(frame[None], front.edge_mm, spatial), spatial)
+    if differences is None:
+        differences = second_differences(frame[None], front.edge_mm, spatial)
+    return spatial_noise_mm(differences, spatial)
 
 
 def pinned_config(first_frames: np.ndarray, cfg: UPSRConfig) -> UPSRConfig:
