@@ -51,23 +51,26 @@ def main(argv: Sequence[str] | None = None) -> int:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--scene", default="toward_wall", choices=list(SCENES))
     p.add_argument("--scene-option", action="append", default=[], metavar="NAME=VALUE")
-    p.add_argument("--sensor", default="laplace", choices=("laplace", "gaussian", "tof"))
+    p.add_argument("--sensor", default="laplace", choices=("laplace", "gaussian", "tof", "kinect"))
     p.add_argument("--sigma", type=float, default=10.0, help="noise σ (mm)")
     p.add_argument("--frames", type=int, default=9)
     p.add_argument("-n", type=int, default=9, help="N (window / recursive cap)")
     p.add_argument("--seed", type=int, default=0)
     args = p.parse_args(argv)
-    r = 4
+    # realistic_eval.py's sizes: the Kinect model at 160×120, r = 2; the others at 64×56, r = 4
+    shape, r = ((120, 160), 2) if args.sensor == "kinect" else ((56, 64), 4)
     video = make_realistic(
-        args.scene, (56, 64), scale=r, n_frames=args.frames, seed=args.seed,
+        args.scene, shape, scale=r, n_frames=args.frames, seed=args.seed,
         **scene_options(args.scene_option),
     )  # fmt: skip
     # the same noise as realistic_eval.py's row of this sensor and σ
-    label = {"laplace": "laplace", "gaussian": "gauss", "tof": "tof"}[args.sensor]
-    label += f"{args.sigma:g}"
-    low = sensor_frames(video, label, args.sensor, args.sigma, args.seed)
+    label = {"laplace": "laplace", "gaussian": "gauss", "tof": "tof", "kinect": "kinect"}
+    label = label[args.sensor] + ("" if args.sensor == "kinect" else f"{args.sigma:g}")
+    sigma = 0.0 if args.sensor == "kinect" else args.sigma  # as realistic_eval.py
+    low = sensor_frames(video, label, args.sensor, sigma, args.seed)
     near = baselines.nearest(low, r)
-    print(f"{args.scene} {args.scene_option}, 64×56 → 256×224, {label}, seed {args.seed}")
+    size = f"{shape[1]}×{shape[0]} → {shape[1] * r}×{shape[0] * r}"
+    print(f"{args.scene} {args.scene_option}, {size}, {label}, seed {args.seed}")
     for mode in ("windowed", "recursive"):
         out = upsr.super_resolve(low, r, args.n, mode=mode)
         t = edge_losses(out, near, video.truth, r)
