@@ -120,3 +120,47 @@ def test_a_thin_part_the_motion_followed_has_the_surface_behind_it_compete():
     assert (far[:, 0, :, 4] == WALL).all() and (far[:, 2, :, 4] == 0).all()  # left column
     assert (far[:, 2, :, 5] == WALL).all() and (far[:, 0, :, 5] == 0).all()  # right column
     assert (far_tol[:, 0, :, 4] == 30.0).all()
+
+
+def test_a_strip_along_the_image_border_is_a_thin_part_in_front():
+    """With ``border_strips`` (point-sampling sensors), a surface one pixel wide along the
+    image's border in front of the wall (the top of a box entering the view from below, or
+    leaving it) is a thin part: what lies beyond the border is not known to be the same
+    surface. It keeps its own samples against the wall beside it unless the motion followed
+    it. Without it (a sensor that mixes) the border counts as the surface going on."""
+    from upsr.method.alternatives import thin_fronts
+
+    anchor = np.full((7, 9), WALL, np.float32)
+    anchor[-1] = 1500.0  # the bottom row
+    tol = np.full_like(anchor, 30.0)
+    strips = {"border_strips": True}
+    np.testing.assert_array_equal(thin_fronts(anchor, tol, 100.0, **strips), anchor < WALL)
+    assert not thin_fronts(anchor, tol, 100.0).any()
+    _, _, far, _ = surface_alternatives(anchor, tol, 100.0, **strips)
+    assert (far[:, :, -1] == 0).all()
+    _, _, far, _ = surface_alternatives(anchor, tol, 100.0)
+    assert (far[0, :, -1] == WALL).all()  # the wall competes on the row's upper side
+    anchor[-3:] = 1500.0  # three rows: wide enough to be a surface of its own
+    assert not thin_fronts(anchor, tol, 100.0, **strips).any()
+    _, _, far, _ = surface_alternatives(anchor, tol, 100.0, **strips)
+    assert (far[0, :, -3] == WALL).all()
+    # a floor at a grazing angle: its border rows are no strips (no surface 2 px deep beside)
+    floor = np.repeat(np.arange(9, dtype=np.float32)[:, None] * 150.0 + 2000.0, 11, axis=1)
+    assert not thin_fronts(floor, np.full_like(floor, 30.0), 100.0, **strips).any()
+
+
+def test_a_strip_that_leaves_the_view_keeps_its_block_in_the_frame_that_sees_it():
+    """Kinect room of seed 1 (``benchmarks/edge_losses.py --scene room --sensor kinect
+    --seed 1``): a box top one pixel wide along the bottom border, seen in the first frames
+    of the window and then out of view. The frames that no longer see it registered the
+    wall's samples of the border row onto it, which outvoted the reference on the upper
+    half of its block. Static here (no motion to follow): the strip keeps its whole block."""
+    import upsr
+
+    n, h, w, r = 9, 12, 16, 2
+    rng = np.random.default_rng(0)
+    frames = (WALL + rng.normal(0.0, 3.0, (n, h, w))).astype(np.float32)
+    frames[:4, -1] = 1500.0 + rng.normal(0.0, 3.0, (4, w))  # seen in frames 0-3 only
+    out = upsr.super_resolve(frames, r, n, remove_mixed=False)  # a point-sampling sensor
+    strip = out[3, -r:]
+    assert np.abs(strip - 1500.0).max() < 20.0

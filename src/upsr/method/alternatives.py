@@ -45,14 +45,46 @@ def _run(anchor, i, j, di, dj, a0, edge, reach, border=True):  # pragma: no cove
 
 
 @nb.njit(cache=True, nogil=True, inline="always")
-def _thin(anchor, i, j, a0, edge):  # pragma: no cover - numba
+def _deep(anchor, i, j, di, dj, edge):  # pragma: no cover - numba
+    """Whether (i, j) and (i + di, j + dj) lie inside the image, on one surface."""
+    h, w = anchor.shape
+    a = i + di
+    b = j + dj
+    if not (0 <= i < h and 0 <= j < w and 0 <= a < h and 0 <= b < w):
+        return False
+    u = anchor[i, j]
+    v = anchor[a, b]
+    return u > 0 and v > 0 and abs(u - v) <= edge
+
+
+@nb.njit(cache=True, nogil=True, inline="always")
+def _inside(anchor, i, j):  # pragma: no cover - numba
+    h, w = anchor.shape
+    return 0 <= i < h and 0 <= j < w
+
+
+@nb.njit(cache=True, nogil=True, inline="always")
+def _thin(anchor, i, j, a0, edge, strips):  # pragma: no cover - numba
     """Whether a0's surface at (i, j) is at most 2 px wide across x, y or a diagonal (a
-    neck seen at 45°)."""
+    neck seen at 45°). The image border counts as the surface going on, except with
+    ``strips`` across x or y where the surface on the other side is 2 px deep: then the
+    strip in front of it at the border (the top of a box entering the view) is thin, not a
+    grazing floor's last row."""
     thin = False
     for di, dj in ((0, 1), (1, 0), (1, 1), (1, -1)):
-        wd = _run(anchor, i, j, -di, -dj, a0, edge, 2)
-        wd += 1 + _run(anchor, i, j, di, dj, a0, edge, 2)
-        thin = thin or wd < 3
+        lo = _run(anchor, i, j, -di, -dj, a0, edge, 2, False)
+        hi = _run(anchor, i, j, di, dj, a0, edge, 2, False)
+        lo_out = lo < 2 and not _inside(anchor, i - (lo + 1) * di, j - (lo + 1) * dj)
+        hi_out = hi < 2 and not _inside(anchor, i + (hi + 1) * di, j + (hi + 1) * dj)
+        # the surface beyond the run's far end on either side, 2 px deep
+        axis = strips and (di == 0 or dj == 0)
+        lo_deep = axis and _deep(anchor, i - (lo + 1) * di, j - (lo + 1) * dj, -di, -dj, edge)
+        hi_deep = axis and _deep(anchor, i + (hi + 1) * di, j + (hi + 1) * dj, di, dj, edge)
+        if lo_out and not hi_deep:
+            lo = 2
+        if hi_out and not lo_deep:
+            hi = 2
+        thin = thin or lo + 1 + hi < 3
     return thin
 
 
@@ -131,7 +163,7 @@ def _mix_surfaces(anchor, tol, edge, m0, i, j, lo, tlo, hi, thi):  # pragma: no 
 
 @nb.njit(cache=True, nogil=True)
 def _alternatives_kernel(
-    anchor, tol, edge, mixes, followed, lo, tlo, hi, thi
+    anchor, tol, edge, mixes, followed, strips, lo, tlo, hi, thi
 ):  # pragma: no cover - numba
     h, w = anchor.shape
     lo[:] = 0.0
@@ -152,7 +184,7 @@ def _alternatives_kernel(
             # ridge, a speck: noise outliers side by side, not a floor at a grazing angle),
             # the samples of that surface compete; and so do all, where the motion followed
             # the part (``followed``: the frames that did not follow it abstain there)
-            thin = _thin(anchor, i, j, a0, edge)
+            thin = _thin(anchor, i, j, a0, edge, strips)
             if thin and _two_sided(anchor, i, j, a0, edge):
                 continue
             thin = thin and not followed[i, j]
@@ -186,6 +218,8 @@ def surface_alternatives(
     edge_mm: float,
     mixes_mm: npt.ArrayLike | None = None,
     followed: npt.ArrayLike | None = None,
+    *,
+    border_strips: bool = False,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """The other surfaces next to each reference pixel at a depth edge, whose samples compete.
 
@@ -230,6 +264,12 @@ def surface_alternatives(
         The reference's measurement at its removed mixed pixels (mm), 0 elsewhere.
     followed : array_like bool (h, w), optional
         The thin parts in front that the motion followed (see above); None: none.
+    border_strips : bool
+        A surface that runs into the image border is thin where it is at most 2 px wide
+        inside the image across x or y, in front of a surface 2 px deep (the top of a box
+        entering the view); else the border counts as the surface going on. On for
+        point-sampling sensors (a sensor that mixes has its mixes there, which
+        :mod:`upsr.method.mixed` splits).
 
     Returns
     -------
@@ -248,25 +288,32 @@ def surface_alternatives(
     fol = np.zeros(anc.shape, np.bool_)
     if followed is not None:
         fol = np.ascontiguousarray(followed, np.bool_).reshape(anc.shape)
-    _alternatives_kernel(anc, tol, float(edge_mm), mixes, fol, *outs)
+    _alternatives_kernel(anc, tol, float(edge_mm), mixes, fol, bool(border_strips), *outs)
     return outs[0], outs[1], outs[2], outs[3]
 
 
 @nb.njit(cache=True, nogil=True)
-def _fronts_kernel(anchor, tol, edge, out):  # pragma: no cover - numba
+def _fronts_kernel(anchor, tol, edge, strips, out):  # pragma: no cover - numba
     h, w = anchor.shape
     for i in range(h):
         for j in range(w):
             a0 = anchor[i, j]
             out[i, j] = False
-            if not (a0 > 0 and _thin(anchor, i, j, a0, edge)) or _two_sided(anchor, i, j, a0, edge):
+            thin = a0 > 0 and _thin(anchor, i, j, a0, edge, strips)
+            if not thin or _two_sided(anchor, i, j, a0, edge):
                 continue
             for a in range(max(i - 1, 0), min(i + 2, h)):
                 for b in range(max(j - 1, 0), min(j + 2, w)):
                     out[i, j] = out[i, j] or _apart(anchor, tol, i, j, a, b, edge)
 
 
-def thin_fronts(anchor: npt.ArrayLike, tolerance: npt.ArrayLike, edge_mm: float) -> np.ndarray:
+def thin_fronts(
+    anchor: npt.ArrayLike,
+    tolerance: npt.ArrayLike,
+    edge_mm: float,
+    *,
+    border_strips: bool = False,
+) -> np.ndarray:
     """The reference pixels of thin parts that stand apart from a surface beside them (a leg,
     an arm, a bar in front of a wall): those that :func:`surface_alternatives` lets keep their
     own samples against that surface unless the motion followed them.
@@ -281,6 +328,8 @@ def thin_fronts(anchor: npt.ArrayLike, tolerance: npt.ArrayLike, edge_mm: float)
         From :func:`upsr.method.trust.reference_anchor` (anchor 0: no depth).
     edge_mm : float
         Depth step that separates two surfaces.
+    border_strips : bool
+        As in :func:`surface_alternatives`.
 
     Returns
     -------
@@ -290,7 +339,7 @@ def thin_fronts(anchor: npt.ArrayLike, tolerance: npt.ArrayLike, edge_mm: float)
     anc = np.where(np.isfinite(anc), anc, np.float32(0.0))
     tol = np.ascontiguousarray(tolerance, np.float32).reshape(anc.shape)
     out = np.empty(anc.shape, np.bool_)
-    _fronts_kernel(anc, tol, float(edge_mm), out)
+    _fronts_kernel(anc, tol, float(edge_mm), bool(border_strips), out)
     return out
 
 

@@ -582,6 +582,7 @@ def register_and_fuse(
     edge_votes: bool = False,
     mixes_mm: npt.ArrayLike | None = None,
     followed: npt.ArrayLike | None = None,
+    border_strips: bool = False,
 ) -> np.ndarray:
     """Registration (eq. 20) and invalid-aware median fusion (eq. 28) in one compiled pass.
 
@@ -644,6 +645,9 @@ def register_and_fuse(
         unless on a surface around them or near that depth (:mod:`upsr.method.alternatives`).
     followed : array_like bool (h, w), optional
         :func:`upsr.method.consistency.thin_parts_followed` (with its frames in ``untrusted``).
+    border_strips : bool
+        A strip along the image border in front of a surface is a thin part (point-sampling
+        sensors: :func:`upsr.method.alternatives.surface_alternatives`).
 
     Returns
     -------
@@ -668,7 +672,7 @@ def register_and_fuse(
     rules += (float(edge_mm), measured, _network(n))
     still = ref if not mp[ref].any() else -1  # the reference's map is zero: a shortcut
     trust = (anchor, tolerance, offsets, alternatives, untrusted, lr, edge_mm)
-    trust += (ref if hole_floors else None, mixes_mm, followed)
+    trust += (ref if hole_floors else None, mixes_mm, followed, border_strips)
     anc, tol, offs, alts, bad, nearest, mixes, mtol = fusion_inputs(*trust)
     band = edge_band(lr[ref], edge_mm) if edge_votes else np.zeros((h, w), np.bool_)
     cell_lo, cell_hi = cell_ranges(lr) if band.any() else (np.zeros((n, 1, 1), np.float32),) * 2

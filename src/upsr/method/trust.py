@@ -480,10 +480,12 @@ def fusion_inputs(
     holes_of: int | None,
     mixes_mm: npt.ArrayLike | None,
     followed: npt.ArrayLike | None = None,
+    border_strips: bool = False,
 ) -> tuple:
     """The trust arrays of :func:`upsr.method.fusion.register_and_fuse` as its kernel reads
     them: anchor, tolerance, offsets, the four alternatives (default: from the anchor and
-    the removed mixed pixels ``mixes_mm`` and the thin parts the motion ``followed``), the
+    the removed mixed pixels ``mixes_mm``, the thin parts the motion ``followed`` and
+    ``border_strips``), the
     misregistered samples, the nearest depth a sample may have at each reference pixel
     (``holes_of``: the reference's index, or None for no limit), and the removed mixed
     pixels' depths and tolerances (:func:`mix_tolerance`)."""
@@ -495,7 +497,9 @@ def fusion_inputs(
     anc, tol, offs = trust_arrays(anchor, tolerance, offsets, (n, h, w))
     mixes = mix_depths(mixes_mm, (h, w))
     if alternatives is None:
-        alternatives = surface_alternatives(anc, tol, edge_mm, mixes, followed)
+        alternatives = surface_alternatives(
+            anc, tol, edge_mm, mixes, followed, border_strips=border_strips
+        )
     alts = [np.ascontiguousarray(a, np.float32).reshape(3, 3, h, w) for a in alternatives]
     if untrusted is None:
         bad = np.zeros((n, h, w), np.bool_)

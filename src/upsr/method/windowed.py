@@ -380,6 +380,7 @@ class UPSR:
                     else None
                 ),
                 followed=followed,
+                border_strips=not stats.remove_mixed,
             )
             # stale hole fills, steep blocks' level, the reference's unfilled removed pixels
             fused = settle_fused(
@@ -421,7 +422,8 @@ class UPSR:
             return untrusted, None
         # there the frames that did not follow the part abstain, the surfaces around compete
         followed, lost = thin_parts_followed(
-            registered, anchor, tolerance, thin_fronts(anchor, tolerance, edge), ref,
+            registered, anchor, tolerance,
+            thin_fronts(anchor, tolerance, edge, border_strips=True), ref,
             edge_mm=edge, offsets=offsets, min_trusted=self.config.min_trusted_samples,
         )  # fmt: skip
         return untrusted | lost, followed

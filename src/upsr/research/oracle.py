@@ -296,7 +296,8 @@ def _checked_stack(
         bad = misregistered_numpy(reg, lowres[ref], ref, edge_mm=edge_mm, offsets=offsets)
         if anchor is not None and not mixed:
             followed, lost = thin_parts_followed(
-                reg, anchor, tol, thin_fronts(anchor, tol, edge_mm), ref, edge_mm=edge_mm,
+                reg, anchor, tol, thin_fronts(anchor, tol, edge_mm, border_strips=True), ref,
+                edge_mm=edge_mm,
                 offsets=offsets, min_trusted=cfg.min_trusted_samples,
             )  # fmt: skip
             bad |= lost
@@ -346,12 +347,14 @@ def _abstaining(
     return abstain_lone_outliers(lowres, ref, anchor), anchor, tol, mixes
 
 
-def _trusted_stack(stack, anchor, tol, offsets, cfg, edge_mm: float, mixes: np.ndarray, followed):
+def _trusted_stack(
+    stack, anchor, tol, offsets, cfg, edge_mm: float, mixes: np.ndarray, followed, mixed: bool
+):
     """The trust rules of the fusion (:mod:`upsr.method.trust`), on the registered high-res
     stack: radial offsets subtracted, untrusted samples abstaining (NaN). Returns the stack,
     the anchor (high-res, 0: none), and the pixels where the output is the anchor. ``stack``
     (N, r·h, r·w); ``anchor``, ``tol``, ``mixes``, ``followed`` (h, w; the last may be None);
-    ``offsets`` (N, h, w) or None."""
+    ``offsets`` (N, h, w) or None; ``mixed``: the sensor mixes (no border strips)."""
     from upsr.method.alternatives import alternatives_on_grid, mix_tolerance, surface_alternatives
     from upsr.method.upsampling import upsample_nearest
 
@@ -359,7 +362,9 @@ def _trusted_stack(stack, anchor, tol, offsets, cfg, edge_mm: float, mixes: np.n
     up = lambda a: upsample_nearest(a, r)  # noqa: E731
     if offsets is None:
         offsets = np.zeros((stack.shape[0], *anchor.shape), np.float32)
-    alternatives = surface_alternatives(anchor, tol, edge_mm, mixes, followed)
+    alternatives = surface_alternatives(
+        anchor, tol, edge_mm, mixes, followed, border_strips=not mixed
+    )
     near, near_tol, far, far_tol = alternatives_on_grid(alternatives, r)
     a_hr, t_hr, m_hr, mt_hr = up(anchor), up(tol), up(mixes), up(mix_tolerance(anchor, tol, mixes))
     v = stack
@@ -615,7 +620,7 @@ def super_resolve_straightforward(frames: npt.ArrayLike, config: UPSRConfig) -> 
         fallback = only_own = None
         if anchor is not None:
             stack, anchor_hr, fallback, only_own = _trusted_stack(
-                stack, anchor, tol, offsets, cfg, edge_mm, mixes, followed
+                stack, anchor, tol, offsets, cfg, edge_mm, mixes, followed, stats.remove_mixed
             )
         fuse = functools.partial(
             temporal_median_numpy, stack, ref, weights=weights, guide=guide,
