@@ -591,9 +591,9 @@ def register_and_fuse(
     warp_nearest(upsample_nearest(lowres[k], r), maps[k])`` and ``w = floor + (1 − floor)·
     exp(−d²/(2σ²))``, d from :func:`upsr.method.registration.sample_offsets` (the Gaussian is
     tabulated every 1/64 px), without building those (N, r·h, r·w) stacks: each output pixel
-    reads its N samples straight from the low-res frames, and computes the vote weights only
-    where they can matter (some samples invalid, or samples from several surfaces). A coarser
-    flow grid (s < r) is interpolated bilinearly (pixel centres aligned, like ``cv2.resize``).
+    reads its N samples straight from the low-res frames, with vote weights only where they
+    matter (samples invalid, or from several surfaces). A coarser flow grid (s < r) is
+    interpolated bilinearly (pixel centres aligned, like ``cv2.resize``).
 
     Parameters
     ----------
@@ -637,17 +637,13 @@ def register_and_fuse(
         Where the reference has no depth, samples over ``edge_mm`` nearer than the farthest
         depth around it (:func:`upsr.method.consistency.hole_backgrounds`) abstain.
     edge_votes : bool
-        Near the reference's depth edges (:func:`upsr.method.edges.edge_band`), the surface
-        of each pixel from the bilinear votes of the four samples around every frame's
-        registered position (:func:`upsr.method.edges.vote_surface`: sub-pixel edges).
-    mixes_mm : array_like (h, w), optional
-        The reference's removed mixed pixels' depth (0 elsewhere): there samples abstain
-        unless on a surface around them or near that depth (:mod:`upsr.method.alternatives`).
-    followed : array_like bool (h, w), optional
-        :func:`upsr.method.consistency.thin_parts_followed` (with its frames in ``untrusted``).
-    border_strips : bool
-        A strip along the image border in front of a surface is a thin part (point-sampling
-        sensors: :func:`upsr.method.alternatives.surface_alternatives`).
+        Near the reference's depth edges (:func:`upsr.method.edges.edge_band`), each pixel's
+        surface from the bilinear votes of the four samples around every frame's registered
+        position (:func:`upsr.method.edges.vote_surface`: sub-pixel edges).
+    mixes_mm, followed, border_strips : array_like (h, w) or None, bool (h, w) or None, bool
+        The reference's removed mixed pixels' depth (0 elsewhere), thin parts followed
+        (:func:`~upsr.method.consistency.thin_parts_followed`, frames in ``untrusted``), strips
+        at the border as thin parts: :func:`~upsr.method.alternatives.surface_alternatives`.
 
     Returns
     -------
