@@ -483,12 +483,11 @@ def fusion_inputs(
     border_strips: bool = False,
 ) -> tuple:
     """The trust arrays of :func:`upsr.method.fusion.register_and_fuse` as its kernel reads
-    them: anchor, tolerance, offsets, the four alternatives (default: from the anchor and
-    the removed mixed pixels ``mixes_mm``, the thin parts the motion ``followed`` and
-    ``border_strips``), the
-    misregistered samples, the nearest depth a sample may have at each reference pixel
-    (``holes_of``: the reference's index, or None for no limit), and the removed mixed
-    pixels' depths and tolerances (:func:`mix_tolerance`)."""
+    them: anchor, tolerance, offsets, the four alternatives (default: from the anchor, the
+    removed mixed pixels ``mixes_mm``, the thin parts the motion ``followed`` and
+    ``border_strips``), the misregistered samples, the nearest depth a sample may have at
+    each reference pixel (``holes_of``: the reference's index, or None for no limit), and the
+    removed mixed pixels' depths and tolerances (:func:`mix_tolerance`)."""
     n, h, w = lr.shape
     nearest = np.full((h, w), -np.inf, np.float32)
     if holes_of is not None:
