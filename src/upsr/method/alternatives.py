@@ -45,22 +45,19 @@ def _run(anchor, i, j, di, dj, a0, edge, reach, border=True):  # pragma: no cove
 
 
 @nb.njit(cache=True, nogil=True, inline="always")
-def _deep(anchor, i, j, di, dj, edge):  # pragma: no cover - numba
-    """Whether (i, j) and (i + di, j + dj) lie inside the image, on one surface."""
-    h, w = anchor.shape
-    a = i + di
-    b = j + dj
-    if not (0 <= i < h and 0 <= j < w and 0 <= a < h and 0 <= b < w):
-        return False
-    u = anchor[i, j]
-    v = anchor[a, b]
-    return u > 0 and v > 0 and abs(u - v) <= edge
-
-
-@nb.njit(cache=True, nogil=True, inline="always")
 def _inside(anchor, i, j):  # pragma: no cover - numba
     h, w = anchor.shape
     return 0 <= i < h and 0 <= j < w
+
+
+@nb.njit(cache=True, nogil=True, inline="always")
+def _deep(anchor, i, j, di, dj, edge):  # pragma: no cover - numba
+    """Whether (i, j) and (i + di, j + dj) lie inside the image, on one surface."""
+    if not (_inside(anchor, i, j) and _inside(anchor, i + di, j + dj)):
+        return False
+    u = anchor[i, j]
+    v = anchor[i + di, j + dj]
+    return u > 0 and v > 0 and abs(u - v) <= edge
 
 
 @nb.njit(cache=True, nogil=True, inline="always")
