@@ -2,7 +2,7 @@ import numpy as np
 import pytest
 
 from upsr import InputError
-from upsr.method.validation import as_depth_frame, as_depth_video
+from upsr.method.validation import as_depth_frame, as_depth_video, nan_as_zero
 
 
 def test_nan_becomes_invalid_and_integers_are_converted():
@@ -49,3 +49,22 @@ def test_depths_outside_the_valid_range_are_no_measurement():
     assert out.tolist() == [[0.0, 100.0, 2000.0], [0.0, 0.0, 0.0]]
     with pytest.raises(InputError, match="outside 70000-80000 mm"):
         as_depth_video(frame[None], valid_range_mm=(70000.0, 80000.0))
+
+
+def test_nan_as_zero_reads_a_finite_float32_frame_in_place_and_copies_anything_else():
+    """What ``np.nan_to_num(np.asarray(z, np.float32), nan=0.0)`` gives, without the copy
+    where nothing is to change (the method's per-frame helpers only read it)."""
+    z = np.array([[1000.0, 0.0], [1500.0, 2000.0]], np.float32)
+    assert nan_as_zero(z) is z
+    for bad in (
+        np.array([[np.nan, 1000.0], [0.0, 2000.0]], np.float32),
+        np.array([[np.inf, 1000.0], [-np.inf, 2000.0]], np.float32),
+        np.array([[np.nan, 1000.0], [0.0, 2000.0]], np.float64),
+        [[1000, 0], [1, 2]],
+    ):
+        before = np.array(bad, copy=True)
+        out = nan_as_zero(bad)
+        expected = np.nan_to_num(np.asarray(bad, np.float32), nan=0.0)
+        assert out.dtype == np.float32 and out is not bad
+        np.testing.assert_array_equal(out, expected)
+        np.testing.assert_array_equal(np.asarray(bad), before)  # the input is left as it was

@@ -33,6 +33,7 @@ import numpy as np
 import numpy.typing as npt
 
 from upsr.method.alternatives import _run
+from upsr.method.validation import nan_as_zero
 
 __all__ = [
     "ENCLOSED_RADIUS_PX",
@@ -426,7 +427,7 @@ def hole_backgrounds(reference: npt.ArrayLike, reach_px: int = HOLE_REACH_PX) ->
     -------
     ndarray float32 (h, w)
     """
-    z = np.nan_to_num(np.asarray(reference, np.float32), nan=0.0)
+    z = nan_as_zero(reference)
     hole = z == 0
     measured = np.maximum(z, np.float32(0.0))
     kernel = np.ones((3, 3), np.uint8)
@@ -463,7 +464,7 @@ def enclosed_holes(
     -------
     ndarray bool (h, w)
     """
-    z = np.nan_to_num(np.asarray(frame, np.float32), nan=0.0)
+    z = nan_as_zero(frame)
     measured = (z > 0).astype(np.float32)
     side = 2 * int(radius_px) + 1
     kw = {"normalize": False, "borderType": cv2.BORDER_CONSTANT}
@@ -555,7 +556,7 @@ def clear_stale_fills(
     ndarray float32 (r·h, r·w)
     """
     f = np.ascontiguousarray(fused, np.float32)
-    ref = np.nan_to_num(np.asarray(reference, np.float32), nan=0.0)
+    ref = nan_as_zero(reference)
     out = np.empty_like(f)
     _stale_kernel(f, np.ascontiguousarray(ref), int(scale), float(edge_mm), out)
     return out

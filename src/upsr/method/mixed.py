@@ -29,6 +29,7 @@ from upsr.method.clusters import mixed_clusters
 from upsr.method.footprint import FLAT_END_SHARE
 from upsr.method.slopes import STEEP_RUN_RATIO, _on_slope, _steps_agree
 from upsr.method.thin import ThinParts, _gap_bottom, _thin_parts, split_thin_parts
+from upsr.method.validation import nan_as_zero
 
 __all__ = [
     "ABSTAIN",
@@ -279,7 +280,7 @@ def mixed_pixels(frame: npt.ArrayLike, edge_mm: float) -> np.ndarray:
     -------
     ndarray of bool (h, w)
     """
-    z = np.ascontiguousarray(np.nan_to_num(np.asarray(frame, np.float32), nan=0.0))
+    z = np.ascontiguousarray(nan_as_zero(frame))
     if z.ndim != 2:
         raise ValueError(f"frame must be (h, w), got shape {z.shape}")
     out = np.empty_like(z)
@@ -597,8 +598,8 @@ def split_mixed_pixels(
     ndarray float32 (r·h, r·w): ``fused`` with those blocks filled (``fused`` itself when
     nothing was removed or split).
     """
-    z = np.nan_to_num(np.asarray(measured, np.float32), nan=0.0)
-    c = np.nan_to_num(np.asarray(cleaned, np.float32), nan=0.0)
+    z = nan_as_zero(measured)
+    c = nan_as_zero(cleaned)
     removed = (z > 0) & ~(c > 0)
     f = np.ascontiguousarray(fused, np.float32)
     src = np.ascontiguousarray(source, np.float32)

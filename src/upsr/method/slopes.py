@@ -46,6 +46,7 @@ import numpy as np
 import numpy.typing as npt
 
 from upsr.method.sorting import _small_median
+from upsr.method.validation import nan_as_zero
 
 __all__ = [
     "FACE_RATIO",
@@ -311,7 +312,7 @@ def surface_slopes(
     >>> sx.tolist()
     [[10.0, 10.0, 10.0, 0.0]]
     """
-    z = np.nan_to_num(np.asarray(anchor, np.float32), nan=0.0)
+    z = nan_as_zero(anchor)
     k = np.ones(z.shape, np.bool_) if kept is None else np.asarray(kept, np.bool_)
     if k.shape != z.shape:
         raise ValueError(f"kept {k.shape} and anchor {z.shape} differ in shape")
@@ -430,7 +431,7 @@ def follow_slopes(
     z = np.array(depth_mm, np.float32)  # the output, changed block by block in place
     if not np.isfinite(z).all():
         np.nan_to_num(z, copy=False, nan=0.0)
-    a = np.nan_to_num(np.asarray(anchor, np.float32), nan=0.0)
+    a = nan_as_zero(anchor)
     h, w = a.shape
     if z.shape[0] % h or z.shape[1] % w or z.shape[0] // h != z.shape[1] // w:
         raise ValueError(f"depth {z.shape} is not a whole multiple of the anchor {a.shape}")
@@ -439,11 +440,11 @@ def follow_slopes(
     if frame is None:
         sy, sx = surface_slopes(a, edge_mm)
     else:
-        m = np.nan_to_num(np.asarray(frame, np.float32), nan=0.0)
+        m = nan_as_zero(frame)
         sy, sx = surface_slopes(plane_anchor(m, a, edge_mm), edge_mm)
         my, mx = surface_slopes(np.where(m > 0, m, np.float32(0.0)), edge_mm)
         if measured is not None:
-            full = np.nan_to_num(np.asarray(measured, np.float32), nan=0.0)
+            full = nan_as_zero(measured)
             if full.shape != m.shape:
                 raise ValueError(f"measured {full.shape} and frame {m.shape} differ in shape")
             extra = (full > 0) & ~(m > 0)  # the removed pixels
@@ -533,8 +534,8 @@ def plane_anchor(frame: npt.ArrayLike, anchor: npt.ArrayLike, edge_mm: float) ->
     >>> float(a[3, 1]), float(plane_anchor(z, a, 100.0)[3, 1])
     (1475.0, 1450.0)
     """
-    z = np.nan_to_num(np.asarray(frame, np.float32), nan=0.0)
-    a = np.nan_to_num(np.asarray(anchor, np.float32), nan=0.0)
+    z = nan_as_zero(frame)
+    a = nan_as_zero(anchor)
     if z.shape != a.shape:
         raise ValueError(f"frame {z.shape} and anchor {a.shape} differ in shape")
     ends = edge_ends(z, edge_mm)
@@ -580,7 +581,7 @@ def edge_ends(depth_mm: npt.ArrayLike, edge_mm: float) -> np.ndarray:
     >>> edge_ends(floor, 100.0).any()
     np.False_
     """
-    z = np.nan_to_num(np.asarray(depth_mm, np.float32), nan=0.0)
+    z = nan_as_zero(depth_mm)
     out = np.zeros(z.shape, np.bool_)
     _edge_ends_kernel(np.ascontiguousarray(z), float(edge_mm), out)
     rows = np.zeros(z.shape[::-1], np.bool_)

@@ -61,6 +61,7 @@ import numpy as np
 import numpy.typing as npt
 
 from upsr.method.slopes import _on_slope
+from upsr.method.validation import nan_as_zero
 
 __all__ = [
     "GAP_AXES",
@@ -415,7 +416,7 @@ def thin_parts(
         gaps narrower than a pixel (F > measured > B: the depth seen through the gap, and
         the nearer side's).
     """
-    z = np.ascontiguousarray(np.nan_to_num(np.asarray(measured, np.float32), nan=0.0))
+    z = np.ascontiguousarray(nan_as_zero(measured))
     if z.ndim != 2:
         raise ValueError(f"measured must be (h, w), got shape {z.shape}")
     near, far, _ = _thin_parts(z, float(edge_mm), int(reach_px), mixed)
@@ -551,7 +552,7 @@ def split_thin_parts(
     itself when the frame has none).
     """
     f = np.ascontiguousarray(fused, np.float32)
-    z = np.ascontiguousarray(np.nan_to_num(np.asarray(measured, np.float32), nan=0.0))
+    z = np.ascontiguousarray(nan_as_zero(measured))
     near, far, axis = _thin_parts(z, float(edge_mm)) if parts is None else parts
     if near.shape != z.shape:
         raise ValueError(f"thin parts {near.shape} differ from the frame's shape {z.shape}")
