@@ -256,6 +256,33 @@ def test_the_split_follows_the_slope_of_each_side_into_the_block():
     assert (block[:, :2] == 1000.0).all()
     # far pixels at x = 14, 15: 0.875 and 0.625 px from the next pixel's centre (x = 17.5)
     np.testing.assert_allclose(block[:, 2:], [[2437.5, 2512.5]] * r)
+    # its steps beyond the edge threshold go on alike: a slope with the threshold too
+    np.testing.assert_array_equal(
+        split_mixed_pixels(fused, measured, cleaned, cleaned, keep_mean=True, edge_mm=100.0), out
+    )
+
+
+def test_the_split_does_not_take_a_like_mix_beside_a_thin_part_for_its_slope():
+    """A leg at 1850 mm, one pixel wide, between a mixed pixel on its left (removed) and a
+    column of like mixes of another leg on its right (2330 / 2350 mm, kept) in front of a
+    wall at 3000 mm (the realistic ToF animal): the step from the first like mix to the leg
+    (−480 mm) is no slope of the leg, since the next step (−20 mm) does not go on alike. The
+    removed pixel's near side takes the leg's depth, never 1850 − 480 mm, nearer than any
+    surface there."""
+    from upsr.method.mixed import split_mixed_pixels
+
+    r = 4
+    row = np.array([3000, 3000, 2400, 1850, 2330, 2350, 3000, 3000], np.float32)
+    measured = np.repeat(row[None], 5, axis=0)
+    cleaned = measured.copy()
+    cleaned[:, 2] = 0.0
+    fused = np.repeat(np.repeat(cleaned, r, axis=0), r, axis=1)
+    out = split_mixed_pixels(fused, measured, cleaned, cleaned, keep_mean=True, edge_mm=100.0)
+    block = out[:, 2 * r : 3 * r]
+    assert set(np.unique(block)) == {1850.0, 3000.0}
+    # without the edge threshold the step counts as the leg's slope
+    loose = split_mixed_pixels(fused, measured, cleaned, cleaned, keep_mean=True)
+    assert loose[:, 2 * r : 3 * r].min() < 1850.0 - 100.0
 
 
 def test_a_fill_of_other_frames_mixes_is_split_afresh():

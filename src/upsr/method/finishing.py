@@ -158,7 +158,9 @@ def finish_frame(
         if lost.any():
             out = np.where(lost, fused, out)
     if measured is not None:
-        out = split_mixed_pixels(out, measured, reference, reference if anchor is None else anchor)
+        out = split_mixed_pixels(
+            out, measured, reference, reference if anchor is None else anchor, edge_mm=edge_mm
+        )
     if cfg.follow_slopes:
         if anchor is None:
             anchor = reference_anchor(reference, noise_mm, 1.0, edge_mm)[0]

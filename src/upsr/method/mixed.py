@@ -428,17 +428,29 @@ def _side(removed, source, i, j, m, nearer):  # pragma: no cover - numba
 
 
 @nb.njit(cache=True, nogil=True, inline="always")
-def _slope_step(removed, source, i, j, a, b, limit):  # pragma: no cover - numba
+def _slope_step(removed, source, i, j, a, b, m, limit, edge):  # pragma: no cover - numba
     """The depth step from the pixel beyond the neighbour (a, b) of (i, j) (on the far side
     from (i, j)) to (a, b): the slope of (a, b)'s surface towards (i, j) per step; 0 where
-    that pixel is missing, removed, or steps by more than ``limit`` (another surface)."""
+    that pixel is missing, removed, or steps by more than ``limit`` (another surface), or
+    where a step beyond ``edge`` leads away from the mix m (the nearer side nearer still, the
+    farther side farther) and the step beyond it does not go on alike
+    (:func:`upsr.method.slopes._steps_agree`, :data:`STEEP_RUN_RATIO`): a floor seen at a
+    grazing angle steps evenly, a like mix kept beside a thin part does not."""
     h, w = removed.shape
     a2 = 2 * a - i
     b2 = 2 * b - j
     if not (0 <= a2 < h and 0 <= b2 < w) or removed[a2, b2] or not source[a2, b2] > 0:
         return 0.0
     s = source[a, b] - source[a2, b2]
-    return s if abs(s) <= limit else 0.0
+    if abs(s) > limit:
+        return 0.0
+    if abs(s) <= edge or (s > 0) == (source[a, b] < m):
+        return s
+    a3 = 3 * a - 2 * i
+    b3 = 3 * b - 2 * j
+    if not (0 <= a3 < h and 0 <= b3 < w) or removed[a3, b3] or not source[a3, b3] > 0:
+        return 0.0
+    return s if _steps_agree(s, source[a2, b2] - source[a3, b3], STEEP_RUN_RATIO) else 0.0
 
 
 @nb.njit(cache=True, nogil=True, inline="always")
@@ -476,8 +488,8 @@ def _split_kernel(
                 # each side follows its surface's slope into the block (a floor seen at a
                 # grazing angle steps by more than the edge threshold per pixel)
                 limit = 0.5 * (far - near)
-                s_near = _slope_step(removed, source, i, j, na, nb_, limit)
-                s_far = _slope_step(removed, source, i, j, fa, fb, limit)
+                s_near = _slope_step(removed, source, i, j, na, nb_, m, limit, edge)
+                s_far = _slope_step(removed, source, i, j, fa, fb, m, limit, edge)
                 for q in range(r * r):
                     y = i * r + q // r
                     x = j * r + q % r
