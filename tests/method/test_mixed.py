@@ -283,6 +283,16 @@ def test_the_split_does_not_take_a_like_mix_beside_a_thin_part_for_its_slope():
     # without the edge threshold the step counts as the leg's slope
     loose = split_mixed_pixels(fused, measured, cleaned, cleaned, keep_mean=True)
     assert loose[:, 2 * r : 3 * r].min() < 1850.0 - 100.0
+    # a steep step towards the mix is followed however the next one steps (a floor strip
+    # seen at a grazing angle that ends at a box)
+    row = np.array([690, 700, 1000, 2000, 3000, 3000, 3000], np.float32)
+    measured = np.repeat(row[None], 5, axis=0)
+    cleaned = measured.copy()
+    cleaned[:, 3] = 0.0
+    fused = np.repeat(np.repeat(cleaned, r, axis=0), r, axis=1)
+    out = split_mixed_pixels(fused, measured, cleaned, cleaned, keep_mean=True, edge_mm=100.0)
+    near = out[:, 3 * r : 4 * r][out[:, 3 * r : 4 * r] < 2000.0]
+    assert near.size and (near > 1000.0 + 100.0).all()
 
 
 def test_a_fill_of_other_frames_mixes_is_split_afresh():
