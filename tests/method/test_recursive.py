@@ -203,11 +203,15 @@ def test_static_scene_converges_to_the_temporal_mean():
     mean = _ramp((start + video[1:].sum(axis=0)) / (len(video) + 1), 2)
     kept = engine.state[1] == len(video) + 1
     assert kept.mean() > 0.95
+    # (since the flow is judged against the state, whose noise is lower than a frame's, a few
+    # pixels take a spurious motion the state does not refute: 4 % here, 1.5 % before;
+    # as close to the truth as the mean itself, below)
     close = np.abs(out[-1] - mean) < 0.05
-    assert close[kept].mean() > 0.985
+    assert close[kept].mean() > 0.94
     truth = _ramp(clean, 2)
     rmse = np.sqrt(np.mean((out[-1] - truth) ** 2))
     assert rmse < 1.25 * 10.0 / np.sqrt(8)
+    assert rmse < 1.05 * np.sqrt(np.mean((mean - truth) ** 2))
 
 
 def test_static_scene_with_laplace_noise_reaches_the_windowed_median():
@@ -484,3 +488,77 @@ def test_auto_mixed_removal_turns_off_only_clearly_below_the_threshold():
         engine.push(f)
         on.append(engine._remove_mixed)
     assert on == [True, True, False]
+
+
+def _body(cx, shape, depth_mm=(1500.0, 1800.0)):
+    """A smooth dome (its centre at ``depth_mm[0]``, its rim at ``depth_mm[1]``) centred at
+    column ``cx`` of a (h, w) frame, 0 around it."""
+    ys, xs = np.mgrid[0 : shape[0], 0 : shape[1]].astype(np.float64)
+    d2 = ((xs - cx) / 16.0) ** 2 + ((ys - shape[0] / 2) / 14.0) ** 2
+    near, rim = depth_mm
+    return np.where(d2 < 1, near + (rim - near) * d2, 0.0).astype(np.float32)
+
+
+def test_the_state_judges_the_flow_of_a_smooth_moving_body():
+    """A dome 100 mm deep moving 2 px per frame under Laplacian noise of 10 mm: between two
+    prefiltered noisy frames the zero motion fits its smooth interior about as well as the true
+    motion, and the spurious-motion test zeroes three quarters of the flow there (the state was
+    left behind: an animal without a wall, README); against the state, with its lower noise,
+    half of it is kept."""
+    from scipy.ndimage import binary_erosion
+
+    from upsr.method.config import UPSRConfig
+    from upsr.method.frontend import MotionFrontEnd
+    from upsr.method.state_update import STATE_NOISE_FACTOR
+
+    rng = np.random.default_rng(0)
+    shape = (40, 56)
+    state, current = (_body(cx, shape, (1500.0, 1600.0)) for cx in (26.0, 28.0))
+
+    def noisy(z):
+        return np.where(z > 0, z + rng.laplace(0, 10 / np.sqrt(2), z.shape), 0).astype(np.float32)
+
+    front = MotionFrontEnd(UPSRConfig(scale=1, n_frames=9, mode="recursive"), shape[1])
+    front.fix_statistics([noisy(state), noisy(current)])
+    flow = np.zeros((*shape, 2), np.float32)
+    flow[..., 0] = -2.0  # current -> previous: the true motion
+    inside = binary_erosion((state > 0) & (current > 0), iterations=3)
+    frame = front.prefilter(noisy(current))
+    previous = front.prefilter(noisy(state))
+    against_frame = front.supported_flow(frame, previous, flow, units_per_mm=1.0)
+    against_state = front.supported_flow(
+        frame, state, flow, units_per_mm=1.0, noise_factor=STATE_NOISE_FACTOR
+    )
+    kept_frame = (against_frame[..., 0] != 0)[inside].mean()
+    kept_state = (against_state[..., 0] != 0)[inside].mean()
+    assert kept_frame < 0.3 and kept_state > kept_frame + 0.15
+
+
+def test_the_recursive_flow_is_judged_against_the_state(monkeypatch):
+    """Each frame after the first has its flow's support tested against the state (read on
+    the flow grid), not against the previous frame."""
+    from upsr.method.frontend import MotionFrontEnd
+    from upsr.method.upsampling import resample_nearest
+
+    seconds = []
+    original = MotionFrontEnd.supported_flow
+
+    def spy(self, first, second, flow, units_per_mm, noise_factor=1.0):
+        seconds.append((np.array(second), noise_factor))
+        return original(self, first, second, flow, units_per_mm, noise_factor)
+
+    monkeypatch.setattr(MotionFrontEnd, "supported_flow", spy)
+    rng = np.random.default_rng(1)
+    frames = [
+        np.where(z > 0, z + rng.normal(0, 5, z.shape), 0).astype(np.float32)
+        for z in (_body(20.0 + 2 * t, (40, 56)) for t in range(4))
+    ]
+    engine = RecursiveUPSR(scale=2, n_frames=5)
+    states = []
+    for f in frames:
+        engine.push(f)
+        states.append(engine._depth.copy())
+    assert len(seconds) == 3
+    for (second, factor), state in zip(seconds, states[:-1], strict=True):
+        np.testing.assert_array_equal(second, resample_nearest(state, second.shape))
+        assert factor < 1.0

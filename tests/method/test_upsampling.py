@@ -47,3 +47,20 @@ def test_bad_scale_rejected(r):
 def test_decimate_needs_divisible_shape():
     with pytest.raises(InputError):
         decimate(np.ones((5, 4)), 2)
+
+
+def test_resample_nearest_reads_the_nearest_pixel_at_any_ratio():
+    """The state on a 256×224 output grid read on a 192×168 flow grid (r = 4, s = 3): each
+    flow pixel takes the output pixel under its centre, never a blend (an edge stays an edge,
+    0 stays 0)."""
+    from upsr.method.upsampling import resample_nearest
+
+    big = np.zeros((224, 256), np.float32)
+    big[:, 100:] = 3000.0
+    big[:, 60:100] = 1000.0
+    small = resample_nearest(big, (168, 192))
+    assert small.shape == (168, 192) and small.dtype == np.float32
+    assert set(np.unique(small)) == {0.0, 1000.0, 3000.0}
+    xs = ((np.arange(192) + 0.5) * 256 / 192).astype(int)
+    np.testing.assert_array_equal(small[0], big[0, xs])
+    np.testing.assert_array_equal(resample_nearest(big, big.shape), big)

@@ -270,10 +270,17 @@ class MotionFrontEnd:
         )
 
     def supported_flow(
-        self, first: np.ndarray, second: np.ndarray, flow: np.ndarray, units_per_mm: float
+        self,
+        first: np.ndarray,
+        second: np.ndarray,
+        flow: np.ndarray,
+        units_per_mm: float,
+        noise_factor: float = 1.0,
     ) -> np.ndarray:
         """:func:`~upsr.method.motion.suppress_spurious_motion` on images in
-        mm × ``units_per_mm`` (1 for prefiltered depth, 254/(far − near) for guides)."""
+        mm × ``units_per_mm`` (1 for prefiltered depth, 254/(far − near) for guides), the zero
+        motion's margin ``noise_factor`` times the video's noise (below 1 where ``second`` is
+        less noisy than a frame: the recursive state)."""
         cfg = self.config
         if cfg.zero_motion_tolerance is None:
             return flow
@@ -284,7 +291,7 @@ class MotionFrontEnd:
             flow,
             window_px=2 * s + 1,
             tolerance=cfg.zero_motion_tolerance,
-            noise_mm=self.noise_mm * units_per_mm,  # type: ignore[operator]
+            noise_mm=self.noise_mm * units_per_mm * noise_factor,  # type: ignore[operator]
             edge_mm=self.edge_mm * units_per_mm,
             edge_window_px=4 * s + 1,
         )

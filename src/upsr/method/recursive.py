@@ -13,7 +13,13 @@ Per frame t (only frame t and the state of t − 1 are read):
 
 1. the motion front-end (:class:`~upsr.method.frontend.MotionFrontEnd`) prefilters frame t and
    computes ONE flow on the flow grid, from frame t to frame t − 1 (the backward lookup of the
-   current grid into the previous one), with its spurious motion suppressed (with
+   current grid into the previous one), with its spurious motion suppressed: the motion is
+   kept where the state, moved by it, fits frame t better than the state unmoved
+   (:func:`~upsr.method.motion.suppress_spurious_motion` between the prefiltered frame t and
+   the state read on the flow grid, the zero motion's margin
+   :data:`~upsr.method.state_update.STATE_NOISE_FACTOR` times the noise; against the
+   previous frame, whose noise hides the motion of a smooth body, the flow of an animal
+   without a wall behind it was zeroed on its body and the state left behind) (with
    ``camera_motion="depth"``, where the camera's last N − 1 steps went along its axis,
    that of :mod:`upsr.method.camera_motion` at the pixels whose flow agrees with it);
 2. the new measurement is y_t↑ = U y_t after mixed-pixel removal
@@ -118,11 +124,11 @@ from upsr.method.mixed import remove_mixed_pixels, split_mixed_pixels
 from upsr.method.motion import FlowBackend, make_flow_backend
 from upsr.method.noise import NOISE_FREE_MM, second_differences, temporal_noise_mm
 from upsr.method.pipeline import TwoStagePipeline
-from upsr.method.state_update import recursive_update
+from upsr.method.state_update import STATE_NOISE_FACTOR, recursive_update
 from upsr.method.statistics import first_frame_noise_mm, noise_estimator, trust_profile
 from upsr.method.thin import ThinParts
 from upsr.method.trust import reference_anchor
-from upsr.method.upsampling import upsample_nearest
+from upsr.method.upsampling import resample_nearest, upsample_nearest
 from upsr.method.validation import as_depth_frame, no_valid_depth
 from upsr.method.windowed import STAGES
 
@@ -244,6 +250,20 @@ class RecursiveUPSR(TwoStagePipeline):
         # they are the noise only where the spatial estimate sees none (quantised depth)
         return spatial if spatial >= NOISE_FREE_MM else max(spatial, self._temporal_mm)
 
+    def _frame_flow(self, pre: np.ndarray, guide: np.ndarray) -> np.ndarray:
+        """The one flow of a frame, current -> previous (the backward lookup of the state), its
+        motion judged against the state it moves rather than the previous frame: far less noisy,
+        so that the motion of a smooth moving body shows (step 1 of the module)."""
+        front = self._front
+        assert front is not None
+        second, factor = (
+            (self._prev_pre, 1.0)
+            if self._depth is None
+            else (resample_nearest(self._depth, pre.shape), STATE_NOISE_FACTOR)
+        )
+        raw = front.flow_backend(guide, self._prev_guide)
+        return front.supported_flow(pre, second, raw, units_per_mm=1.0, noise_factor=factor)
+
     def _by_camera(self, flow: np.ndarray, pre: np.ndarray, frame: np.ndarray) -> np.ndarray:
         """``camera_motion="depth"``: the flow from ``frame`` to the previous frame replaced by
         the camera's motion at the pixels whose flow agrees with it, where that step and the
@@ -325,8 +345,7 @@ class RecursiveUPSR(TwoStagePipeline):
         flow = None
         if self._prev_pre is not None:
             with self._timed("flow"):
-                # one flow per frame: current -> previous (the backward lookup of the state)
-                flow = front.consecutive_flow(pre, self._prev_pre, guide, self._prev_guide)
+                flow = self._frame_flow(pre, guide)
                 if cfg.camera_motion == "depth" and not remove_mixed:
                     flow = self._by_camera(flow, pre, f)
         with self._timed("fusion"):

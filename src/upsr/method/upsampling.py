@@ -12,7 +12,13 @@ import numpy.typing as npt
 
 from upsr.errors import InputError
 
-__all__ = ["decimate", "downsample_mean", "upsample_bicubic", "upsample_nearest"]
+__all__ = [
+    "decimate",
+    "downsample_mean",
+    "resample_nearest",
+    "upsample_bicubic",
+    "upsample_nearest",
+]
 
 
 def _check_scale(r: int) -> int:
@@ -114,3 +120,32 @@ def downsample_mean(x: npt.ArrayLike, r: int) -> np.ndarray:
     """Block-average decimation D = Uᵀ / r² (so that D U = I)."""
     r = _check_scale(r)
     return decimate(x, r) / (r * r)
+
+
+def resample_nearest(depth_mm: npt.ArrayLike, shape: tuple[int, int]) -> np.ndarray:
+    """Depth read at the pixel centres of a grid of ``shape`` covering the same field of view,
+    from the nearest pixel (never interpolated across a depth edge; 0 stays "no depth").
+
+    Parameters
+    ----------
+    depth_mm : array_like, shape (H, W)
+        Depth (mm; 0: none), e.g. the recursive state on the output grid.
+    shape : (h, w)
+        The grid to read it on, e.g. the flow grid (any ratio, 4/3 included).
+
+    Returns
+    -------
+    ndarray float32, shape (h, w)
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> resample_nearest(np.arange(16.0).reshape(4, 4), (2, 2)).tolist()
+    [[5.0, 7.0], [13.0, 15.0]]
+    """
+    z = np.asarray(depth_mm, np.float32)
+    big_h, big_w = z.shape
+    h, w = (int(v) for v in shape)
+    ys = np.minimum(((np.arange(h) + 0.5) * big_h / h).astype(np.intp), big_h - 1)
+    xs = np.minimum(((np.arange(w) + 0.5) * big_w / w).astype(np.intp), big_w - 1)
+    return np.ascontiguousarray(z[ys[:, None], xs[None, :]])
