@@ -10,6 +10,15 @@ from upsr.method.config import UPSRConfig
 from upsr.method.mixed import remove_mixed_pixels
 
 
+def _mixed_column(row, column, r=4):
+    """Five rows of the profile ``row`` (mm) whose pixel ``column`` is removed as mixed:
+    (measured, cleaned, fused), the fusion as the cleaned frame upsampled by ``r``."""
+    measured = np.repeat(np.asarray(row, np.float32)[None], 5, axis=0)
+    cleaned = measured.copy()
+    cleaned[:, column] = 0.0
+    return measured, cleaned, np.repeat(np.repeat(cleaned, r, axis=0), r, axis=1)
+
+
 def test_mixed_pixels_are_removed_and_never_reach_the_output():
     frames = np.full((5, 8, 10), WALL, np.float32)
     frames[:, :, :5] = 1000.0
@@ -246,11 +255,7 @@ def test_the_split_follows_the_slope_of_each_side_into_the_block():
     from upsr.method.mixed import split_mixed_pixels
 
     r = 4
-    row = np.array([1000, 1000, 1000, 1850, 2700, 3000, 3300, 3600], np.float32)
-    measured = np.repeat(row[None], 5, axis=0)
-    cleaned = measured.copy()
-    cleaned[:, 3] = 0.0
-    fused = np.repeat(np.repeat(cleaned, r, axis=0), r, axis=1)
+    measured, cleaned, fused = _mixed_column([1000, 1000, 1000, 1850, 2700, 3000, 3300, 3600], 3)
     out = split_mixed_pixels(fused, measured, cleaned, cleaned, keep_mean=True)
     block = out[2 * r : 3 * r, 3 * r : 4 * r]
     assert (block[:, :2] == 1000.0).all()
@@ -272,11 +277,7 @@ def test_the_split_does_not_take_a_like_mix_beside_a_thin_part_for_its_slope():
     from upsr.method.mixed import split_mixed_pixels
 
     r = 4
-    row = np.array([3000, 3000, 2400, 1850, 2330, 2350, 3000, 3000], np.float32)
-    measured = np.repeat(row[None], 5, axis=0)
-    cleaned = measured.copy()
-    cleaned[:, 2] = 0.0
-    fused = np.repeat(np.repeat(cleaned, r, axis=0), r, axis=1)
+    measured, cleaned, fused = _mixed_column([3000, 3000, 2400, 1850, 2330, 2350, 3000, 3000], 2)
     out = split_mixed_pixels(fused, measured, cleaned, cleaned, keep_mean=True, edge_mm=100.0)
     block = out[:, 2 * r : 3 * r]
     assert set(np.unique(block)) == {1850.0, 3000.0}
@@ -285,11 +286,7 @@ def test_the_split_does_not_take_a_like_mix_beside_a_thin_part_for_its_slope():
     assert loose[:, 2 * r : 3 * r].min() < 1850.0 - 100.0
     # a steep step towards the mix is followed however the next one steps (a floor strip
     # seen at a grazing angle that ends at a box)
-    row = np.array([690, 700, 1000, 2000, 3000, 3000, 3000], np.float32)
-    measured = np.repeat(row[None], 5, axis=0)
-    cleaned = measured.copy()
-    cleaned[:, 3] = 0.0
-    fused = np.repeat(np.repeat(cleaned, r, axis=0), r, axis=1)
+    measured, cleaned, fused = _mixed_column([690, 700, 1000, 2000, 3000, 3000, 3000], 3)
     out = split_mixed_pixels(fused, measured, cleaned, cleaned, keep_mean=True, edge_mm=100.0)
     near = out[:, 3 * r : 4 * r][out[:, 3 * r : 4 * r] < 2000.0]
     assert near.size and (near > 1000.0 + 100.0).all()
