@@ -73,15 +73,19 @@ def _thin(anchor, i, j, a0, edge, strips):  # pragma: no cover - numba
         hi = _run(anchor, i, j, di, dj, a0, edge, 2, False)
         lo_out = lo < 2 and not _inside(anchor, i - (lo + 1) * di, j - (lo + 1) * dj)
         hi_out = hi < 2 and not _inside(anchor, i + (hi + 1) * di, j + (hi + 1) * dj)
-        # the surface beyond the run's far end on either side, 2 px deep
+        # a run that ends at the border goes on there, unless the surface beyond its other
+        # end is 2 px deep (looked at only where the run ends at the border)
         axis = strips and (di == 0 or dj == 0)
-        lo_deep = axis and _deep(anchor, i - (lo + 1) * di, j - (lo + 1) * dj, -di, -dj, edge)
-        hi_deep = axis and _deep(anchor, i + (hi + 1) * di, j + (hi + 1) * dj, di, dj, edge)
-        if lo_out and not hi_deep:
-            lo = 2
-        if hi_out and not lo_deep:
-            hi = 2
-        thin = thin or lo + 1 + hi < 3
+        lo_end, hi_end = lo, hi
+        if lo_out and not (
+            axis and _deep(anchor, i + (hi + 1) * di, j + (hi + 1) * dj, di, dj, edge)
+        ):
+            lo_end = 2
+        if hi_out and not (
+            axis and _deep(anchor, i - (lo + 1) * di, j - (lo + 1) * dj, -di, -dj, edge)
+        ):
+            hi_end = 2
+        thin = thin or lo_end + 1 + hi_end < 3
     return thin
 
 
