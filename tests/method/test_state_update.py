@@ -125,3 +125,46 @@ def test_a_noise_outlier_of_the_frame_is_outvoted_by_the_state_until_it_persists
     new, n = recursive_update(new, n, flow, meas, anchor, tol, outliers=outliers, **kw)
     np.testing.assert_allclose(new[4:6, 4:6], 2060.0)
     np.testing.assert_allclose(n[4:6, 4:6], 1.0)
+
+
+def _drifting_body(drift_mm: float, signs: bool, frames: int = 30, seed: int = 0) -> float:
+    """The state of a body at 1.5 m in front of a static wall at 2 m, which moves
+    ``drift_mm`` along the ray every frame with zero flow (it comes nearer without moving
+    sideways), Laplacian noise of σ = 10 mm: the mean error of the state on the body's
+    interior against the truth over the last 20 frames (negative: it lags behind)."""
+    rng = np.random.default_rng(seed)
+    r, h, w, sigma = 2, 32, 32, 10.0
+    flow = np.zeros((h * r, w * r, 2), np.float32)
+    depth = count = np.zeros((h * r, w * r), np.float32)
+    state_signs = np.zeros((h, w), np.int8) if signs else None
+    errors = []
+    for t in range(frames):
+        truth = np.full((h, w), 2000.0, np.float32)
+        truth[10:22, 10:22] = 1500.0 - drift_mm * t
+        meas = (truth + rng.laplace(0.0, sigma / np.sqrt(2.0), (h, w))).astype(np.float32)
+        anchor, tol = reference_anchor(meas, sigma, 3.0, 100.0, own_surface="always")
+        depth, count = recursive_update(
+            depth, count, flow, meas, anchor, tol, scale=r, cap=9.0, sigma_mm=sigma,
+            offset_signs=state_signs,
+        )  # fmt: skip
+        if t >= frames - 20:
+            body = slice(12 * r, 20 * r)
+            errors.append(float(np.mean(depth[body, body])) - float(truth[15, 15]))
+    return float(np.mean(errors))
+
+
+def test_an_offset_that_comes_twice_the_same_way_is_kept_from_two_standard_errors():
+    """A body that comes nearer by less than the 4 standard errors of an unmoved pixel's
+    offset per frame leaves the state behind until its lag is significant; with the signs of
+    the previous frame's offsets an offset of 2 standard errors that goes the same way twice
+    in a row is kept (STATE_CONFIRMED_SIGNIFICANCE): the lag shrinks, and where nothing
+    moves the state stays the running mean of the samples."""
+    # the offset's standard error: 1.2533·√2·0.75σ/5 ≈ 2.7 mm; 1 mm per frame lies far
+    # below its 4 standard errors
+    for seed in range(3):
+        lag = _drifting_body(1.0, signs=False, seed=seed)
+        assert lag > 4.5
+        assert _drifting_body(1.0, signs=True, seed=seed) < 0.65 * lag
+        still = _drifting_body(0.0, signs=False, seed=seed)
+        assert abs(still) < 0.3
+        assert _drifting_body(0.0, signs=True, seed=seed) == still

@@ -197,7 +197,8 @@ def test_a_static_scene_gets_no_radial_offset():
 def test_the_offset_is_the_significant_median_of_the_differences(m_side):
     """The kernel decides most pixels by counting the differences beyond the threshold (no
     selection); the result must be exactly the significant median: offsets near the
-    threshold, with odd and even numbers of differences."""
+    threshold, with odd and even numbers of differences; and the second result, from a
+    lower significance (the recursive state's confirmed offsets), the same from there."""
     import math
 
     from upsr.method.trust import _offset_at
@@ -210,17 +211,23 @@ def test_the_offset_is_the_significant_median_of_the_differences(m_side):
     anc = np.zeros_like(ref)  # no surface test
     sig = np.full((1, m_side, m_side), signif, np.float32)
     buf = np.empty(m, np.float32)
-    found = 0
+    found = weak_only = 0
     for _ in range(400):
         shift = rng.uniform(-2.0 * thr, 2.0 * thr)
         diff = (shift + rng.normal(0, 0.5 * thr, (m_side, m_side))).astype(np.float32)
         reg = (ref + diff)[None]
         med = float(np.median((reg[0] - ref).astype(np.float64)))
         want = med if abs(med) > thr else 0.0
-        got = _offset_at(reg, ref, anc, 0, 0, 0, 100.0, sigma, 0.0, 2 * m_side, 1, buf, sig)
-        assert got == pytest.approx(want, abs=1e-3)
+        weak = med if abs(med) > thr / 2 else 0.0  # from min(signif, low) = 1 standard error
+        got = _offset_at(reg, ref, anc, 0, 0, 0, 100.0, sigma, 0.0, 2 * m_side, 1, buf, sig, 1.0)
+        assert got[0] == pytest.approx(want, abs=1e-3)
+        assert got[1] == pytest.approx(weak, abs=1e-3)
+        only = _offset_at(reg, ref, anc, 0, 0, 0, 100.0, sigma, 0.0, 2 * m_side, 1, buf, sig, 9.0)
+        assert only == got[:1] * 2  # low above signif: the one test
         found += want != 0.0
+        weak_only += weak != 0.0 and want == 0.0
     assert 50 < found < 350  # both outcomes, many of them near the threshold
+    assert weak_only > 20
 
 
 def test_a_frame_that_moved_has_its_offsets_measured_at_a_lower_significance():

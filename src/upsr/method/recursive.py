@@ -36,7 +36,11 @@ Per frame t (only frame t and the state of t − 1 are read):
    surface (the rule of :func:`~upsr.method.trust.radial_offsets`, significant from at most
    :data:`~upsr.method.state_update.STATE_SIGNIFICANCE` standard errors; where the state as
    a whole moved along the ray and the 5×5 neighbourhood is too noisy for it, from its wide
-   neighbourhood), is subtracted;
+   neighbourhood; where the frame did not move, from
+   :data:`~upsr.method.state_update.STATE_CONFIRMED_SIGNIFICANCE` standard errors when the
+   same pixel's offset of the previous frame went the same way and the state is at its cap:
+   a surface that comes nearer by less than 4 standard errors per frame is followed, not
+   lagged behind), is subtracted;
 5. robust update, per pixel, with the trust rules of the windowed fusion:
 
    - no state there (0, or outside the previous frame) and a measurement: start from the
@@ -204,6 +208,7 @@ class RecursiveUPSR(TwoStagePipeline):
         self._depth: np.ndarray | None = None
         self._conf: np.ndarray | None = None
         self._share: np.ndarray | None = None  # the surface shares (edge votes)
+        self._signs: np.ndarray | None = None  # the last frame's offset signs (step 4)
         self._temporal_mm = 0.0
         self._profile: tuple[float, float] | None = None
         # "auto": the mean of the trusted samples (see the module), whatever the noise
@@ -373,6 +378,7 @@ class RecursiveUPSR(TwoStagePipeline):
                 # weights the votes compare, are the removed ones; measured worse)
                 votes = cfg.edge_votes and not remove_mixed
                 self._share = np.zeros_like(depth) if votes else None
+                self._signs = np.zeros(f.shape, np.int8)
             else:
                 depth, conf = self._depth, self._conf
             caps = state_caps(
@@ -416,6 +422,7 @@ class RecursiveUPSR(TwoStagePipeline):
                 if k is not None and self._heavy and not remove_mixed
                 else None,
                 kept=(kept := np.empty(f.shape, np.bool_)),
+                offset_signs=self._signs,
             )
             if kept.any():
                 # the finishing sees the samples the state outvoted as removed

@@ -22,6 +22,7 @@ from upsr.method.consistency import _block_side, _block_sides, _nearer_beside, h
 from upsr.method.edges import state_votes
 from upsr.method.registration import _registered_state_kernel, flow_positions
 from upsr.method.trust import (
+    NO_WEAK_OFFSETS,
     OFFSET_GRID,
     _offset_kernel,
     _sigma_and_power,
@@ -29,7 +30,12 @@ from upsr.method.trust import (
     state_significance,
 )
 
-__all__ = ["STATE_NOISE_FACTOR", "STATE_SIGNIFICANCE", "recursive_update"]
+__all__ = [
+    "STATE_CONFIRMED_SIGNIFICANCE",
+    "STATE_NOISE_FACTOR",
+    "STATE_SIGNIFICANCE",
+    "recursive_update",
+]
 
 #: Std of (sample − state) in units of σ in the radial significance test (the state of ≈ N
 #: samples is far less noisy than a frame): √((1 + 1/N)/2) of the two-sample test ≈ 0.75.
@@ -48,6 +54,16 @@ STATE_NOISE_FACTOR = 0.75
 #: 0.94 → −0.36 / −0.72 / −0.53, the approaching camera's surface rmse 6–13 % lower at
 #: both, the rooms' 1–2 % higher at Laplace 10.
 STATE_SIGNIFICANCE = 3.0
+#: Standard errors from which an offset where the frame did not move is kept when the same
+#: pixel's offset of the previous frame went the same way from as many (it is kept from
+#: trust.OFFSET_SIGNIFICANCE = 4 alone): a state lags a surface that changes depth by less
+#: than 4 standard errors per frame (a body moving along the ray, a camera's slow approach),
+#: and its lag grows until it is significant, while a noise offset of 2 standard errors
+#: seldom comes twice in a row the same way (realistic_eval --quick, seeds 0–7, and
+#: --frames 10 --scenes gallop room, seeds 0–3, recursive rows: moving surfaces −0.8 %,
+#: static +0.1 %, the approaching camera's mean |bias| 0.331 → 0.280 mm; one threshold of 2
+#: everywhere: moving −1.6 %, static +6.1 %).
+STATE_CONFIRMED_SIGNIFICANCE = 2.0
 
 
 # ---------------------------------------------------------------------------------------------
@@ -235,10 +251,16 @@ def _state_offsets(
     radius_px: int,
     noise_profile: tuple[float, float] | None,
     centres: np.ndarray | None,
+    signs: np.ndarray | None = None,
+    counts: tuple[np.ndarray, float | np.ndarray] | None = None,
 ) -> np.ndarray:
     """The radial offset (h, w) of the registered state against the frame (step 4 of the
     module): the significance-tested median of :func:`upsr.method.trust.radial_offsets`,
-    without the frame's ``outliers`` (bool (h, w), or None)."""
+    without the frame's ``outliers`` (bool (h, w), or None). With ``signs`` (int8 (h, w):
+    the signs of the previous frame's offsets from :data:`STATE_CONFIRMED_SIGNIFICANCE`
+    standard errors, 0 where none; updated with this frame's), an offset from that many
+    standard errors is kept where the previous one there went the same way and the state
+    (``counts``: its count (r·h, r·w) and cap, a float or (h, w)) is at its cap."""
     if outliers is not None:
         meas = np.where(outliers, np.float32(0.0), meas)
         anchor = np.where(outliers, np.float32(0.0), anchor)
@@ -257,7 +279,21 @@ def _state_offsets(
         noise_factor=STATE_NOISE_FACTOR, along_significance=STATE_SIGNIFICANCE,
         centres=centres,
     )  # fmt: skip
-    _offset_kernel(*args, signif, radius_px, off, *OFFSET_GRID)
+    if signs is None:
+        _offset_kernel(*args, signif, radius_px, off, *OFFSET_GRID, *NO_WEAK_OFFSETS)
+    else:
+        weak = np.empty_like(off)
+        low = STATE_CONFIRMED_SIGNIFICANCE
+        _offset_kernel(*args, signif, radius_px, off, *OFFSET_GRID, low, weak)
+        now = np.sign(weak[0]).astype(np.int8)
+        # (where the state summarises all the frames its cap allows, read at each block's
+        # first pixel: the error of a young state, common to the offsets of consecutive
+        # frames, would confirm itself)
+        count, cap = counts
+        settled = count[::scale, ::scale] >= np.asarray(cap) - 0.5
+        confirmed = (off[0] == 0) & (now != 0) & (now == signs) & settled
+        off[0] = np.where(confirmed, weak[0], off[0])
+        signs[...] = now
     if along:
         # the state as a whole moved along the viewing ray (a camera walking): where the
         # offset is not significant, that of the wide neighbourhood
@@ -286,6 +322,7 @@ def recursive_update(
     centres: np.ndarray | None = None,
     outliers: tuple[np.ndarray, np.ndarray] | None = None,
     kept: np.ndarray | None = None,
+    offset_signs: np.ndarray | None = None,
 ) -> tuple[np.ndarray, ...]:
     """One step of the recursive fusion (see the module): the state (``depth``, ``count``) of
     the previous frame, registered and updated with the current frame's ``measurement``.
@@ -339,6 +376,9 @@ def recursive_update(
         they take no part in the radial offsets. Default: none.
     kept : ndarray bool (h, w), optional
         Filled with the outliers where the state was kept.
+    offset_signs : ndarray int8 (h, w), optional
+        The signs of the last frame's offsets of :func:`_state_offsets` (zeros after a
+        start), updated in place: offsets from :data:`STATE_CONFIRMED_SIGNIFICANCE` kept.
 
     Returns
     -------
@@ -352,20 +392,17 @@ def recursive_update(
     qx, qy = flow_positions(fl, d.shape)
     zero = np.zeros((h, w), np.float32)
     around, around_tol = (zero, zero) if outliers is None else outliers
-    if kept is None:
-        kept = np.empty((h, w), np.bool_)
+    kept = np.empty((h, w), np.bool_) if kept is None else kept
     kept[...] = False
     offsets = zero
     if radial_radius_px and (d > 0).any():
         offsets = _state_offsets(
             d, (qx, qy), fl, meas, anchor, None if outliers is None else around > 0,
             scale=scale, sigma_mm=sigma_mm, edge_mm=edge_mm, radius_px=int(radial_radius_px),
-            noise_profile=noise_profile, centres=centres,
+            noise_profile=noise_profile, centres=centres, signs=offset_signs, counts=(c, cap),
         )  # fmt: skip
-    if holes is None:
-        holes = hole_backgrounds(meas)
-    if enclosed is None:
-        enclosed = np.zeros((h, w), np.bool_)
+    holes = hole_backgrounds(meas) if holes is None else holes
+    enclosed = np.zeros((h, w), np.bool_) if enclosed is None else enclosed
     caps = np.ascontiguousarray(np.broadcast_to(np.asarray(cap, np.float32), (h, w)))
     out_d = np.empty_like(d)
     out_n = np.empty_like(c)

@@ -129,12 +129,13 @@ def _select_median(buf, m):  # pragma: no cover - numba
 
 
 @nb.njit(cache=True, nogil=True, inline="always")
-def _offset_at(reg, ref, anc, k, i, j, edge, sigma, power, radius, stride, buf, signif):
+def _offset_at(reg, ref, anc, k, i, j, edge, sigma, power, radius, stride, buf, signif, low):
     # pragma: no cover - numba
     """The significant median of frame k's registered differences around (i, j) (every
     ``stride``-th pixel of the window), or 0 (the pixel's surface: the reference's within
     ``edge`` of its anchor ``anc``); the noise std ``sigma``, or σ₁ = ``sigma`` of the
-    profile σ₁·(z / 1 m)^power at the mean depth z of the reference's samples used."""
+    profile σ₁·(z / 1 m)^power at the mean depth z of the reference's samples used. Returns
+    (that, the same from min(signif, ``low``) standard errors)."""
     h, w = ref.shape
     c = anc[i, j]
     m = 0
@@ -153,27 +154,32 @@ def _offset_at(reg, ref, anc, k, i, j, edge, sigma, power, radius, stride, buf, 
                 m += 1
                 zsum += u
     if m < 5:
-        return 0.0
+        return 0.0, 0.0
     sig = sigma if power == 0.0 else sigma * (zsum / m / 1000.0) ** power
     # significant only: beyond ``signif`` standard errors of the median of m differences of
     # two noisy samples
     se = 1.2533 * math.sqrt(2.0) * sig / math.sqrt(m)
     thr = signif[k, i, j] * se
-    # the median exceeds thr only if at least half the differences do (the common case, no
+    weak = min(signif[k, i, j], low) * se
+    # the median exceeds weak only if at least half the differences do (the common case, no
     # offset, is decided by counting, without the selection; the result is the same)
-    above, below = _twice_beyond(buf, m, thr)
+    above, below = _twice_beyond(buf, m, weak)
     if above < m and below < m:
-        return 0.0
+        return 0.0, 0.0
     med = _select_median(buf, m)
-    return med if abs(med) > thr else 0.0
+    return (med if abs(med) > thr else 0.0), (med if abs(med) > weak else 0.0)
 
 
 @nb.njit(cache=True, nogil=True, parallel=True)
 def _offset_kernel(
-    reg, ref, anc, ref_index, edge, sigma, power, signif, radius, out, step, stride, own
-):
+    reg, ref, anc, ref_index, edge, sigma, power, signif, radius, out, step, stride, own,
+    low, weak,
+):  # fmt: skip
     # pragma: no cover - numba
+    """``out``: the offsets of :func:`_offset_at`; where ``weak`` is not empty (0, 0, 0),
+    also those from min(signif, ``low``) standard errors (``low`` = ∞: none)."""
     n, h, w = reg.shape
+    both = weak.shape[0] > 0
     n_grid = (h + step - 1) // step
     size = (2 * radius + 1) ** 2
     # on every step-th pixel of each axis (the offsets are smooth), in parallel over the
@@ -185,9 +191,12 @@ def _offset_kernel(
             continue
         buf = np.empty(size, np.float32)
         for j in range(0, w, step):
-            out[k, i, j] = _offset_at(
-                reg, ref, anc, k, i, j, edge, sigma, power, radius, stride, buf, signif
+            a, b = _offset_at(
+                reg, ref, anc, k, i, j, edge, sigma, power, radius, stride, buf, signif, low
             )
+            out[k, i, j] = a
+            if both:
+                weak[k, i, j] = b
     # a pixel takes the value of its grid pixel when that one lies on its surface, else its
     # own (``own``) or none
     for kr in nb.prange(n * h):
@@ -195,6 +204,8 @@ def _offset_kernel(
         i = kr % h
         if k == ref_index:
             out[k, i] = 0.0
+            if both:
+                weak[k, i] = 0.0
             continue
         buf = np.empty(size, np.float32)
         gi = i - i % step
@@ -204,14 +215,18 @@ def _offset_kernel(
                 continue
             c = anc[i, j]
             g = anc[gi, gj]
+            a = b = 0.0
             if c > 0 and g > 0 and abs(c - g) <= edge:
-                out[k, i, j] = out[k, gi, gj]
+                a = out[k, gi, gj]
+                if both:
+                    b = weak[k, gi, gj]
             elif own:
-                out[k, i, j] = _offset_at(
-                    reg, ref, anc, k, i, j, edge, sigma, power, radius, stride, buf, signif
+                a, b = _offset_at(
+                    reg, ref, anc, k, i, j, edge, sigma, power, radius, stride, buf, signif, low
                 )
-            else:
-                out[k, i, j] = 0.0
+            out[k, i, j] = a
+            if both:
+                weak[k, i, j] = b
 
 
 #: ``_offset_kernel``'s (step, stride, own) of the offsets on the neighbourhood of
@@ -219,6 +234,9 @@ def _offset_kernel(
 #: explicitly: a call that leaves arguments to their defaults takes numba's slow dispatch,
 #: 0.7 ms per call under cProfile at 320×240.)
 OFFSET_GRID = (2, 1, True)
+
+#: ``_offset_kernel``'s (low, weak) where only the offsets from ``signif`` are wanted.
+NO_WEAK_OFFSETS = (np.inf, np.zeros((0, 0, 0), np.float32))
 
 #: The wider neighbourhood of :func:`radial_offsets` where the first is not significant
 #: (radius × this factor, every second pixel of it: (f·R + 1)² differences).
@@ -300,7 +318,7 @@ def radial_offsets(
     sigma, power = _sigma_and_power(sigma_mm, noise_profile)
     args = (reg, lr[ref], anc, int(ref), float(edge_mm), sigma, power, signif)
     out = np.empty((n, h, w), np.float32)
-    _offset_kernel(*args, int(radius_px), out, *OFFSET_GRID)
+    _offset_kernel(*args, int(radius_px), out, *OFFSET_GRID, *NO_WEAK_OFFSETS)
     return _with_wide_offsets(out, args[:-1], int(radius_px))
 
 
@@ -314,7 +332,7 @@ def _with_wide_offsets(offsets: np.ndarray, args: tuple, radius_px: int) -> np.n
     wide = np.empty_like(offsets)
     f = COARSE_RADIUS_FACTOR
     strict = np.full(offsets.shape, OFFSET_SIGNIFICANCE, np.float32)
-    _offset_kernel(*args, strict, f * int(radius_px), wide, 2 * f, 2, False)
+    _offset_kernel(*args, strict, f * int(radius_px), wide, 2 * f, 2, False, *NO_WEAK_OFFSETS)
     return np.where(offsets != 0, offsets, wide)
 
 
