@@ -131,7 +131,7 @@ def _drifting_body(drift_mm: float, signs: bool, frames: int = 30, seed: int = 0
     """The state of a body at 1.5 m in front of a static wall at 2 m, which moves
     ``drift_mm`` along the ray every frame with zero flow (it comes nearer without moving
     sideways), Laplacian noise of σ = 10 mm: the mean error of the state on the body's
-    interior against the truth over the last 20 frames (negative: it lags behind)."""
+    interior against the truth over the last 20 frames (positive: it lags behind, farther)."""
     rng = np.random.default_rng(seed)
     r, h, w, sigma = 2, 32, 32, 10.0
     flow = np.zeros((h * r, w * r, 2), np.float32)
