@@ -238,11 +238,16 @@ class MotionFrontEnd:
         second_mm: np.ndarray,
         first_u8: np.ndarray,
         second_u8: np.ndarray,
+        *,
+        noise_factor: float = 1.0,
     ) -> np.ndarray:
         """Flow (s·h, s·w, 2) from one frame to the next (eq. 17), given their prefiltered
-        frames and guides, without the motion the depth does not support."""
+        frames and guides, without the motion the depth does not support (judged against
+        ``second_mm``, with :meth:`supported_flow`'s ``noise_factor``)."""
         flow = self.flow_backend(first_u8, second_u8)
-        return self.supported_flow(first_mm, second_mm, flow, units_per_mm=1.0)
+        return self.supported_flow(
+            first_mm, second_mm, flow, units_per_mm=1.0, noise_factor=noise_factor
+        )
 
     def flow_pair(
         self,

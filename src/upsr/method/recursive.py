@@ -266,8 +266,7 @@ class RecursiveUPSR(TwoStagePipeline):
             if self._depth is None
             else (resample_nearest(self._depth, pre.shape), STATE_NOISE_FACTOR)
         )
-        raw = front.flow_backend(guide, self._prev_guide)
-        return front.supported_flow(pre, second, raw, units_per_mm=1.0, noise_factor=factor)
+        return front.consecutive_flow(pre, second, guide, self._prev_guide, noise_factor=factor)
 
     def _by_camera(self, flow: np.ndarray, pre: np.ndarray, frame: np.ndarray) -> np.ndarray:
         """``camera_motion="depth"``: the flow from ``frame`` to the previous frame replaced by
