@@ -6,7 +6,12 @@ import numpy as np
 import pytest
 
 import upsr
-from upsr.method.memory import REGISTRATION_ERROR_PX, level_to_reference, state_caps
+from upsr.method.memory import (
+    REGISTRATION_ERROR_PX,
+    innovation_caps,
+    level_to_reference,
+    state_caps,
+)
 from upsr.method.state_update import recursive_update
 from upsr.method.trust import reference_anchor
 
@@ -76,6 +81,33 @@ def test_the_update_never_counts_beyond_the_pixels_cap():
     _, n = recursive_update(depth, count, flow, meas, anchor, tol, scale=r, cap=caps)
     assert (n[:, :w] == 1.0).all()
     assert (n[:, w:] == 9.0).all()
+
+
+def test_a_slopes_state_that_strays_from_the_frames_summarises_fewer_frames():
+    """innovation_caps: where the registered state of a slope differs from the frame by 3σ
+    (a flow that is off there), the cap falls to about one frame; where it differs by what a
+    state of 9 frames and the noise allow, off the slope, by the offset it was moved by, or
+    without a state, the caps stay."""
+    rng = np.random.default_rng(0)
+    h, w, sigma = 12, 16, 10.0
+    meas = (2000.0 + rng.normal(0, sigma, (h, w))).astype(np.float32)
+    count = np.full((h, w), 9.0, np.float32)
+    caps = np.full((h, w), 9.0, np.float32)
+    sloped = np.zeros((h, w), bool)
+    sloped[:, : w // 2] = True
+    none = np.zeros((h, w), np.float32)
+
+    def caps_of(registered, offsets=none):
+        return innovation_caps(caps, registered, meas, offsets, count, sloped, sigma)
+
+    agreeing = (meas + rng.normal(0, sigma / 3, (h, w))).astype(np.float32)
+    np.testing.assert_array_equal(caps_of(agreeing), caps)
+    stray = (meas + rng.normal(0, 3 * sigma, (h, w))).astype(np.float32)
+    out = caps_of(stray)
+    assert (out[2:-2, 2 : w // 2 - 2] < 2.0).all()
+    np.testing.assert_array_equal(out[:, w // 2 :], 9.0)
+    np.testing.assert_array_equal(caps_of(agreeing + 50.0, none + 50.0), caps)
+    np.testing.assert_array_equal(caps_of(none), caps)
 
 
 def _sliding_ramp(slope_mm_per_px, speed_px, sigma, *, r=2, t=10, shape=(16, 24)):

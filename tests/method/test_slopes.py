@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 import upsr
-from upsr.method.slopes import follow_slopes, surface_slopes
+from upsr.method.slopes import follow_slopes, sloped_pixels, surface_slopes
 
 
 def _blocks(low: np.ndarray, r: int) -> np.ndarray:
@@ -268,3 +268,15 @@ def test_a_block_never_follows_its_slope_through_the_camera():
     assert (out > 0).all()
     assert out[2, :2].tolist() == [1.0, 1.0]
     assert out[2, 2:6].tolist() == [31.0, 51.0, 71.0, 91.0]
+
+
+def test_sloped_pixels_read_the_noise_at_their_depth():
+    """60 mm per pixel is beyond 2σ where a profile σ = 5·(z / 1 m)² mm gives σ ≤ 27 mm
+    (2–2.3 m), not where it gives 80–92 mm (4–4.3 m); a flat frame has no slope."""
+    near = np.tile(2000.0 + 60.0 * np.arange(6), (5, 1)).astype(np.float32)
+    far = near + 2000.0
+    profile = (5.0, 2.0)
+    assert sloped_pixels(near, near, 100.0, 0.0, noise_profile=profile).all()
+    assert not sloped_pixels(far, far, 100.0, 0.0, noise_profile=profile).any()
+    flat = np.full((5, 6), 2000.0, np.float32)
+    assert not sloped_pixels(flat, flat, 100.0, 10.0).any()

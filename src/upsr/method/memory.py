@@ -18,6 +18,7 @@ Basic Engineering* 82(1), 35–45.
 
 from __future__ import annotations
 
+import cv2
 import numba as nb
 import numpy as np
 
@@ -26,11 +27,14 @@ from upsr.method.consistency import maps_at_centres
 from upsr.method.trust import TOLERANCE_FLOOR_MM, _sigma_and_power
 
 __all__ = [
+    "INNOVATION_EXCESS",
+    "INNOVATION_RADIUS_PX",
     "MOVED_PX",
     "REACH_MIN_FRAMES",
     "REGISTRATION_ERROR_PX",
     "RELIEF_NOISE_FACTOR",
     "beyond_reach",
+    "innovation_caps",
     "level_to_reference",
     "moving_caps",
     "state_caps",
@@ -54,6 +58,13 @@ MOVED_PX = 0.5
 #: 1.402 with 7, 1.422 with 4 and 1.440 with 3, where the static wall beside the body, to
 #: which the flow spreads the body's motion, starts to lose).
 MOVING_STATE_FRAMES = 5.0
+#: :func:`innovation_caps`: the half-size (low-res px) of the neighbourhood whose differences
+#: between the registered state and the frame measure the state's process noise.
+INNOVATION_RADIUS_PX = 2
+#: :func:`innovation_caps`: the share of the noise's variance by which those differences must
+#: exceed it before the excess counts (their mean square over 25 pixels scatters by about
+#: half the variance under Laplacian noise: 2 is two of those spreads above).
+INNOVATION_EXCESS = 2.0
 
 
 def state_caps(
@@ -326,3 +337,75 @@ def _moved(
     (``centres``: :func:`maps_at_centres` of ``maps``, or None)."""
     at = (maps_at_centres(maps, shape) if centres is None else centres) / float(grid_scale)
     return at[..., 0] ** 2 + at[..., 1] ** 2 > MOVED_PX**2
+
+
+def innovation_caps(
+    caps: np.ndarray,
+    registered: np.ndarray,
+    measurement: np.ndarray,
+    offsets: np.ndarray,
+    count: np.ndarray,
+    sloped: np.ndarray,
+    sigma_mm: float,
+    *,
+    noise_profile: tuple[float, float] | None = None,
+) -> np.ndarray:
+    """The recursive mode's caps where the state of a slope strays from the frames: the
+    process noise of :func:`state_caps` measured rather than assumed.
+
+    :func:`state_caps` takes the state's registration error for ε =
+    :data:`REGISTRATION_ERROR_PX` everywhere and a slope from the tolerance's relief, which
+    counts a slope below (k + :data:`RELIEF_NOISE_FACTOR`)·σ per pixel as flat. Where the flow
+    is off on a slope by more (an approaching camera's narrow box tops: the state of those
+    slopes drifts nearer frame after frame, its error over N frames above that of one frame
+    alone, ``benchmarks/surface_errors.py``), the registered state differs from the frame by
+    more than their noise allows: on the pixels of a significant slope (``sloped``), the mean
+    square of those differences over the (2·:data:`INNOVATION_RADIUS_PX` + 1)² pixels around
+    (each clipped at 3 standard deviations; the applied radial ``offsets`` removed) beyond
+    :data:`INNOVATION_EXCESS` times the variance σ²·(1 + 1/n) that the noise gives a state of
+    count n is the process noise q of the Kalman filter of :func:`state_caps`, and the cap
+    there is at most (1 + √(1 + 4σ²/q)) / 2. Flat surfaces keep their caps: a moving body's
+    state differs from the frame where the flow does not follow it, which the trust rules
+    handle (lowering its caps too cost the realistic animal and deforming body 4–18 % of
+    surface rmse at σ = 30).
+
+    Parameters
+    ----------
+    caps : ndarray float32 (h, w)
+        The caps so far (:func:`state_caps`, :func:`moving_caps`).
+    registered : ndarray float32 (h, w)
+        The previous state at each low-res pixel's centre, moved by the flow (mm, 0 = none).
+    measurement : ndarray float32 (h, w)
+        The current frame (mm, 0 = none).
+    offsets : ndarray float32 (h, w)
+        The radial offsets applied to the registered state (mm).
+    count : ndarray float32 (h, w)
+        The state's count at each low-res pixel.
+    sloped : ndarray bool (h, w)
+        The pixels on a significant slope.
+    sigma_mm : float
+        Noise std (mm); with ``noise_profile`` (σ₁, p), σ₁ of σ(z) = σ₁·(z / 1 m)^p at the
+        measurement's depth.
+
+    Returns
+    -------
+    ndarray float32 (h, w): ``caps``, lowered where the differences say so.
+    """
+    ok = (registered > 0) & (measurement > 0)
+    if not (ok & sloped).any() or not sigma_mm > 0:
+        return caps
+    s1, power = _sigma_and_power(sigma_mm, noise_profile)
+    z = np.maximum(measurement, 1.0).astype(np.float64) / 1000.0
+    var = (s1 * (z**power if power else 1.0)) ** 2
+    expected = var * (1.0 + 1.0 / np.maximum(count, 1.0))
+    diff = np.where(ok, registered - offsets - measurement, 0.0).astype(np.float64)
+    square = np.where(ok, np.minimum(diff * diff, 9.0 * expected), 0.0)
+    k = 2 * INNOVATION_RADIUS_PX + 1
+    box = {"ksize": (k, k), "normalize": False, "borderType": cv2.BORDER_CONSTANT}
+    n = cv2.boxFilter(ok.astype(np.float64), -1, **box)
+    mean_square = cv2.boxFilter(square, -1, **box) / np.maximum(n, 1.0)
+    q = np.where(sloped & (n >= 9), mean_square - INNOVATION_EXCESS * expected, 0.0)
+    q = np.maximum(q, 0.0)
+    ratio = np.divide(var, q, out=np.full(q.shape, np.inf), where=q > 0)
+    cap = 0.5 * (1.0 + np.sqrt(1.0 + 4.0 * ratio))
+    return np.minimum(caps, cap).astype(np.float32)

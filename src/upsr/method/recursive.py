@@ -128,6 +128,7 @@ from upsr.method.mixed import remove_mixed_pixels, split_mixed_pixels
 from upsr.method.motion import FlowBackend, make_flow_backend
 from upsr.method.noise import NOISE_FREE_MM, second_differences, temporal_noise_mm
 from upsr.method.pipeline import TwoStagePipeline
+from upsr.method.slopes import sloped_pixels
 from upsr.method.state_update import STATE_NOISE_FACTOR, recursive_update
 from upsr.method.statistics import first_frame_noise_mm, noise_estimator, trust_profile
 from upsr.method.thin import ThinParts
@@ -380,18 +381,7 @@ class RecursiveUPSR(TwoStagePipeline):
                 self._signs = np.zeros(f.shape, np.int8)
             else:
                 depth, conf = self._depth, self._conf
-            caps = state_caps(
-                anchor, tol, float(cfg.n_frames), noise, k or 0.0, noise_profile=self._profile
-            )
-            # the flow at the low-res pixel centres (read by the caps and the radial test)
-            moved = self._depth is not None
-            centres = None
-            if moved and (k or cfg.radial_compensation):
-                centres = maps_at_centres(flow[None], f.shape)
-            if moved and k:
-                # (a moving slope's state: fewer frames)
-                s = flow.shape[1] / f.shape[1]
-                caps = moving_caps(caps, flow, cfg.n_frames, grid_scale=s, centres=centres)
+            caps, centres, sloped = self._caps(meas, anchor, tol, noise, flow)
             fused, conf, *share = recursive_update(
                 depth,
                 conf,  # type: ignore[arg-type]
@@ -422,6 +412,7 @@ class RecursiveUPSR(TwoStagePipeline):
                 else None,
                 kept=(kept := np.empty(f.shape, np.bool_)),
                 offset_signs=self._signs,
+                sloped=sloped,
             )
             if kept.any():
                 # the finishing sees the samples the state outvoted as removed
@@ -432,6 +423,31 @@ class RecursiveUPSR(TwoStagePipeline):
         self._prev_pre, self._prev_guide, self._prev_frame = pre, guide, f
         self._count = t + 1
         return fused, f, meas, anchor, noise, thin, remove_mixed
+
+    def _caps(
+        self, meas: np.ndarray, anchor: np.ndarray, tol: np.ndarray, noise: float, flow: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray | None, np.ndarray | None]:
+        """The frame's caps of the state (:func:`~upsr.method.memory.state_caps`, and where a
+        state was carried :func:`~upsr.method.memory.moving_caps`), the flow at the low-res
+        pixel centres (read by the caps and the radial test) and the pixels on a significant
+        slope (:func:`~upsr.method.slopes.sloped_pixels`: their caps follow the state's
+        differences from the frame, :func:`~upsr.method.memory.innovation_caps`)."""
+        cfg = self.config
+        k = cfg.trust_k
+        caps = state_caps(
+            anchor, tol, float(cfg.n_frames), noise, k or 0.0, noise_profile=self._profile
+        )
+        moved = self._depth is not None
+        centres = sloped = None
+        if moved and (k or cfg.radial_compensation):
+            centres = maps_at_centres(flow[None], meas.shape)
+        if moved and k:
+            # (a moving slope's state: fewer frames; a slope's state that strays: fewer still)
+            s = flow.shape[1] / meas.shape[1]
+            caps = moving_caps(caps, flow, cfg.n_frames, grid_scale=s, centres=centres)
+            edge = self._front.edge_mm  # type: ignore[union-attr]
+            sloped = sloped_pixels(meas, anchor, edge, noise, noise_profile=self._profile)
+        return caps, centres, sloped
 
     def _finish(
         self,

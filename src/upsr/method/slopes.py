@@ -56,6 +56,7 @@ __all__ = [
     "edge_ends",
     "follow_slopes",
     "plane_anchor",
+    "sloped_pixels",
     "surface_slopes",
 ]
 
@@ -587,3 +588,48 @@ def edge_ends(depth_mm: npt.ArrayLike, edge_mm: float) -> np.ndarray:
     rows = np.zeros(z.shape[::-1], np.bool_)
     _edge_ends_kernel(np.ascontiguousarray(z.T), float(edge_mm), rows)
     return out | rows.T
+
+
+def sloped_pixels(
+    frame: npt.ArrayLike,
+    anchor: npt.ArrayLike,
+    edge_mm: float,
+    sigma_mm: float,
+    *,
+    noise_profile: tuple[float, float] | None = None,
+) -> np.ndarray:
+    """The pixels on a significant slope: the slope of :func:`surface_slopes` of the
+    :func:`plane_anchor` (mm per low-res px, the larger of its two components' root sum of
+    squares) beyond :data:`SIGNIFICANCE` σ, the σ at the anchor's depth with a
+    ``noise_profile`` (σ₁, p): σ₁·(z / 1 m)^p.
+
+    Parameters
+    ----------
+    frame, anchor : array_like (h, w)
+        The frame and its anchor (:func:`upsr.method.trust.reference_anchor`), mm, 0 = none.
+    edge_mm : float
+        Depth step that separates two surfaces.
+    sigma_mm : float
+        Noise std (mm) without a profile.
+    noise_profile : (float, float), optional
+        (σ₁, p) of σ(z) = σ₁·(z / 1 m)^p, used where p > 0.
+
+    Returns
+    -------
+    ndarray of bool (h, w)
+
+    Examples
+    --------
+    >>> ramp = np.tile(1000.0 + 50.0 * np.arange(6), (5, 1))
+    >>> sloped_pixels(ramp, ramp, 100.0, 10.0)[2].tolist()
+    [True, True, True, True, True, True]
+    >>> bool(sloped_pixels(ramp, ramp, 100.0, 30.0).any())
+    False
+    """
+    a = nan_as_zero(anchor)
+    sy, sx = surface_slopes(plane_anchor(nan_as_zero(frame), a, edge_mm), edge_mm)
+    sigma = np.float32(max(float(sigma_mm), 0.0))
+    if noise_profile is not None and noise_profile[1] > 0:
+        s1, power = (np.float32(x) for x in noise_profile)
+        sigma = s1 * (np.maximum(a, np.float32(1.0)) / np.float32(1000.0)) ** power
+    return (a > 0) & (np.hypot(sy, sx) > SIGNIFICANCE * sigma)

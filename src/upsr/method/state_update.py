@@ -20,6 +20,7 @@ import numpy as np
 from upsr._numba import SAFE_FASTMATH
 from upsr.method.consistency import _block_side, _block_sides, _nearer_beside, hole_backgrounds
 from upsr.method.edges import state_votes
+from upsr.method.memory import innovation_caps
 from upsr.method.registration import _registered_state_kernel, flow_positions
 from upsr.method.trust import (
     NO_WEAK_OFFSETS,
@@ -238,8 +239,7 @@ def _update_kernel(
 
 
 def _state_offsets(
-    depth: np.ndarray,
-    positions: tuple[np.ndarray, np.ndarray],
+    registered: np.ndarray,
     flow: np.ndarray,
     meas: np.ndarray,
     anchor: np.ndarray,
@@ -254,20 +254,20 @@ def _state_offsets(
     signs: np.ndarray | None = None,
     counts: tuple[np.ndarray, float | np.ndarray] | None = None,
 ) -> np.ndarray:
-    """The radial offset (h, w) of the registered state against the frame (step 4 of the
-    module): the significance-tested median of :func:`upsr.method.trust.radial_offsets`,
-    without the frame's ``outliers`` (bool (h, w), or None). With ``signs`` (int8 (h, w):
-    the signs of the previous frame's offsets from :data:`STATE_CONFIRMED_SIGNIFICANCE`
-    standard errors, 0 where none; updated with this frame's), an offset from that many
-    standard errors is kept where the previous one there went the same way and the state
-    (``counts``: its count (r·h, r·w) and cap, a float or (h, w)) is at its cap."""
+    """The radial offset (h, w) of the ``registered`` state (h, w: at each low-res pixel's
+    centre) against the frame (step 4 of the module): the significance-tested median of
+    :func:`upsr.method.trust.radial_offsets`, without the frame's ``outliers`` (bool (h, w),
+    or None). With ``signs`` (int8 (h, w): the signs of the previous frame's offsets from
+    :data:`STATE_CONFIRMED_SIGNIFICANCE` standard errors, 0 where none; updated with this
+    frame's), an offset from that many standard errors is kept where the previous one there
+    went the same way and the state (``counts``: its count (r·h, r·w) and cap, a float or
+    (h, w)) is at its cap."""
     if outliers is not None:
         meas = np.where(outliers, np.float32(0.0), meas)
         anchor = np.where(outliers, np.float32(0.0), anchor)
     h, w = meas.shape
     sigma, power = _sigma_and_power(sigma_mm, noise_profile)
-    reg = np.empty((1, h, w), np.float32)
-    _registered_state_kernel(depth, *positions, int(scale), reg[0])
+    reg = registered[None]
     off = np.empty((1, h, w), np.float32)
     # the state is far less noisy than a frame: the significance test of
     # trust.radial_offsets (made for the difference of two noisy samples) with the std of
@@ -301,6 +301,50 @@ def _state_offsets(
     return off[0]
 
 
+def _offsets_and_caps(
+    d: np.ndarray,
+    c: np.ndarray,
+    positions: tuple[np.ndarray, np.ndarray],
+    flow: np.ndarray,
+    meas: np.ndarray,
+    anchor: np.ndarray,
+    outliers: np.ndarray | None,
+    cap: float | np.ndarray,
+    sloped: np.ndarray | None,
+    *,
+    scale: int,
+    sigma_mm: float,
+    edge_mm: float,
+    radius_px: int | None,
+    noise_profile: tuple[float, float] | None,
+    centres: np.ndarray | None,
+    signs: np.ndarray | None,
+) -> tuple[np.ndarray, np.ndarray]:
+    """The radial offsets (h, w) of the state (``d``, ``c``) registered along ``positions``
+    against the frame (:func:`_state_offsets`; 0 without a state or a ``radius_px``) and the
+    caps (h, w): ``cap``, lowered on the ``sloped`` pixels where the registered state strays
+    from the frame (:func:`upsr.method.memory.innovation_caps`)."""
+    h, w = meas.shape
+    offsets = np.zeros((h, w), np.float32)
+    caps = np.ascontiguousarray(np.broadcast_to(np.asarray(cap, np.float32), (h, w)))
+    if not ((radius_px or sloped is not None) and (d > 0).any()):
+        return offsets, caps
+    registered = np.empty((h, w), np.float32)  # the state at the low-res pixel centres
+    _registered_state_kernel(d, *positions, int(scale), registered)
+    if radius_px:
+        offsets = _state_offsets(
+            registered, flow, meas, anchor, outliers, scale=scale, sigma_mm=sigma_mm,
+            edge_mm=edge_mm, radius_px=int(radius_px), noise_profile=noise_profile,
+            centres=centres, signs=signs, counts=(c, cap),
+        )  # fmt: skip
+    if sloped is not None:
+        caps = innovation_caps(
+            caps, registered, meas, offsets, c[::scale, ::scale], sloped, sigma_mm,
+            noise_profile=noise_profile,
+        )  # fmt: skip
+    return offsets, caps
+
+
 def recursive_update(
     depth: np.ndarray,
     count: np.ndarray,
@@ -323,6 +367,7 @@ def recursive_update(
     outliers: tuple[np.ndarray, np.ndarray] | None = None,
     kept: np.ndarray | None = None,
     offset_signs: np.ndarray | None = None,
+    sloped: np.ndarray | None = None,
 ) -> tuple[np.ndarray, ...]:
     """One step of the recursive fusion (see the module): the state (``depth``, ``count``) of
     the previous frame, registered and updated with the current frame's ``measurement``.
@@ -379,6 +424,9 @@ def recursive_update(
     offset_signs : ndarray int8 (h, w), optional
         The signs of the last frame's offsets of :func:`_state_offsets` (zeros after a
         start), updated in place: offsets from :data:`STATE_CONFIRMED_SIGNIFICANCE` kept.
+    sloped : ndarray bool (h, w), optional
+        The frame's pixels on a significant slope (:func:`upsr.method.slopes.sloped_pixels`),
+        whose caps follow the state's differences from the frame (:func:`_offsets_and_caps`).
 
     Returns
     -------
@@ -394,16 +442,13 @@ def recursive_update(
     around, around_tol = (zero, zero) if outliers is None else outliers
     kept = np.empty((h, w), np.bool_) if kept is None else kept
     kept[...] = False
-    offsets = zero
-    if radial_radius_px and (d > 0).any():
-        offsets = _state_offsets(
-            d, (qx, qy), fl, meas, anchor, None if outliers is None else around > 0,
-            scale=scale, sigma_mm=sigma_mm, edge_mm=edge_mm, radius_px=int(radial_radius_px),
-            noise_profile=noise_profile, centres=centres, signs=offset_signs, counts=(c, cap),
-        )  # fmt: skip
+    offsets, caps = _offsets_and_caps(
+        d, c, (qx, qy), fl, meas, anchor, None if outliers is None else around > 0, cap,
+        sloped, scale=scale, sigma_mm=sigma_mm, edge_mm=edge_mm, radius_px=radial_radius_px,
+        noise_profile=noise_profile, centres=centres, signs=offset_signs,
+    )  # fmt: skip
     holes = hole_backgrounds(meas) if holes is None else holes
     enclosed = np.zeros((h, w), np.bool_) if enclosed is None else enclosed
-    caps = np.ascontiguousarray(np.broadcast_to(np.asarray(cap, np.float32), (h, w)))
     out_d = np.empty_like(d)
     out_n = np.empty_like(c)
     _update_kernel(
