@@ -8,7 +8,9 @@ one more frame stops outweighing that error (the steady state of a scalar Kalman
 process noise is (ε·g)²). :func:`level_to_reference` applies the same weights to a window's
 fused blocks: their shape comes from all the frames, their level, where the slope is steep
 for the noise, from the reference's own measurement; :func:`beyond_reach` bounds how far in
-time a window reaches for a pixel that moved.
+time a window reaches for a pixel that moved; :func:`innovation_caps` lowers the recursive
+state's caps on a slope where its differences from the frame show more process noise than
+the assumed registration error gives.
 
 References
 ----------

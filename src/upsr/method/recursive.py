@@ -51,7 +51,11 @@ Per frame t (only frame t and the state of t − 1 are read):
      n*), where n* ≤ N is the pixel's cap of :func:`~upsr.method.memory.state_caps` (a slope's state
      gains the registration error times the slope every frame: on steep slopes the current frame
      weighs more, without noise it is the estimate), about halved where the pixel moved since the
-     last frame (:func:`~upsr.method.memory.moving_caps`): the mean ``d += (m − d)/count``
+     last frame (:func:`~upsr.method.memory.moving_caps`), and on a significant slope
+     (:func:`~upsr.method.slopes.sloped_pixels`) lowered further where the registered state
+     differs from frame t by more than the noise allows, the excess taken for the state's
+     process noise (:func:`~upsr.method.memory.innovation_caps`: a flow that is off on a
+     narrow slope makes its state drift): the mean ``d += (m − d)/count``
      (``fusion_estimator`` "mean": with count < N exactly the running mean of the registered
      samples; also for "auto": the trust test has cut the noise's tails, and on the dense scenes of
      ``benchmarks/recursive_eval.py`` at σ = 10 and 30 mm the mean gave a lower surface rmse than
