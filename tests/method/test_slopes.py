@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 import upsr
-from upsr.method.slopes import follow_slopes, sloped_pixels, surface_slopes
+from upsr.method.slopes import follow_slopes, plane_slopes, sloped_pixels, surface_slopes
 
 
 def _blocks(low: np.ndarray, r: int) -> np.ndarray:
@@ -276,7 +276,8 @@ def test_sloped_pixels_read_the_noise_at_their_depth():
     near = np.tile(2000.0 + 60.0 * np.arange(6), (5, 1)).astype(np.float32)
     far = near + 2000.0
     profile = (5.0, 2.0)
-    assert sloped_pixels(near, near, 100.0, 0.0, noise_profile=profile).all()
-    assert not sloped_pixels(far, far, 100.0, 0.0, noise_profile=profile).any()
+    slopes = plane_slopes(near, near, 100.0)
+    assert sloped_pixels(near, slopes, 0.0, noise_profile=profile).all()
+    assert not sloped_pixels(far, slopes, 0.0, noise_profile=profile).any()
     flat = np.full((5, 6), 2000.0, np.float32)
-    assert not sloped_pixels(flat, flat, 100.0, 10.0).any()
+    assert not sloped_pixels(flat, plane_slopes(flat, flat, 100.0), 10.0).any()

@@ -117,6 +117,7 @@ def finish_frame(
     edge_mm: float,
     noise_mm: float,
     measured: np.ndarray | None = None,
+    slopes: tuple[np.ndarray, np.ndarray] | None = None,
 ) -> np.ndarray:
     """The steps beyond the paper after :func:`finish_fused`, for one output frame.
 
@@ -145,6 +146,9 @@ def finish_frame(
         The video's edge threshold and noise std (mm).
     measured : ndarray float32 (h, w), optional
         The reference as measured, before its mixed pixels and lone outliers were removed.
+    slopes : (ndarray, ndarray), optional
+        :func:`upsr.method.slopes.plane_slopes` of ``reference`` and ``anchor``, when
+        already computed.
 
     Returns
     -------
@@ -165,8 +169,9 @@ def finish_frame(
         if anchor is None:
             anchor = reference_anchor(reference, noise_mm, 1.0, edge_mm)[0]
         out = follow_slopes(
-            out, anchor, sigma_mm=noise_mm, edge_mm=edge_mm, frame=reference, measured=measured
-        )
+            out, anchor, sigma_mm=noise_mm, edge_mm=edge_mm, frame=reference, measured=measured,
+            slopes=slopes,
+        )  # fmt: skip
     if cfg.fill_holes:
         out = fill_holes(out, r, iterations=64)  # invented depth (off by default)
     return out

@@ -20,7 +20,8 @@ Basic Engineering* 82(1), 35–45.
 
 from __future__ import annotations
 
-import cv2
+import math
+
 import numba as nb
 import numpy as np
 
@@ -393,21 +394,57 @@ def innovation_caps(
     -------
     ndarray float32 (h, w): ``caps``, lowered where the differences say so.
     """
-    ok = (registered > 0) & (measurement > 0)
-    if not (ok & sloped).any() or not sigma_mm > 0:
+    if not sigma_mm > 0 or not sloped.any():
         return caps
     s1, power = _sigma_and_power(sigma_mm, noise_profile)
-    z = np.maximum(measurement, 1.0).astype(np.float64) / 1000.0
-    var = (s1 * (z**power if power else 1.0)) ** 2
-    expected = var * (1.0 + 1.0 / np.maximum(count, 1.0))
-    diff = np.where(ok, registered - offsets - measurement, 0.0).astype(np.float64)
-    square = np.where(ok, np.minimum(diff * diff, 9.0 * expected), 0.0)
-    k = 2 * INNOVATION_RADIUS_PX + 1
-    box = {"ksize": (k, k), "normalize": False, "borderType": cv2.BORDER_CONSTANT}
-    n = cv2.boxFilter(ok.astype(np.float64), -1, **box)
-    mean_square = cv2.boxFilter(square, -1, **box) / np.maximum(n, 1.0)
-    q = np.where(sloped & (n >= 9), mean_square - INNOVATION_EXCESS * expected, 0.0)
-    q = np.maximum(q, 0.0)
-    ratio = np.divide(var, q, out=np.full(q.shape, np.inf), where=q > 0)
-    cap = 0.5 * (1.0 + np.sqrt(1.0 + 4.0 * ratio))
-    return np.minimum(caps, cap).astype(np.float32)
+    out = np.array(caps, np.float32)
+    _innovation_kernel(
+        np.ascontiguousarray(registered, np.float32),
+        np.ascontiguousarray(measurement, np.float32),
+        np.ascontiguousarray(offsets, np.float32),
+        np.ascontiguousarray(count, np.float32),
+        np.ascontiguousarray(sloped, np.bool_),
+        float(s1), float(power), INNOVATION_RADIUS_PX, INNOVATION_EXCESS, out,
+    )  # fmt: skip
+    return out
+
+
+@nb.njit(cache=True, nogil=True, parallel=True)
+def _innovation_kernel(
+    registered, measurement, offsets, count, sloped, s1, power, radius, excess, out
+):  # pragma: no cover - numba
+    h, w = measurement.shape
+    # each pixel's clipped square difference (−1: none) and the variance the noise allows it
+    square = np.full((h, w), -1.0)
+    expected = np.zeros((h, w))
+    for i in nb.prange(h):
+        for j in range(w):
+            m = measurement[i, j]
+            if not m > 0:
+                continue
+            sig = s1 if power == 0.0 else s1 * (max(m, 1.0) / 1000.0) ** power
+            e = sig * sig * (1.0 + 1.0 / max(count[i, j], 1.0))
+            expected[i, j] = e
+            v = registered[i, j]
+            if v > 0:
+                d = v - offsets[i, j] - m
+                square[i, j] = min(d * d, 9.0 * e)
+    for i in nb.prange(h):
+        for j in range(w):
+            if not (sloped[i, j] and expected[i, j] > 0.0):
+                continue
+            total = 0.0
+            n = 0
+            for a in range(max(i - radius, 0), min(i + radius + 1, h)):
+                for b in range(max(j - radius, 0), min(j + radius + 1, w)):
+                    if square[a, b] >= 0.0:
+                        total += square[a, b]
+                        n += 1
+            if n < 9:
+                continue
+            q = total / n - excess * expected[i, j]
+            if q > 0.0:
+                sig2 = expected[i, j] / (1.0 + 1.0 / max(count[i, j], 1.0))
+                cap = 0.5 * (1.0 + math.sqrt(1.0 + 4.0 * sig2 / q))
+                if cap < out[i, j]:
+                    out[i, j] = cap

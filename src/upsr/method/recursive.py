@@ -132,7 +132,7 @@ from upsr.method.mixed import remove_mixed_pixels, split_mixed_pixels
 from upsr.method.motion import FlowBackend, make_flow_backend
 from upsr.method.noise import NOISE_FREE_MM, second_differences, temporal_noise_mm
 from upsr.method.pipeline import TwoStagePipeline
-from upsr.method.slopes import sloped_pixels
+from upsr.method.slopes import plane_slopes, sloped_pixels
 from upsr.method.state_update import STATE_NOISE_FACTOR, recursive_update
 from upsr.method.statistics import first_frame_noise_mm, noise_estimator, trust_profile
 from upsr.method.thin import ThinParts
@@ -385,7 +385,7 @@ class RecursiveUPSR(TwoStagePipeline):
                 self._signs = np.zeros(f.shape, np.int8)
             else:
                 depth, conf = self._depth, self._conf
-            caps, centres, sloped = self._caps(meas, anchor, tol, noise, flow)
+            caps, centres, slopes, sloped = self._caps(meas, anchor, tol, noise, flow)
             fused, conf, *share = recursive_update(
                 depth,
                 conf,  # type: ignore[arg-type]
@@ -422,36 +422,38 @@ class RecursiveUPSR(TwoStagePipeline):
                 # the finishing sees the samples the state outvoted as removed
                 meas = np.where(kept, np.float32(0.0), meas)
                 anchor = np.where(kept, np.float32(0.0), anchor)
+                slopes = None
         self._depth, self._conf = fused, conf
         self._share = share[0] if share else None
         self._prev_pre, self._prev_guide, self._prev_frame = pre, guide, f
         self._count = t + 1
-        return fused, f, meas, anchor, noise, thin, remove_mixed
+        return fused, f, meas, anchor, noise, thin, remove_mixed, slopes
 
     def _caps(
         self, meas: np.ndarray, anchor: np.ndarray, tol: np.ndarray, noise: float, flow: np.ndarray
-    ) -> tuple[np.ndarray, np.ndarray | None, np.ndarray | None]:
+    ) -> tuple[np.ndarray, np.ndarray | None, tuple | None, np.ndarray | None]:
         """The frame's caps of the state (:func:`~upsr.method.memory.state_caps`, and where a
         state was carried :func:`~upsr.method.memory.moving_caps`), the flow at the low-res
-        pixel centres (read by the caps and the radial test) and the pixels on a significant
-        slope (:func:`~upsr.method.slopes.sloped_pixels`: their caps follow the state's
-        differences from the frame, :func:`~upsr.method.memory.innovation_caps`)."""
+        pixel centres (read by the caps and the radial test), the frame's slopes
+        (:func:`~upsr.method.slopes.plane_slopes`, for the finishing too) and the pixels on a
+        significant slope (:func:`~upsr.method.slopes.sloped_pixels`: their caps follow the
+        state's differences from the frame, :func:`~upsr.method.memory.innovation_caps`)."""
         cfg = self.config
         k = cfg.trust_k
         caps = state_caps(
             anchor, tol, float(cfg.n_frames), noise, k or 0.0, noise_profile=self._profile
         )
         moved = self._depth is not None
-        centres = sloped = None
+        centres = slopes = sloped = None
         if moved and (k or cfg.radial_compensation):
             centres = maps_at_centres(flow[None], meas.shape)
         if moved and k:
             # (a moving slope's state: fewer frames; a slope's state that strays: fewer still)
             s = flow.shape[1] / meas.shape[1]
             caps = moving_caps(caps, flow, cfg.n_frames, grid_scale=s, centres=centres)
-            edge = self._front.edge_mm  # type: ignore[union-attr]
-            sloped = sloped_pixels(meas, anchor, edge, noise, noise_profile=self._profile)
-        return caps, centres, sloped
+            slopes = plane_slopes(meas, anchor, self._front.edge_mm)  # type: ignore[union-attr]
+            sloped = sloped_pixels(anchor, slopes, noise, noise_profile=self._profile)
+        return caps, centres, slopes, sloped
 
     def _finish(
         self,
@@ -462,6 +464,7 @@ class RecursiveUPSR(TwoStagePipeline):
         noise: float = 0.0,
         thin: ThinParts | None = None,
         remove_mixed: bool = False,
+        slopes: tuple | None = None,
     ) -> np.ndarray:
         """The output frame from the new state (the deblurring and the rules after it); the
         frame itself, nearest-upsampled, before the video's statistics (``fused`` None)."""
@@ -489,6 +492,7 @@ class RecursiveUPSR(TwoStagePipeline):
                 edge_mm=self._front.edge_mm,  # type: ignore[union-attr]
                 noise_mm=noise,
                 measured=f,
+                slopes=slopes,
             )
 
     def feed(self, frame: npt.ArrayLike) -> list[np.ndarray]:

@@ -56,6 +56,7 @@ __all__ = [
     "edge_ends",
     "follow_slopes",
     "plane_anchor",
+    "plane_slopes",
     "sloped_pixels",
     "surface_slopes",
 ]
@@ -387,6 +388,7 @@ def follow_slopes(
     edge_mm: float,
     frame: npt.ArrayLike | None = None,
     measured: npt.ArrayLike | None = None,
+    slopes: tuple[np.ndarray, np.ndarray] | None = None,
 ) -> np.ndarray:
     """The output frame with each block's linear trend set to its surface's slope.
 
@@ -415,6 +417,9 @@ def follow_slopes(
         pixel, beside the wall behind it, the mixed-pixel test removed still follows its
         slope (:func:`upsr.method.mixed.remove_mixed_pixels` cannot tell that pixel from a
         mix).
+    slopes : (ndarray, ndarray), optional
+        With ``frame``: :func:`plane_slopes` of ``frame`` and ``anchor``, when already
+        computed.
 
     Returns
     -------
@@ -442,7 +447,7 @@ def follow_slopes(
         sy, sx = surface_slopes(a, edge_mm)
     else:
         m = nan_as_zero(frame)
-        sy, sx = surface_slopes(plane_anchor(m, a, edge_mm), edge_mm)
+        sy, sx = plane_slopes(m, a, edge_mm) if slopes is None else slopes
         my, mx = surface_slopes(np.where(m > 0, m, np.float32(0.0)), edge_mm)
         if measured is not None:
             full = nan_as_zero(measured)
@@ -590,25 +595,33 @@ def edge_ends(depth_mm: npt.ArrayLike, edge_mm: float) -> np.ndarray:
     return out | rows.T
 
 
+def plane_slopes(
+    frame: npt.ArrayLike, anchor: npt.ArrayLike, edge_mm: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """(slope_y, slope_x) of :func:`surface_slopes` on the :func:`plane_anchor` of ``frame``
+    and its ``anchor`` (h, w, mm, 0 = none): the slopes :func:`follow_slopes` gives the blocks
+    (before the frame's own steep slopes)."""
+    return surface_slopes(plane_anchor(nan_as_zero(frame), nan_as_zero(anchor), edge_mm), edge_mm)
+
+
 def sloped_pixels(
-    frame: npt.ArrayLike,
     anchor: npt.ArrayLike,
-    edge_mm: float,
+    slopes: tuple[np.ndarray, np.ndarray],
     sigma_mm: float,
     *,
     noise_profile: tuple[float, float] | None = None,
 ) -> np.ndarray:
-    """The pixels on a significant slope: the slope of :func:`surface_slopes` of the
-    :func:`plane_anchor` (mm per low-res px, the larger of its two components' root sum of
-    squares) beyond :data:`SIGNIFICANCE` σ, the σ at the anchor's depth with a
-    ``noise_profile`` (σ₁, p): σ₁·(z / 1 m)^p.
+    """The pixels on a significant slope: the slope (``slopes``, mm per low-res px, usually
+    :func:`plane_slopes`; the root sum of squares of its two components) beyond
+    :data:`SIGNIFICANCE` σ, the σ at the anchor's depth with a ``noise_profile`` (σ₁, p):
+    σ₁·(z / 1 m)^p.
 
     Parameters
     ----------
-    frame, anchor : array_like (h, w)
-        The frame and its anchor (:func:`upsr.method.trust.reference_anchor`), mm, 0 = none.
-    edge_mm : float
-        Depth step that separates two surfaces.
+    anchor : array_like (h, w)
+        The frame's anchor (:func:`upsr.method.trust.reference_anchor`), mm, 0 = none.
+    slopes : (ndarray, ndarray) float (h, w)
+        (slope_y, slope_x), mm per low-res px.
     sigma_mm : float
         Noise std (mm) without a profile.
     noise_profile : (float, float), optional
@@ -621,15 +634,15 @@ def sloped_pixels(
     Examples
     --------
     >>> ramp = np.tile(1000.0 + 50.0 * np.arange(6), (5, 1))
-    >>> sloped_pixels(ramp, ramp, 100.0, 10.0)[2].tolist()
+    >>> slopes = plane_slopes(ramp, ramp, 100.0)
+    >>> sloped_pixels(ramp, slopes, 10.0)[2].tolist()
     [True, True, True, True, True, True]
-    >>> bool(sloped_pixels(ramp, ramp, 100.0, 30.0).any())
+    >>> bool(sloped_pixels(ramp, slopes, 30.0).any())
     False
     """
     a = nan_as_zero(anchor)
-    sy, sx = surface_slopes(plane_anchor(nan_as_zero(frame), a, edge_mm), edge_mm)
     sigma = np.float32(max(float(sigma_mm), 0.0))
     if noise_profile is not None and noise_profile[1] > 0:
         s1, power = (np.float32(x) for x in noise_profile)
         sigma = s1 * (np.maximum(a, np.float32(1.0)) / np.float32(1000.0)) ** power
-    return (a > 0) & (np.hypot(sy, sx) > SIGNIFICANCE * sigma)
+    return (a > 0) & (np.hypot(*slopes) > SIGNIFICANCE * sigma)
