@@ -422,7 +422,6 @@ class RecursiveUPSR(TwoStagePipeline):
                 # the finishing sees the samples the state outvoted as removed
                 meas = np.where(kept, np.float32(0.0), meas)
                 anchor = np.where(kept, np.float32(0.0), anchor)
-                slopes = None
         self._depth, self._conf = fused, conf
         self._share = share[0] if share else None
         self._prev_pre, self._prev_guide, self._prev_frame = pre, guide, f
@@ -435,9 +434,11 @@ class RecursiveUPSR(TwoStagePipeline):
         """The frame's caps of the state (:func:`~upsr.method.memory.state_caps`, and where a
         state was carried :func:`~upsr.method.memory.moving_caps`), the flow at the low-res
         pixel centres (read by the caps and the radial test), the frame's slopes
-        (:func:`~upsr.method.slopes.plane_slopes`, for the finishing too) and the pixels on a
-        significant slope (:func:`~upsr.method.slopes.sloped_pixels`: their caps follow the
-        state's differences from the frame, :func:`~upsr.method.memory.innovation_caps`)."""
+        (:func:`~upsr.method.slopes.plane_slopes`, those the finishing's blocks follow too:
+        its outliers the state outvotes, removed there, barely move a symmetric median) and
+        the pixels on a significant slope (:func:`~upsr.method.slopes.sloped_pixels`: their
+        caps follow the state's differences from the frame,
+        :func:`~upsr.method.memory.innovation_caps`)."""
         cfg = self.config
         k = cfg.trust_k
         caps = state_caps(
