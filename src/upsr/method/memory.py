@@ -369,7 +369,7 @@ def innovation_caps(
     count n is the process noise q of the Kalman filter of :func:`state_caps`, and the cap
     there is at most (1 + √(1 + 4σ²/q)) / 2. Flat surfaces keep their caps: a moving body's
     state differs from the frame where the flow does not follow it, which the trust rules
-    handle (lowering its caps too cost the realistic animal and deforming body 4–18 % of
+    handle (lowering its caps too cost the realistic animal and deforming body 5–18 % of
     surface rmse at σ = 30).
 
     Parameters
