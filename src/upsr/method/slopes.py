@@ -45,6 +45,7 @@ import numba as nb
 import numpy as np
 import numpy.typing as npt
 
+from upsr.method.noise import noise_at_depth
 from upsr.method.sorting import _small_median
 from upsr.method.validation import nan_as_zero
 
@@ -643,6 +644,5 @@ def sloped_pixels(
     a = nan_as_zero(anchor)
     sigma = np.float32(max(float(sigma_mm), 0.0))
     if noise_profile is not None and noise_profile[1] > 0:
-        s1, power = (np.float32(x) for x in noise_profile)
-        sigma = s1 * (np.maximum(a, np.float32(1.0)) / np.float32(1000.0)) ** power
+        sigma = noise_at_depth(a, *noise_profile)
     return (a > 0) & (np.hypot(*slopes) > SIGNIFICANCE * sigma)
