@@ -490,6 +490,123 @@ def _print_results(res: dict[str, Any]) -> None:
         )
 
 
+#: Issue #14's targets: (name, dense case index, path, key, bound, "min" | "max").
+ISSUE14_TARGETS = (
+    ("recursive 320×240 → 640×480 ≥ 30 frames/s (either way)", 1, "recursive*", "fps", 30.0),
+    ("recursive 640×480 → 1280×960 ≥ 15 frames/s (either way)", 2, "recursive*", "fps", 15.0),
+    ("recursive ToF ≥ 200 frames/s (either way)", 0, "recursive*", "fps", 200.0),
+    ("windowed 320×240 → 640×480 ≥ 10 frames/s", 1, "windowed", "fps", 10.0),
+    ("windowed 256×148 → 1024×592 ≤ 0.1 s/frame", 3, "windowed", "s_per_frame", 0.1),
+)
+
+
+def issue14_targets(res: dict[str, Any]) -> list[dict[str, Any]]:
+    """Issue #14's speed targets in this run: what was measured and whether it is met (the
+    recursive rates: the better of frame by frame and two threads)."""
+    out = []
+    tof = res["tof"][0]
+    out.append(
+        {
+            "target": "windowed ToF streaming ≥ 60 frames/s in every run",
+            "measured": ", ".join(f"{v:.1f}" for v in tof["fps_runs"]),
+            "met": min(tof["fps_runs"]) >= 60.0,
+        }
+    )
+    dense = res.get("dense", [])
+    for name, case, path, key, bound in ISSUE14_TARGETS:
+        if case >= len(dense):
+            continue
+        row = dense[case]
+        paths = (
+            [p for p in PATHS if p.startswith(path.rstrip("*"))] if path.endswith("*") else [path]
+        )
+        values = [row[p][key] for p in paths]
+        best = max(values) if key == "fps" else min(values)
+        met = best >= bound if key == "fps" else best <= bound
+        out.append({"target": name, "measured": " / ".join(f"{v:.3g}" for v in values), "met": met})
+    speedups = [row["windowed"]["speedup"] for row in dense if "speedup" in row["windowed"]]
+    if speedups:
+        out.append(
+            {
+                "target": "windowed ×20 the straightforward path on every dense scene",
+                "measured": ", ".join(f"×{v:.1f}" for v in speedups),
+                "met": min(speedups) >= 20.0,
+            }
+        )
+    return out
+
+
+def markdown(res: dict[str, Any]) -> str:
+    """The run's tables as Markdown (results.md)."""
+    m = res["machine"]
+    lines = [
+        "# Speed and memory",
+        "",
+        f"`{res['command']}`, started {m.get('started', '?')} at {m.get('commit', '?')}, "
+        f"{m['cpu']}, {m['cores']} cores.",
+        "",
+        "## ToF 64×56 → 256×224, r = 4, N = 9, streaming `UPSR.push` (after warm-up)",
+        "",
+        "| options | frames/s (median; runs) | ms/frame | CPU ms/frame | surface | edge % |",
+        "|---|---|---|---|---|---|",
+    ]
+    for row in res["tof"]:
+        name = ", ".join(f"{k}={v}" for k, v in row["options"].items()) or "defaults"
+        runs = ", ".join(f"{v:.1f}" for v in row["fps_runs"])
+        acc = row["accuracy"]
+        lines.append(
+            f"| {name} | {row['fps']:.1f} ({runs}) | {row['ms_per_frame']:.1f} | "
+            f"{row['cpu_ms_per_frame']:.1f} | {acc['surface_rmse']:.2f} | "
+            f"{100 * acc['edge_accuracy']:.2f} |"
+        )
+    if "dense" in res:
+        lines += [
+            "",
+            "## Dense scenes (every pixel measured), σ = 10 mm, N = 9",
+            "",
+            "| input → output (r) | path | frames/s | s/frame | × straightforward | surface |"
+            " edge % | flying % |",
+            "|---|---|---|---|---|---|---|---|",
+        ]
+        for row in res["dense"]:
+            for path in (*PATHS, "straightforward"):
+                if path in row:
+                    d, acc = row[path], row[path]["accuracy"]
+                    speedup = f"×{d['speedup']:.1f}" if "speedup" in d else ""
+                    lines.append(
+                        f"| {row['case']} | {path} | {d['fps']:.2f} | {d['s_per_frame']:.3f} | "
+                        f"{speedup} | {acc['surface_rmse']:.2f} | "
+                        f"{100 * acc['edge_accuracy']:.2f} | {100 * acc['flying_pixels']:.3f} |"
+                    )
+    if "samba" in res:
+        s, one = res["samba"], res["samba_one_window_at_a_time"]
+        lines += [
+            "",
+            f"## Samba 256×147 → 1024×588, r = 4, N = 9, σ = 30 mm ({s['frames']} frames)",
+            "",
+            f"{s['s_per_frame']:.3f} s per output frame ({s['workers']} workers), "
+            f"{one['s_per_frame']:.3f} one window at a time; stages (ms per frame, one window "
+            "at a time): " + ", ".join(f"{k} {v:.1f}" for k, v in one["stage_ms"].items()) + ".",
+        ]
+    if "comparison" in res:
+        c = res["comparison"]
+        lines.append(
+            f"Straightforward path {res['straightforward']['s_per_frame']:.3f} s per frame: "
+            f"speed-up ×{c['speedup']:.1f}; surface rmse {c['surface_rmse_change_pct']:+.1f} %, "
+            f"edge accuracy {c['edge_accuracy_change_pct']:+.2f} % (relative)."
+        )
+    if "memory" in res:
+        mem = res["memory"]
+        lines.append(
+            f"Memory: {mem['frames']} frames through `upsr run`: peak "
+            f"{mem['peak_rss_mb']:.0f} MB resident in {mem['seconds']:.0f} s."
+        )
+    lines += ["", "## Issue #14's targets", "", "| target | measured | met |", "|---|---|---|"]
+    for t in res.get("targets_issue14", []):
+        lines.append(f"| {t['target']} | {t['measured']} | {'✔' if t['met'] else '✘'} |")
+    return "\n".join(lines) + "\n"
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--out", default="results/bench/speed", help="output folder")
@@ -556,10 +673,14 @@ def main(argv: Sequence[str] | None = None) -> int:
             and c["edge_accuracy_change_pct"] >= -targets["accuracy_pct"]
         )
     res["targets"], res["targets_met"] = targets, met
+    res["targets_issue14"] = issue14_targets(res)
     _print_results(res)
     print("\ntargets met:", ", ".join(f"{k}: {'yes' if v else 'NO'}" for k, v in met.items()))
+    for t in res["targets_issue14"]:
+        print(f"  #14 {t['target']}: {t['measured']} {'yes' if t['met'] else 'NO'}")
     (out / "results.json").write_text(json.dumps(res, indent=2))
-    print(f"wrote {out / 'results.json'}")
+    (out / "results.md").write_text(markdown(res))
+    print(f"wrote {out / 'results.json'} and results.md")
     return 0
 
 
