@@ -398,6 +398,25 @@ def test_camera_moving_towards_a_wall_is_unbiased():
     assert abs((out - video.truth)[3:][both[3:]].mean()) < 2.5
 
 
+def test_the_innovation_caps_take_slopes_from_one_sigma(monkeypatch):
+    from upsr.method import memory, recursive
+
+    # (measured: the 240 recursive rows of benchmarks/realistic_eval.py --quick, seeds 0-7,
+    # moving surfaces -0.36 % against 2 sigma, the finishing's SIGNIFICANCE)
+    seen = []
+    sloped_pixels = recursive.sloped_pixels
+
+    def spy(*args, **kwargs):
+        seen.append(kwargs.get("significance"))
+        return sloped_pixels(*args, **kwargs)
+
+    monkeypatch.setattr(recursive, "sloped_pixels", spy)
+    scene = dynamic_scene(n_frames=3, lowres_shape=(24, 28), scale=2, noise_sigma_mm=10.0)
+    upsr.super_resolve(scene.lowres, 2, 3, mode="recursive")
+    assert seen and set(seen) == {memory.INNOVATION_SLOPE_SIGNIFICANCE}
+    assert memory.INNOVATION_SLOPE_SIGNIFICANCE == 1.0
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize("name", ["room", "toward_wall", "deforming"])
 def test_accuracy_near_the_windowed_mode_on_realistic_scenes(name):

@@ -281,3 +281,12 @@ def test_sloped_pixels_read_the_noise_at_their_depth():
     assert not sloped_pixels(far, slopes, 0.0, noise_profile=profile).any()
     flat = np.full((5, 6), 2000.0, np.float32)
     assert not sloped_pixels(flat, plane_slopes(flat, flat, 100.0), 10.0).any()
+
+
+def test_sloped_pixels_take_a_significance():
+    """15 mm per pixel at σ = 10 mm: a slope from 1σ (the recursive mode's innovation
+    caps), not from :data:`SIGNIFICANCE` = 2σ (the finishing's)."""
+    ramp = np.tile(1000.0 + 15.0 * np.arange(6), (5, 1)).astype(np.float32)
+    slopes = plane_slopes(ramp, ramp, 100.0)
+    assert not sloped_pixels(ramp, slopes, 10.0).any()
+    assert sloped_pixels(ramp, slopes, 10.0, significance=1.0).all()

@@ -68,6 +68,9 @@ INNOVATION_RADIUS_PX = 2
 #: exceed it before the excess counts (their mean square over 25 pixels scatters by about
 #: half the variance under Laplacian noise: 2 is two of those spreads above).
 INNOVATION_EXCESS = 2.0
+#: :func:`innovation_caps`: the plane slope (noise σ per low-res px) from which a pixel's cap
+#: follows its state's innovation (:func:`upsr.method.slopes.sloped_pixels`).
+INNOVATION_SLOPE_SIGNIFICANCE = 1.0
 
 
 def state_caps(

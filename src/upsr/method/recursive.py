@@ -28,9 +28,10 @@ Per frame t (only frame t and the state of t − 1 are read):
    σ(z) of the noise profile measured on the first frame where the noise grows with depth);
 3. registration: each output pixel p looks the state up at q = p + flow(q) (the flow read
    bilinearly on the flow grid, as the windowed fusion reads it); the state is never
-   interpolated: of the (at most 4) state pixels around q the nearest is taken, or, when it
-   lies beyond τ of the anchor, the one of the other three that lies within τ (so a depth
-   edge of the state is moved, not blurred);
+   interpolated across a depth edge: it is read bilinearly among the (at most 4) state
+   pixels around q that lie on the surface of the nearest one, or, when the nearest lies
+   beyond τ of the anchor, of the one of the other three closest to the anchor within τ (so
+   a depth edge of the state is moved, not blurred);
 4. radial compensation: the state's depth offset against frame t (motion along the viewing
    ray), the masked, significance-tested median of the differences over a neighbourhood of one
    surface (the rule of :func:`~upsr.method.trust.radial_offsets`, significant from at most
@@ -127,7 +128,7 @@ from upsr.method.consistency import enclosed_holes, hole_backgrounds, maps_at_ce
 from upsr.method.finishing import finish_frame, finish_fused
 from upsr.method.footprint import _share_of, footprint_counts, has_mixed_pixels
 from upsr.method.frontend import MotionFrontEnd, enough_for_statistics
-from upsr.method.memory import moving_caps, state_caps
+from upsr.method.memory import INNOVATION_SLOPE_SIGNIFICANCE, moving_caps, state_caps
 from upsr.method.mixed import remove_mixed_pixels, split_mixed_pixels
 from upsr.method.motion import FlowBackend, make_flow_backend
 from upsr.method.noise import NOISE_FREE_MM, second_differences, temporal_noise_mm
@@ -399,7 +400,8 @@ class RecursiveUPSR(TwoStagePipeline):
                 sigma_mm=noise,
                 edge_mm=front.edge_mm,
                 # (measured on the realistic scenes: 2× the windowed radius helps the room
-                # seen by a camera walking forward, hurts the others)
+                # seen by a camera walking forward, hurts the others; so does 1.5×, see the
+                # recursive notes)
                 radial_radius_px=(
                     RADIAL_RADIUS_FACTOR * cfg.radial_radius_px if cfg.radial_compensation else None
                 ),
@@ -453,7 +455,10 @@ class RecursiveUPSR(TwoStagePipeline):
             s = flow.shape[1] / meas.shape[1]
             caps = moving_caps(caps, flow, cfg.n_frames, grid_scale=s, centres=centres)
             slopes = plane_slopes(meas, anchor, self._front.edge_mm)  # type: ignore[union-attr]
-            sloped = sloped_pixels(anchor, slopes, noise, noise_profile=self._profile)
+            sloped = sloped_pixels(
+                anchor, slopes, noise, noise_profile=self._profile,
+                significance=INNOVATION_SLOPE_SIGNIFICANCE,
+            )  # fmt: skip
         return caps, centres, slopes, sloped
 
     def _finish(

@@ -611,10 +611,11 @@ def sloped_pixels(
     sigma_mm: float,
     *,
     noise_profile: tuple[float, float] | None = None,
+    significance: float = SIGNIFICANCE,
 ) -> np.ndarray:
     """The pixels on a significant slope: the slope (``slopes``, mm per low-res px, usually
     :func:`plane_slopes`; the root sum of squares of its two components) beyond
-    :data:`SIGNIFICANCE` σ, the σ at the anchor's depth with a ``noise_profile`` (σ₁, p):
+    ``significance`` σ, the σ at the anchor's depth with a ``noise_profile`` (σ₁, p):
     σ₁·(z / 1 m)^p.
 
     Parameters
@@ -627,6 +628,8 @@ def sloped_pixels(
         Noise std (mm) without a profile.
     noise_profile : (float, float), optional
         (σ₁, p) of σ(z) = σ₁·(z / 1 m)^p, used where p > 0.
+    significance : float
+        Slopes beyond this many σ count (default :data:`SIGNIFICANCE`, the finishing's).
 
     Returns
     -------
@@ -640,9 +643,11 @@ def sloped_pixels(
     [True, True, True, True, True, True]
     >>> bool(sloped_pixels(ramp, slopes, 30.0).any())
     False
+    >>> bool(sloped_pixels(ramp, slopes, 30.0, significance=1.0).all())
+    True
     """
     a = nan_as_zero(anchor)
     sigma = np.float32(max(float(sigma_mm), 0.0))
     if noise_profile is not None and noise_profile[1] > 0:
         sigma = noise_at_depth(a, *noise_profile)
-    return (a > 0) & (np.hypot(*slopes) > SIGNIFICANCE * sigma)
+    return (a > 0) & (np.hypot(*slopes) > significance * sigma)
