@@ -207,6 +207,17 @@ def test_exr_round_trip(tmp_path: Path) -> None:
     assert [n for n in listing(tmp_path) if n.startswith(".")] == []
 
 
+def test_a_single_png_file_holds_one_frame(tmp_path: Path) -> None:
+    v = video()
+    one = io.write_video(tmp_path / "one.png", v[:1])
+    assert one.is_file() and io.probe(one).shape == v[:1].shape
+    np.testing.assert_allclose(io.read_video(one), v[:1], atol=0.5)  # whole mm
+    with pytest.raises(InputError, match="holds one frame"):
+        io.write_video(tmp_path / "many.png", v)
+    assert not (tmp_path / "many.png").exists()
+    assert [n for n in listing(tmp_path) if n.startswith(".")] == []
+
+
 def test_exr_channels(tmp_path: Path) -> None:
     z = (video(t=1)[0] / 1000.0).astype(np.float32)  # metres, as renderers write
     rgb = np.zeros_like(z)

@@ -250,12 +250,13 @@ def frames(
 
 
 def writes_folder(dest: Path) -> bool:
-    """A PNG output is a folder of frames."""
-    return True
+    """A PNG output is a folder of frames unless ``dest`` ends in ``.png`` (one frame)."""
+    return dest.suffix.lower() != ".png"
 
 
 class FrameSink:
-    """Writes 16-bit PNG frames ``000000.png``, … into a folder (:class:`upsr.io._base.FrameSink`).
+    """Writes 16-bit PNG frames ``000000.png``, … into a folder, or one frame into one
+    ``.png`` file (:class:`upsr.io._base.FrameSink`; a second frame is refused).
 
     raw = round(mm · depth_scale / 1000); values above 65535 are clipped (one warning per
     video) and a measured depth never rounds to 0.
@@ -277,9 +278,15 @@ class FrameSink:
         self._temp = temp
         self._depth_scale = depth_scale
         self._warned_clip = False
+        self.is_folder = writes_folder(dest)
 
     def write(self, frame_mm: np.ndarray, t: int) -> None:
         """Write frame ``t`` (float32 mm, 0 = no measurement) as ``{t:06d}.png``."""
+        if not self.is_folder and t > 0:
+            raise InputError(
+                f"a .png file holds one frame: write a video of several frames to a folder "
+                f"(output name without suffix), not {self._dest.name}"
+            )
         f = frame_mm
         scale = self._depth_scale
         raw = f * np.float32(scale / 1000.0) if scale != 1000.0 else f
@@ -301,10 +308,14 @@ class FrameSink:
             ok, buf = cv2.imencode(".png", img)
         if not ok:
             raise OSError(f"cannot encode frame {t} as PNG")
-        (self._temp / f"{t:06d}.png").write_bytes(buf.tobytes())
+        dest = self._temp / f"{t:06d}.png" if self.is_folder else self._temp
+        dest.write_bytes(buf.tobytes())
 
     def close(self) -> None:
-        """Nothing to finish: every frame is a complete file."""
+        """Nothing to finish: every frame is a complete file (one file: flushed to disk)."""
+        if not self.is_folder:
+            with contextlib.suppress(OSError), open(self._temp, "rb") as f:
+                os.fsync(f.fileno())
 
     def abort(self) -> None:
         """Stop writing (the caller removes the folder)."""

@@ -220,11 +220,11 @@ def detect_tum_scale(
     sequence = any((folder.parent / f).is_file() for f in ("rgb.txt", "depth.txt"))
     if named or sequence or p99 > 20_000:
         why = "TUM timestamp names" if named else "a TUM sequence" if sequence else "the values"
+        # (the advice first: a long path must not push it past the one-line limit)
         return (
-            f"{p}: these PNGs look like TUM RGB-D depth ({why}; median raw {med:.0f} = "
-            f"{med / 5000:.2f} m at 5000 units/m, {med / 1000:.2f} m if read as mm): use "
-            f"--input-format tum (or --input-depth-scale 5000); --input-depth-scale 1000 "
-            f"keeps them as mm"
+            f"{p.name}: use --input-format tum or --input-depth-scale 5000 (1000 keeps mm): "
+            f"looks like TUM RGB-D depth, 5000 units/m ({why}; median {med / 5000:.2f} m, "
+            f"{med / 1000:.1f} m as mm)"
         )
     return None
 
@@ -239,8 +239,8 @@ def check_output_capacity(
 ) -> None:
     """Refuse, before processing, an output that cannot hold ``n_frames`` frames.
 
-    - a single ``.exr`` file holds one frame (write a folder: ``--format exr`` and a name
-      without suffix);
+    - a single ``.exr`` or ``.png`` file holds one frame (write a folder: a name without
+      suffix, with ``--format exr`` for EXR frames);
     - a 16-bit PNG folder holds raw values ≤ 65535: with ``max_depth_mm`` (the input's
       largest depth) beyond 65535 / depth_scale m, refused with the scale that fits.
 
@@ -255,10 +255,11 @@ def check_output_capacity(
     f = _output_format(p, fmt)
     if n_frames < 1:
         raise InputError(f"{p}: nothing to write ({n_frames} frames)")
-    if f == "exr" and not _folder_output(f, p) and n_frames > 1:
+    if f in ("exr", "png") and not _folder_output(f, p) and n_frames > 1:
+        how = "--format exr and an output name" if f == "exr" else "an output name"
         raise InputError(
-            f"{p}: a single .exr file holds one frame, the video has {n_frames}: write a "
-            f"folder of EXR frames (--format exr and an output name without suffix)"
+            f"{p}: a single .{f} file holds one frame, the video has {n_frames}: write a "
+            f"folder of {f.upper()} frames ({how} without suffix)"
         )
     if f == "png" and max_depth_mm is not None:
         raw_max = max_depth_mm * check_depth_scale(depth_scale) / 1000.0

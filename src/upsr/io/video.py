@@ -18,7 +18,7 @@ a folder of PNG files (``fmt="png"``)
     (``frame2.png`` before ``frame10.png``). A raw value v means ``v / depth_scale`` metres,
     i.e. ``v * 1000 / depth_scale`` mm: ``depth_scale=1000`` (the default) for PNGs in mm,
     ``5000`` for the TUM RGB-D benchmark. A single ``.png`` file is read as a 1-frame video.
-    Written as ``000000.png``, ``000001.png``, ….
+    Written as ``000000.png``, ``000001.png``, …, or one frame to a ``.png`` file.
 
 ``depth_scale`` applies to PNG frames only: ``.npy``/``.npz`` arrays always hold mm.
 Depth 0 or NaN means "no measurement" (``SPEC.md`` §1).
@@ -141,12 +141,13 @@ def _output_format(path: Path, fmt: str | None) -> str:
         return "tiff"
     if suffix == ".exr":
         return "exr"
-    if suffix == "" or path.is_dir():
+    if suffix == ".png" or suffix == "" or path.is_dir():
         return "png"
     bag = " (--format rosbag: a ROS 2 bag folder)" if suffix in (".db3", ".bag", ".mcap") else ""
     raise InputError(
-        f"{path}: unknown output format {path.suffix!r}: use a .npy, .npz, .tif or .exr file "
-        f"or a folder name (no suffix) for 16-bit PNG frames (--format exr: EXR frames){bag}"
+        f"{path}: unknown output format {path.suffix!r}: use a .npy, .npz, .tif, .exr or .png "
+        f"file or a folder name (no suffix) for 16-bit PNG frames (--format exr: EXR "
+        f"frames){bag}"
     )
 
 
@@ -351,9 +352,9 @@ class VideoWriter(AtomicWriter):
     ----------
     path : str or path-like
         ``.npy`` (float32 mm), ``.npz`` (float32 mm, key ``"depth"``), ``.tif``/``.tiff``
-        (float32, one page per frame), ``.exr`` (one float32 ``Z`` frame), or a folder name
-        without suffix (16-bit PNG frames ``000000.png``, …; EXR frames with ``fmt="exr"``; a
-        ROS 2 bag with ``fmt="rosbag"``).
+        (float32, one page per frame), ``.exr`` (one float32 ``Z`` frame), ``.png`` (one
+        16-bit frame), or a folder name without suffix (16-bit PNG frames ``000000.png``, …;
+        EXR frames with ``fmt="exr"``; a ROS 2 bag with ``fmt="rosbag"``).
     n_frames : int, optional
         Expected number of frames: writing more, or closing after fewer, raises InputError.
     fmt : {"npy", "npz", "png", "tiff", "exr", "rosbag"}, optional

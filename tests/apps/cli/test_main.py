@@ -85,6 +85,20 @@ def test_png_output_that_cannot_hold_the_depth_is_refused_first(
     assert rc == 0, err
 
 
+def test_a_tum_png_under_a_long_path_keeps_its_advice_on_the_line(
+    capsys: pytest.CaptureFixture[str], tmp_path: Path
+) -> None:
+    import cv2
+
+    folder = tmp_path / ("a_long_folder_name_of_a_recording_session" * 3)
+    folder.mkdir()
+    cv2.imwrite(str(folder / "depth.png"), np.full((24, 32), 30000, np.uint16))  # 6 m at 5000/m
+    rc, _out, err = run_cli(capsys, "run", folder / "depth.png", "-o", tmp_path / "o.npy", "-r", 2)
+    line = err.strip().splitlines()[-1]
+    assert rc == 2 and "--input-format tum" in line and len(line) <= 220
+    assert not (tmp_path / "o.npy").exists()
+
+
 def test_help_texts() -> None:
     runner = CliRunner()
     res = runner.invoke(cli.app, ["run", "--help"])

@@ -117,11 +117,14 @@ def test_tum_pngs_read_as_mm_are_refused_before_processing(capsys, here: Path, m
         assert abs(np.median(out[out > 0]) - np.median(video())) < 50
 
 
-def test_multi_frame_exr_file_fails_before_processing(capsys, here: Path, monkeypatch) -> None:
+@pytest.mark.parametrize("suffix", ["exr", "png"])
+def test_multi_frame_single_file_fails_before_processing(
+    capsys, here: Path, monkeypatch, suffix: str
+) -> None:
     np.save("in.npy", video())
     _no_engine(monkeypatch)
-    rc, _, err = run_cli(capsys, "run", "in.npy", "-o", "v.exr", "-r", 2, *FAST)
-    _one_error(rc, err, "single .exr file holds one frame")
+    rc, _, err = run_cli(capsys, "run", "in.npy", "-o", f"v.{suffix}", "-r", 2, *FAST)
+    _one_error(rc, err, f"single .{suffix} file holds one frame")
     assert ".part" not in err and ".upsr" not in err
     assert sorted(p.name for p in here.iterdir()) == ["in.npy"]
 

@@ -54,8 +54,8 @@ Input formats (by name; --input-format to force):
   tum, sun      --input-format for TUM (raw/5000 m) and SUN RGB-D PNGs
 The intrinsics (--intrinsics, or from the bag) scaled by r go to OUTPUT.intrinsics.json
 (with the frame names and timestamps); --color writes the colour on the output grid to
-OUTPUT.color/. Output formats: .npy, .npz, .tif, .exr, a folder of PNGs (or EXRs:
---format exr), a ROS 2 bag folder (--format rosbag).
+OUTPUT.color/. Output formats: .npy, .npz, .tif, .exr or .png (one frame), a folder of
+PNGs (or EXRs: --format exr), a ROS 2 bag folder (--format rosbag).
 
 \b
 Examples:
