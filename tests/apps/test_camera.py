@@ -66,6 +66,34 @@ def test_input_camera_flag_sidecar_or_none(tmp_path: Path) -> None:
         input_camera(path, info, "1,2", fmt=None, topic=None)
 
 
+def test_input_camera_from_a_json_file(tmp_path: Path) -> None:
+    """--intrinsics FILE.json: upsr's own sidecar, or an Open3D PinholeCameraIntrinsic (K
+    column-major), made for the input's frame size."""
+    path, info = _video(tmp_path)
+    ours = write_intrinsics(tmp_path / "cam.json", parse_intrinsics("30,31,8,6", 16, 12))
+    cam = input_camera(path, info, str(ours), fmt=None, topic=None)
+    assert (cam.fx, cam.fy, cam.cx, cam.cy, cam.width, cam.height) == (30, 31, 8, 6, 16, 12)
+    open3d = tmp_path / "open3d.json"
+    matrix = [20.0, 0.0, 0.0, 0.0, 21.0, 0.0, 7.5, 5.5, 1.0]
+    open3d.write_text(json.dumps({"width": 16, "height": 12, "intrinsic_matrix": matrix}))
+    cam = input_camera(path, info, str(open3d), fmt=None, topic=None)
+    assert (cam.fx, cam.fy, cam.cx, cam.cy) == (20, 21, 7.5, 5.5)
+    other = write_intrinsics(tmp_path / "big.json", parse_intrinsics("30,31,8,6", 32, 24))
+    with pytest.raises(InputError, match="intrinsics of 32x24 images, the input's frames are"):
+        input_camera(path, info, str(other), fmt=None, topic=None)
+    with pytest.raises(InputError, match="cannot read"):
+        input_camera(path, info, str(tmp_path / "none.json"), fmt=None, topic=None)
+
+
+def test_input_camera_reads_what_open3d_writes(tmp_path: Path) -> None:
+    o3d = pytest.importorskip("open3d")
+    path, info = _video(tmp_path)
+    intr = o3d.camera.PinholeCameraIntrinsic(16, 12, 20.0, 21.0, 7.5, 5.5)
+    o3d.io.write_pinhole_camera_intrinsic(str(tmp_path / "o3d.json"), intr)
+    cam = input_camera(path, info, str(tmp_path / "o3d.json"), fmt=None, topic=None)
+    assert (cam.fx, cam.fy, cam.cx, cam.cy, cam.width, cam.height) == (20, 21, 7.5, 5.5, 16, 12)
+
+
 def _mismatched(tmp_path: Path) -> Path:
     path, _ = _video(tmp_path)
     write_intrinsics(io.intrinsics_path(path), parse_intrinsics("30,31,8,6", 32, 24))

@@ -53,7 +53,9 @@ def input_camera(
     info : upsr.io.VideoInfo
         What :func:`upsr.io.probe` found (``width``, ``height`` in px).
     intrinsics : str or None
-        ``"fx,fy,cx,cy"`` in px (``--intrinsics``); it wins over what the input carries.
+        ``"fx,fy,cx,cy"`` in px, or a ``.json`` file of them (``--intrinsics``,
+        :func:`upsr.geometry.intrinsics.parse_intrinsics`); it wins over what the input
+        carries.
     fmt, topic : str or None
         Read options of the input (``--input-format``, ``--topic``).
 

@@ -51,13 +51,24 @@ CONVENTION = (
 
 
 def parse_intrinsics(text: str, width: int, height: int) -> PinholeCamera:
-    """Parse ``"fx,fy,cx,cy"`` (px) for images of ``width`` × ``height`` px.
+    """Parse ``"fx,fy,cx,cy"`` (px) for images of ``width`` × ``height`` px, or read a JSON
+    file of them (a name ending in ``.json``: an ``*.intrinsics.json`` of ``upsr run``, or an
+    Open3D ``PinholeCameraIntrinsic`` file; :func:`load_intrinsics`), made for that size.
 
     Raises
     ------
     InputError
-        Not four finite numbers, or fx/fy ≤ 0.
+        Not four finite numbers, or fx/fy ≤ 0; an unreadable file, or one for images of
+        another size.
     """
+    if str(text).strip().lower().endswith(".json"):
+        camera = load_intrinsics(str(text).strip())
+        if (camera.width, camera.height) != (int(width), int(height)):
+            raise InputError(
+                f"{text}: intrinsics of {camera.width}x{camera.height} images, the input's "
+                f"frames are {width}x{height}"
+            )
+        return camera
     parts = [p.strip() for p in str(text).replace(";", ",").split(",")]
     try:
         values = [float(p) for p in parts]
@@ -93,13 +104,19 @@ def camera_to_dict(camera: PinholeCamera) -> dict[str, Any]:
 
 
 def camera_from_dict(d: Any, name: str = "intrinsics") -> PinholeCamera:
-    """Inverse of :func:`camera_to_dict` (``K`` is ignored; fx, fy, cx, cy are used)."""
+    """Inverse of :func:`camera_to_dict` (``K`` is ignored; fx, fy, cx, cy are used), or an
+    Open3D ``PinholeCameraIntrinsic`` (width, height and ``intrinsic_matrix``, K column-major)."""
     if not isinstance(d, dict):
         raise InputError(f"{name}: expected a JSON object")
     try:
         w, h = d["width"], d["height"]
         if isinstance(w, bool) or isinstance(h, bool) or int(w) != w or int(h) != h:
             raise ValueError("width and height must be integers")
+        if "fx" not in d and "intrinsic_matrix" in d:
+            m = [float(v) for v in d["intrinsic_matrix"]]
+            if len(m) != 9:
+                raise ValueError("intrinsic_matrix must hold 9 numbers")
+            return PinholeCamera(m[0], m[4], m[6], m[7], int(w), int(h))
         return PinholeCamera(
             float(d["fx"]), float(d["fy"]), float(d["cx"]), float(d["cy"]), int(w), int(h)
         )

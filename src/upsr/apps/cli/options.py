@@ -239,9 +239,10 @@ IntrinsicsOpt = Annotated[
     str | None,
     typer.Option(
         "--intrinsics",
-        metavar="FX,FY,CX,CY",
-        help="Camera intrinsics of the input (px) [default: from the file: ROS CameraInfo, "
-        "RealSense, or INPUT.intrinsics.json].",
+        metavar="FX,FY,CX,CY|FILE.json",
+        help="Camera intrinsics of the input (px), or a JSON file of them (an "
+        "*.intrinsics.json, an Open3D PinholeCameraIntrinsic) [default: from the file: ROS "
+        "CameraInfo, RealSense, or INPUT.intrinsics.json].",
     ),
 ]
 #: ``--intrinsics`` of the commands that write OUTPUT.intrinsics.json (``run``, ``batch``).
@@ -249,9 +250,10 @@ OutIntrinsicsOpt = Annotated[
     str | None,
     typer.Option(
         "--intrinsics",
-        metavar="FX,FY,CX,CY",
-        help="Camera intrinsics of the input (px) [default: from the file: ROS CameraInfo, "
-        "RealSense, or INPUT.intrinsics.json]; scaled by r and written to "
+        metavar="FX,FY,CX,CY|FILE.json",
+        help="Camera intrinsics of the input (px), or a JSON file of them (an "
+        "*.intrinsics.json, an Open3D PinholeCameraIntrinsic) [default: from the file: ROS "
+        "CameraInfo, RealSense, or INPUT.intrinsics.json]; scaled by r and written to "
         "OUTPUT.intrinsics.json.",
     ),
 ]
