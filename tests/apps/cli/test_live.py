@@ -262,6 +262,26 @@ def test_live_valid_range_as_run(tmp_path, capsys):
 
 
 @needs_sdk
+def test_live_output_depth_scale_sets_the_png_units_of_the_output(tmp_path, capsys):
+    """--output-depth-scale is the output's: PNG frames in 0.2 mm with 5000, the same depths
+    as mm PNGs (the recording's own units come from the SDK); no --depth-scale, which means
+    the input's in `upsr run`."""
+    import upsr.io as uio
+
+    args = ["live", FIXTURE, "--no-real-time", "-r", "2", "-q"]
+    rc, _, err = run_cli(capsys, *args, "-o", tmp_path / "mm")
+    assert rc == 0, err
+    out = tmp_path / "fine"
+    rc, _, err = run_cli(capsys, *args, "-o", out, "--output-depth-scale", "5000")
+    assert rc == 0, err
+    fine = uio.read_video(out, depth_scale=5000.0)
+    np.testing.assert_allclose(fine, uio.read_video(tmp_path / "mm"), atol=0.5)
+    np.testing.assert_allclose(uio.read_video(out), 5.0 * fine, atol=0.01)  # read as mm
+    rc, _, err = run_cli(capsys, *args, "-o", tmp_path / "old", "--depth-scale", "5000")
+    assert rc == 2 and not (tmp_path / "old").exists()
+
+
+@needs_sdk
 def test_live_writes_a_ros2_bag_with_the_scaled_intrinsics_as_run_does(tmp_path, capsys):
     """A ROS 2 bag output (whose SQLite connection belongs to the thread that opened it: the
     frames finished on the engine's helper thread are written on the caller's) carries the

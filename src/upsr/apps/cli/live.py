@@ -42,12 +42,8 @@ from upsr.apps.cli.options import (
     CameraMotionOpt,
     EdgeMmOpt,
     FlowPresetOpt,
-    FlowScaleOpt,
-    FramesOpt,
     IterationsOpt,
     MaxMemoryOpt,
-    NoDeblurOpt,
-    OutDepthScaleOpt,
     OutFormat,
     QuietOpt,
     ScaleOpt,
@@ -129,19 +125,54 @@ SecondsOpt = Annotated[
     typer.Option("--seconds", min=0.0, help="Stop after this many seconds."),
 ]
 LiveOverwriteOpt = Annotated[bool, typer.Option("--overwrite", help="Replace OUTPUT if it exists.")]
+#: (the camera's or recording's depth units come from the SDK: only the output's are chosen;
+#: no ``--depth-scale``, which means the input's in ``upsr run``)
+LiveDepthScaleOpt = Annotated[
+    float,
+    typer.Option(
+        "--output-depth-scale",
+        metavar="UNITS_PER_M",
+        help="PNG/TIFF/EXR output: raw units per metre (1000 = mm, 1 = metres); .npy/.npz/"
+        "bags: always mm/m. The camera's depth units are read from the SDK.",
+    ),
+]
+#: (the recursive mode's N and flow grid, not the windowed mode's of ``upsr run``)
+LiveFramesOpt = Annotated[
+    int | None,
+    typer.Option(
+        "--frames",
+        "-n",
+        show_default=False,
+        help="N: the most frames a pixel's state summarises (the recursive mode's memory; "
+        "latency stays 0) [default: 9].",
+    ),
+]
+LiveFlowScaleOpt = Annotated[
+    int | None,
+    typer.Option(
+        "--flow-scale",
+        min=1,
+        help="Upsampling factor s <= r of the frames the flow is computed on [default: the "
+        "smallest s >= 1 giving a flow grid >= 192 px wide]. Smaller: faster.",
+    ),
+]
+LiveNoDeblurOpt = Annotated[
+    bool,
+    typer.Option("--no-deblur", help="Skip the deblurring step (output the fused state)."),
+]
 
 
 def live(
     output: LiveOutputOpt,
     scale: ScaleOpt,
     recording: SourceArg = None,
-    frames: FramesOpt = None,
+    frames: LiveFramesOpt = None,
     output_format: LiveFormatOpt = None,
-    depth_scale: OutDepthScaleOpt = 1000.0,
-    no_deblur: NoDeblurOpt = False,
+    depth_scale: LiveDepthScaleOpt = 1000.0,
+    no_deblur: LiveNoDeblurOpt = False,
     iterations: IterationsOpt = None,
     flow_preset: FlowPresetOpt = None,
-    flow_scale: FlowScaleOpt = None,
+    flow_scale: LiveFlowScaleOpt = None,
     preview: PreviewOpt = None,
     preview_every: PreviewEveryOpt = 10,
     no_real_time: NoRealTimeOpt = False,

@@ -180,7 +180,6 @@ DepthScaleAliasOpt = Annotated[
         "output's is --output-depth-scale).",
     ),
 ]
-OutDepthScaleOpt = DepthScaleAliasOpt  # the former name
 InputDepthScaleOpt = Annotated[
     float | None,
     typer.Option(
