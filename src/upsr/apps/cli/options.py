@@ -295,7 +295,11 @@ FramesOpt = Annotated[
 ]
 NoDeblurOpt = Annotated[
     bool,
-    typer.Option("--no-deblur", help="Skip the deblurring step (output the fused median)."),
+    typer.Option(
+        "--no-deblur",
+        help="Skip the deblurring step (output the fused image: the median or the mean of "
+        "the trusted samples, --fusion-estimator).",
+    ),
 ]
 LamOpt = Annotated[
     float | None,
