@@ -318,4 +318,4 @@ class FrameSink:
                 os.fsync(f.fileno())
 
     def abort(self) -> None:
-        """Stop writing (the caller removes the folder)."""
+        """Stop writing (the caller removes the temporary folder or file)."""

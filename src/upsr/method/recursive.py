@@ -399,9 +399,9 @@ class RecursiveUPSR(TwoStagePipeline):
                 estimator=self._estimator,
                 sigma_mm=noise,
                 edge_mm=front.edge_mm,
-                # (measured on the realistic scenes: 2× the windowed radius helps the room
-                # seen by a camera walking forward, hurts the others; so does 1.5×, see the
-                # recursive notes)
+                # (measured on the realistic scenes: 2× or 1.5× the windowed radius helps the
+                # room seen by a walking camera but costs a quantised sensor's walls and the
+                # approaching camera's edges; recursive notes)
                 radial_radius_px=(
                     RADIAL_RADIUS_FACTOR * cfg.radial_radius_px if cfg.radial_compensation else None
                 ),
