@@ -295,11 +295,7 @@ FramesOpt = Annotated[
 ]
 NoDeblurOpt = Annotated[
     bool,
-    typer.Option(
-        "--no-deblur",
-        help="Skip the deblurring step (output the fused image: the median or the mean of "
-        "the trusted samples, --fusion-estimator).",
-    ),
+    typer.Option("--no-deblur", help="Skip the deblurring step (output the fused image)."),
 ]
 LamOpt = Annotated[
     float | None,
