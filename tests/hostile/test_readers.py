@@ -159,3 +159,22 @@ def test_deeply_nested_intrinsics_json(tmp_path: Path) -> None:
     with pytest.raises(InputError) as e:
         load_intrinsics(p)
     assert_one_line(e)
+
+
+@pytest.mark.parametrize(
+    "text",
+    [
+        '{"width": 1e400, "height": 96, "fx": 1, "fy": 1, "cx": 0, "cy": 0}',  # inf size
+        '{"width": 8, "height": 6, "intrinsic_matrix": [NaN, 0, 0, 0, 1, 0, 0, 0, 1]}',
+        '{"width": 8, "height": 6, "intrinsic_matrix": [1, 0, 0]}',
+        '{"width": 8, "height": 6, "intrinsic_matrix": 5}',
+    ],
+)
+def test_hostile_intrinsics_json_is_one_line(tmp_path: Path, text: str) -> None:
+    from upsr.geometry.intrinsics import load_intrinsics
+
+    p = tmp_path / "cam.json"
+    p.write_text(text)
+    with pytest.raises(InputError) as e:
+        load_intrinsics(p)
+    assert_one_line(e)

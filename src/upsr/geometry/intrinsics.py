@@ -122,7 +122,7 @@ def camera_from_dict(d: Any, name: str = "intrinsics") -> PinholeCamera:
         )
     except InputError as e:
         raise InputError(f"{name}: {e}") from None
-    except (KeyError, TypeError, ValueError) as e:
+    except (KeyError, TypeError, ValueError, OverflowError) as e:
         raise InputError(f"{name}: not an intrinsics file ({type(e).__name__}: {e})") from None
 
 
