@@ -313,7 +313,9 @@ def test_missing_and_unreadable_inputs(tmp_path: Path) -> None:
     with pytest.raises(InputError, match="no PNG frames"):
         io.probe(tmp_path / "empty")
     (tmp_path / "tum" / "depth").mkdir(parents=True)
-    with pytest.raises(InputError, match="subfolders: depth"):
+    with pytest.raises(
+        InputError, match=r"subfolders: depth: give one of them; upsr batch .*/\* takes each"
+    ):
         io.probe(tmp_path / "tum")
     (tmp_path / "d.npy").mkdir()  # a folder is a folder of PNG frames, whatever its name
     with pytest.raises(InputError, match="no PNG frames"):

@@ -81,7 +81,12 @@ def frame_files(path: Path) -> list[Path]:
     ]
     if not files:
         subdirs = sorted(e.name for e in entries if e.is_dir() and not e.name.startswith("."))
-        hint = f" (subfolders: {', '.join(subdirs[:5])})" if subdirs else ""
+        hint = (
+            f" (subfolders: {', '.join(subdirs[:5])}: give one of them; upsr batch "
+            f"{path}/* takes each as a recording)"
+            if subdirs
+            else ""
+        )
         raise InputError(f"{path}: no PNG frames in this folder{hint}")
     files.sort(key=lambda p: natural_key(p.name))
     return files
