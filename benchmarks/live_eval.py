@@ -12,9 +12,10 @@ every run's figures. A new process's first frame loads the compiled kernels unle
 live`` loads them before the stream starts (:mod:`upsr.method.warmup`): the camera's frames
 meanwhile are dropped.
 
-Example::
+Examples::
 
     .venv/bin/python benchmarks/live_eval.py --out docs/results/live
+    .venv/bin/python benchmarks/live_eval.py --cases 2 --live-args="--flow-preset fast"
 """
 
 from __future__ import annotations
@@ -22,6 +23,7 @@ from __future__ import annotations
 import argparse
 import json
 import re
+import shlex
 import subprocess
 import sys
 import tempfile
@@ -55,11 +57,12 @@ def record(path: Path, scene: str, shape: tuple[int, int], r: int, sensor: str, 
     write_realsense_recording(path, low, fps=FPS, real_time=True)
 
 
-def run_live(recording: Path, r: int, out: Path) -> dict[str, Any]:
-    """``upsr live RECORDING -o OUT -r R -q`` in a new process: its summary's figures."""
+def run_live(recording: Path, r: int, out: Path, extra: Sequence[str] = ()) -> dict[str, Any]:
+    """``upsr live RECORDING -o OUT -r R -q [extra]`` in a new process: its summary's
+    figures."""
     out.unlink(missing_ok=True)
     cmd = [sys.executable, "-m", "upsr", "live", str(recording), "-o", str(out), "-r", str(r)]
-    proc = subprocess.run([*cmd, "-q"], capture_output=True, text=True, check=False)
+    proc = subprocess.run([*cmd, "-q", *extra], capture_output=True, text=True, check=False)
     m = SUMMARY.search(proc.stdout)
     if proc.returncode != 0 or m is None:
         raise RuntimeError(f"upsr live failed ({proc.returncode}): {proc.stdout}{proc.stderr}")
@@ -84,19 +87,27 @@ def main(argv: Sequence[str] | None = None) -> dict[str, Any]:
     p.add_argument("--frames", type=int, default=90, help="frames per recording (3 s)")
     p.add_argument("--runs", type=int, default=3)
     p.add_argument("--out", type=Path, default=Path("results/bench/live"))
+    p.add_argument("--cases", type=int, nargs="+", help="indices of CASES to run (default: all)")
+    p.add_argument(
+        "--live-args", default="", help='more options of upsr live, e.g. "--flow-preset fast"'
+    )
     args = p.parse_args(argv)
+    extra = shlex.split(args.live_args)
+    cases = [CASES[i] for i in args.cases] if args.cases else list(CASES)
     rows = []
     with tempfile.TemporaryDirectory(prefix="upsr-live-") as tmp:
-        for label, scene, shape, r, sensor in CASES:
+        for label, scene, shape, r, sensor in cases:
             rec = Path(tmp) / f"{scene}_{shape[1]}x{shape[0]}.db3"
             record(rec, scene, shape, r, sensor, args.frames)
-            runs = [run_live(rec, r, Path(tmp) / "out.npy") for _ in range(args.runs)]
+            runs = [run_live(rec, r, Path(tmp) / "out.npy", extra) for _ in range(args.runs)]
             runs.sort(key=lambda run: run["frames"])
             rows.append({"case": label, "recorded": args.frames, **runs[len(runs) // 2]})
             rows[-1]["runs"] = runs
             print(f"  {label}: done", flush=True)
+    options = f" `{args.live_args}`" if args.live_args else ""
     lines = [
-        f"upsr live, SDK recordings of {args.frames} frames played in real time at {FPS}/s",
+        f"upsr live{options}, SDK recordings of {args.frames} frames played in real time at "
+        f"{FPS}/s",
         "",
         "| case | processed | dropped | frames/s | latency median | max | runs (processed / "
         "dropped) |",
@@ -110,7 +121,7 @@ def main(argv: Sequence[str] | None = None) -> dict[str, Any]:
         )
     print("\n" + "\n".join(lines))
     args.out.mkdir(parents=True, exist_ok=True)
-    result = {"fps_recorded": FPS, "frames": args.frames, "rows": rows}
+    result = {"fps_recorded": FPS, "frames": args.frames, "live_args": extra, "rows": rows}
     (args.out / "results.json").write_text(json.dumps(result, indent=2))
     (args.out / "results.md").write_text("\n".join(lines) + "\n")
     return result
