@@ -135,6 +135,17 @@ def test_live_in_real_time_drops_frames_rather_than_queueing_them(tmp_path, caps
     assert np.load(out)["depth"].shape == (done, 80, 96)
 
 
+def test_a_stream_that_drops_frames_is_told_what_keeps_up():
+    from upsr.apps.cli.live import DROP_HINT_SHARE, drop_hint
+
+    assert drop_hint(90, 0, "medium") is None
+    assert drop_hint(95, int(DROP_HINT_SHARE * 100), "medium") is None  # 5 of 100: no note
+    note = drop_hint(84, 6, "medium")
+    assert "6 of 90 frames dropped (7 %)" in note and "--flow-preset fast" in note
+    assert "--flow-preset" not in drop_hint(84, 6, "fast")
+    assert drop_hint(0, 0, "medium") is None
+
+
 @needs_sdk
 def test_live_bad_recording(tmp_path, capsys):
     rc, out, err = run_cli(

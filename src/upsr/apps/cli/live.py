@@ -259,6 +259,27 @@ def live(
         f"{lat[-1]:.0f} ms max, {source.dropped} dropped) -> {output}"
         + (" (stopped by Ctrl-C)" if stats.get("stopped") else "")
     )
+    hint = drop_hint(done, source.dropped, cfg.flow_preset)
+    if hint is not None:
+        typer.echo(hint, err=True)
+
+
+#: Share of the frames dropped from which :func:`drop_hint` names the cheaper settings.
+DROP_HINT_SHARE = 0.05
+
+
+def drop_hint(done: int, dropped: int, flow_preset: str) -> str | None:
+    """A one-line note when more than :data:`DROP_HINT_SHARE` of the frames were dropped:
+    what keeps up (``--flow-preset fast``: 90 of 90 frames at 320×240 → 640×480 where
+    ``medium`` kept 84, README speed section; a smaller stream; a lower r); None otherwise."""
+    total = done + dropped
+    if total == 0 or dropped <= DROP_HINT_SHARE * total:
+        return None
+    faster = "" if flow_preset in ("fast", "ultrafast") else "--flow-preset fast, "
+    return (
+        f"upsr live: note: {dropped} of {total} frames dropped ({100 * dropped / total:.0f} %): "
+        f"{faster}a smaller --stream or a lower --scale keeps up"
+    )
 
 
 def _stream(
