@@ -12,6 +12,7 @@ import numba as nb
 import numpy as np
 import numpy.typing as npt
 
+from upsr.method.noise import _sigma_at
 from upsr.method.slopes import STEEP_RUN_RATIO, _steps_agree
 from upsr.method.sorting import _small_median
 
@@ -88,7 +89,7 @@ def _own_surface(z, i, j, c, sigma, power, edge, buf, mode):  # pragma: no cover
     if mode == 0:
         return c
     v = z[i, j]
-    sig = sigma if power == 0.0 else sigma * (v / 1000.0) ** power
+    sig = _sigma_at(sigma, power, v)
     lim = OWN_SURFACE_SIGMAS * sig
     if not abs(c - v) > lim:
         return c
@@ -198,7 +199,7 @@ def _anchor_kernel(
                     u = anchor[a, b]
                     if u > 0 and abs(u - a0) <= edge:
                         relief = max(relief, abs(u - a0))
-            sig = sigma if power == 0.0 else sigma * (a0 / 1000.0) ** power
+            sig = _sigma_at(sigma, power, a0)
             tol[i, j] = max(k * sig + relief, floor)
 
 
@@ -250,7 +251,7 @@ def _outlier_kernel(z, sigma, power, around, limit):  # pragma: no cover - numba
             if m < 9 or min(above, below) > 1:
                 continue
             c = _small_median(buf, m)
-            sig = sigma if power == 0.0 else sigma * (c / 1000.0) ** power
+            sig = _sigma_at(sigma, power, c)
             if not abs(v - c) > OWN_SURFACE_SIGMAS * sig:
                 continue
             # the spread of the samples around the median (a slope's relief, the noise)

@@ -27,6 +27,7 @@ import numpy as np
 
 from upsr.method.config import UPSRConfig
 from upsr.method.consistency import maps_at_centres
+from upsr.method.noise import _sigma_at
 from upsr.method.trust import TOLERANCE_FLOOR_MM, _sigma_and_power
 
 __all__ = [
@@ -425,7 +426,7 @@ def _innovation_kernel(
             m = measurement[i, j]
             if not m > 0:
                 continue
-            sig = s1 if power == 0.0 else s1 * (max(m, 1.0) / 1000.0) ** power
+            sig = _sigma_at(s1, power, max(m, 1.0))
             e = sig * sig * (1.0 + 1.0 / max(count[i, j], 1.0))
             expected[i, j] = e
             v = registered[i, j]

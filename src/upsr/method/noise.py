@@ -274,6 +274,13 @@ def noise_profile(
     return float(math.exp(log_s1)), float(power)
 
 
+@nb.njit(cache=True, nogil=True, inline="always")
+def _sigma_at(sigma, power, depth):  # pragma: no cover - numba
+    """σ(z) of :func:`noise_at_depth` for one depth z > 0 in a compiled kernel: ``sigma``
+    itself where ``power`` is 0 (no profile), else σ₁·(z / 1 m)^p."""
+    return sigma if power == 0.0 else sigma * (depth / 1000.0) ** power
+
+
 def noise_at_depth(depth_mm: npt.ArrayLike, sigma_1m_mm: float, power: float) -> np.ndarray:
     """σ(z) = σ₁·(z / 1 m)^p (mm) of a :func:`noise_profile`, 0 where the depth is not > 0."""
     z = np.asarray(depth_mm, np.float64)

@@ -34,6 +34,7 @@ from upsr.method.anchor import (
 )
 from upsr.method.consistency import hole_backgrounds, maps_at_centres, registered_samples
 from upsr.method.mixed import ABSTAIN
+from upsr.method.noise import _sigma_at
 from upsr.method.sorting import _small_median, _twice_beyond, median_beyond
 
 __all__ = [
@@ -155,7 +156,7 @@ def _offset_at(reg, ref, anc, k, i, j, edge, sigma, power, radius, stride, buf, 
                 zsum += u
     if m < 5:
         return 0.0, 0.0
-    sig = sigma if power == 0.0 else sigma * (zsum / m / 1000.0) ** power
+    sig = _sigma_at(sigma, power, zsum / m)
     # significant only: beyond ``signif`` standard errors of the median of m differences of
     # two noisy samples
     se = 1.2533 * math.sqrt(2.0) * sig / math.sqrt(m)
