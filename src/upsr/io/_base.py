@@ -45,6 +45,7 @@ __all__ = [
     "natural_key",
     "reading",
     "set_frame_budget",
+    "sync_file",
 ]
 
 PathLike = str | os.PathLike
@@ -119,6 +120,12 @@ _FILE_KINDS = (
     (stat.S_ISCHR, "a character device"),
     (stat.S_ISBLK, "a block device"),
 )
+
+
+def sync_file(path: Path) -> None:
+    """Flush a file written by name (a library that closes its own handle) to the disk."""
+    with open(path, "rb") as f:
+        os.fsync(f.fileno())
 
 
 def file_kind(mode: int) -> str:

@@ -13,7 +13,6 @@ channel (ZIP compression), in mm × depth_scale / 1000: a ``.exr`` path holds on
 from __future__ import annotations
 
 import contextlib
-import os
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any, BinaryIO
@@ -21,7 +20,7 @@ from typing import Any, BinaryIO
 import numpy as np
 
 from upsr.errors import InputError
-from upsr.io._base import VideoInfo, reading
+from upsr.io._base import VideoInfo, reading, sync_file
 from upsr.io._common import (
     c_output_captured,
     check_frame_size,
@@ -218,8 +217,8 @@ class FrameSink:
     def close(self) -> None:
         """Nothing to finish: every frame is a complete file."""
         if not self.is_folder:
-            with contextlib.suppress(OSError), open(self._temp, "rb") as f:
-                os.fsync(f.fileno())
+            with contextlib.suppress(OSError):
+                sync_file(self._temp)
 
     def abort(self) -> None:
         """Stop writing (the caller removes the temporary)."""

@@ -30,7 +30,7 @@ from pathlib import Path
 import numpy as np
 
 from upsr.errors import InputError
-from upsr.io._base import PathLike
+from upsr.io._base import PathLike, sync_file
 
 __all__ = [
     "check_frame_names",
@@ -170,5 +170,4 @@ def finish_output(
         with zipfile.ZipFile(temp, "a", zipfile.ZIP_DEFLATED) as zf:
             with zf.open("timestamps.npy", "w") as member:
                 np.lib.format.write_array(member, ts, allow_pickle=False)
-        with open(temp, "rb") as fh:
-            os.fsync(fh.fileno())
+        sync_file(temp)

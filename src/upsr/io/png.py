@@ -29,6 +29,7 @@ from upsr.io._base import (
     check_input_type,
     natural_key,
     reading,
+    sync_file,
 )
 from upsr.io.registry import ReadOptions
 from upsr.method.validation import as_depth_frame
@@ -319,8 +320,8 @@ class FrameSink:
     def close(self) -> None:
         """Nothing to finish: every frame is a complete file (one file: flushed to disk)."""
         if not self.is_folder:
-            with contextlib.suppress(OSError), open(self._temp, "rb") as f:
-                os.fsync(f.fileno())
+            with contextlib.suppress(OSError):
+                sync_file(self._temp)
 
     def abort(self) -> None:
         """Stop writing (the caller removes the temporary folder or file)."""

@@ -19,7 +19,7 @@ from typing import Any, BinaryIO
 import numpy as np
 
 from upsr.errors import InputError
-from upsr.io._base import VideoInfo, reading
+from upsr.io._base import VideoInfo, reading, sync_file
 from upsr.io._common import check_frame_size, frame_files, mixed_size, raw_to_mm
 from upsr.io.registry import ReadOptions, require
 from upsr.method.validation import as_depth_frame
@@ -190,8 +190,7 @@ class FrameSink:
     def close(self) -> None:
         """Finish the file (flushed and synced)."""
         self._tw.close()
-        with open(self._temp, "rb") as f:
-            os.fsync(f.fileno())
+        sync_file(self._temp)
 
     def abort(self) -> None:
         """Stop writing (the caller removes the temporary)."""
