@@ -118,6 +118,18 @@ def test_a_bad_frame_in_push_async_raises_here_and_the_frame_in_flight_still_fin
     assert engine.flush() == [] and engine.frames_seen == 0
 
 
+def test_the_engine_made_directly_has_the_recursive_mode_and_its_defaults():
+    # the mode picks defaults (the flow grid: s = 1 from 192 px wide in the recursive mode)
+    engine = RecursiveUPSR(scale=2)
+    assert engine.config.mode == "recursive"
+    assert engine.config == upsr.UPSR(scale=2, mode="recursive").config
+    assert engine.config.flow_grid_scale(320) == 1
+    with pytest.raises(InputError, match="recursive engine"):
+        RecursiveUPSR(scale=2, mode="windowed")
+    with pytest.raises(InputError, match="recursive engine"):
+        RecursiveUPSR(config=upsr.UPSRConfig(scale=2))
+
+
 def test_bad_mode_and_input():
     with pytest.raises(InputError, match="mode"):
         upsr.UPSRConfig(mode="causal")

@@ -187,9 +187,12 @@ class RecursiveUPSR(TwoStagePipeline):
         workers: int | None = None,
         **options: Any,
     ) -> None:
-        self.config = (
-            config if config is not None else UPSRConfig.from_options(scale, n_frames, **options)
-        )
+        if config is None:
+            config = UPSRConfig.from_options(scale, n_frames, **{"mode": "recursive", **options})
+        if config.mode != "recursive":
+            # (the mode picks defaults, the flow grid's among them: the engine and the mode agree)
+            raise InputError(f"RecursiveUPSR is the recursive engine, not mode={config.mode!r}")
+        self.config = config
         self._custom_flow = flow_backend
         # a two-stage pipeline: one helper
         self.workers = min(resolve_workers(workers, 1), 1)
