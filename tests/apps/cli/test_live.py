@@ -258,6 +258,50 @@ def test_ctrl_c_ends_the_stream_and_keeps_what_was_processed(tmp_path, capsys, m
 
 
 @needs_sdk
+def test_a_second_ctrl_c_while_the_frames_finish_discards_the_output(tmp_path, capsys, monkeypatch):
+    """After the first Ctrl-C the processed frames are being written; a second one (a real
+    SIGINT, delivered while the writer thread writes) discards them: exit 130, "no output
+    written" and nothing on disk (it was an exception in native code that aborted the
+    process and left the output behind)."""
+    import os
+    import signal
+
+    from upsr.apps.cli import live as live_cli
+    from upsr.io import video as io
+
+    frames = live_cli.FrameSource.__iter__
+    flags = []
+
+    def interrupted(self):
+        for k, item in enumerate(frames(self)):
+            if k == 6:
+                raise KeyboardInterrupt
+            yield item
+
+    def discards(abort):
+        flags.append(abort)
+        install(abort)
+
+    def write(self, *args, **kwargs):
+        written(self, *args, **kwargs)
+        if flags and not flags[0].is_set():
+            os.kill(os.getpid(), signal.SIGINT)  # (handled on the main thread)
+            assert flags[0].wait(10)
+
+    install, written = live_cli._second_interrupt_discards, io.VideoWriter.write
+    monkeypatch.setattr(live_cli.FrameSource, "__iter__", interrupted)
+    monkeypatch.setattr(live_cli, "_second_interrupt_discards", discards)
+    monkeypatch.setattr(io.VideoWriter, "write", write)
+    handler = signal.getsignal(signal.SIGINT)
+    rc, _, err = run_cli(capsys, "live", FIXTURE, "--no-real-time", "-o", tmp_path / "o.npy",
+                              "-r", "2", "-q")  # fmt: skip
+    assert rc == 130 and "interrupted, no output written" in err, err
+    assert flags and flags[0].is_set()
+    assert sorted(p.name for p in tmp_path.iterdir()) == []
+    assert signal.getsignal(signal.SIGINT) is handler  # (restored)
+
+
+@needs_sdk
 def test_live_valid_range_as_run(tmp_path, capsys):
     """--valid-range 1500,5000 drops the recording's box (1.3 m) as `upsr run` does."""
     out, ref = tmp_path / "live.npy", tmp_path / "run.npy"

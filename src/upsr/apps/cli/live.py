@@ -27,6 +27,7 @@ from __future__ import annotations
 import contextlib
 import functools
 import queue
+import signal
 import sys
 import threading
 import time
@@ -346,15 +347,28 @@ def _stream(
                     break
         except KeyboardInterrupt:
             # Ctrl-C ends a live stream, as the end of a recording does: the frames processed
-            # so far are written (a second Ctrl-C, while they finish, leaves no output)
+            # so far are written; a second Ctrl-C, while they finish, discards the output (a
+            # flag the writer reads between frames, not an exception inside the SDK's or the
+            # writer's native code: the process aborted when it left them running)
             stats["stopped"] = True
+            # (until the command returns: upsr.apps.cli.main restores SIGINT's handler)
+            _second_interrupt_discards(writer.abort)
         finally:
             engine.wait()  # every frame handed to the writer before it closes
         complete = bool(stats["latency_ms"])
     finally:
         writer.finish(complete)
+    if writer.abort.is_set() and not writer.completed:
+        raise KeyboardInterrupt  # (the output was discarded: "interrupted, no output written")
     if not complete:
         raise InputError("no depth frame came from the RealSense source")
+
+
+def _second_interrupt_discards(abort: threading.Event) -> None:
+    """From now on SIGINT sets ``abort`` instead of raising (on the main thread only, where
+    signals are handled)."""
+    if threading.current_thread() is threading.main_thread():
+        signal.signal(signal.SIGINT, lambda signum, frame: abort.set())
 
 
 class _Writer(threading.Thread):
@@ -369,13 +383,17 @@ class _Writer(threading.Thread):
         self._opened, self._written = opened, written
         self._queue: queue.Queue[Any] = queue.Queue(maxsize=WRITE_QUEUE)
         self.error: BaseException | None = None
+        #: Set to discard the output (checked before each frame and before the output is
+        #: closed); ``completed``: the output was closed, complete, before that.
+        self.abort = threading.Event()
+        self.completed = False
 
     def run(self) -> None:
         try:
             with self._opened() as writer:
                 last = 0
                 while (item := self._queue.get()) is not _CLOSE:
-                    if item is _ABORT:
+                    if item is _ABORT or self.abort.is_set():
                         raise _Aborted  # (the writer discards what it wrote)
                     frame, out, stamp = item
                     # the SDK's time of the frame (a camera's clock may step back: then the
@@ -383,6 +401,9 @@ class _Writer(threading.Thread):
                     last = max(last, stamp)
                     writer.write(out, timestamp_ns=last)
                     self._written(frame, out)
+                if self.abort.is_set():
+                    raise _Aborted
+            self.completed = True
         except _Aborted:
             pass
         except BaseException as e:  # (raised on the caller's thread by finish)

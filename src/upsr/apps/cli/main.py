@@ -128,7 +128,8 @@ def _print_error(message: str) -> None:
 
 @contextlib.contextmanager
 def _cli_environment() -> Iterator[None]:
-    """Warnings as one ``upsr: warning:`` line; SIGTERM unwinds like Ctrl-C (cleanup runs)."""
+    """Warnings as one ``upsr: warning:`` line; SIGTERM unwinds like Ctrl-C (cleanup runs);
+    SIGINT's handler as it was on return (``upsr live`` changes it after a first Ctrl-C)."""
 
     def show(
         message: Any, category: Any, filename: Any, lineno: Any, file: Any = None, line: Any = None
@@ -139,17 +140,19 @@ def _cli_environment() -> Iterator[None]:
         _State.terminated = True
         raise KeyboardInterrupt
 
-    old_term = None
+    old_term = old_int = None
     main_thread = threading.current_thread() is threading.main_thread()
     with warnings.catch_warnings():
         warnings.showwarning = show
         if main_thread:
             old_term = signal.signal(signal.SIGTERM, on_sigterm)
+            old_int = signal.getsignal(signal.SIGINT)
         try:
             yield
         finally:
             if main_thread:
                 signal.signal(signal.SIGTERM, old_term)
+                signal.signal(signal.SIGINT, old_int)
 
 
 def main(argv: list[str] | None = None) -> int:
