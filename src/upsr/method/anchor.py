@@ -43,39 +43,66 @@ OWN_SURFACE_SIGMAS = 3.0
 OWN_SURFACE = ("never", "always", "except_rims")
 
 
-#: Devillard's median-of-9 network (19 compare-exchanges; the median lands in slot 4).
-_MEDIAN9 = np.array(
-    [(1, 2), (4, 5), (7, 8), (0, 1), (3, 4), (6, 7), (1, 2), (4, 5), (7, 8), (0, 3), (5, 8),
-     (4, 7), (3, 6), (1, 4), (2, 5), (4, 7), (4, 2), (6, 4), (4, 2)],
-    np.int64,
-)  # fmt: skip
+@nb.njit(cache=True, nogil=True, inline="always")
+def _median9(p0, p1, p2, p3, p4, p5, p6, p7, p8):  # pragma: no cover - numba
+    """The median of nine values: Devillard's network of 19 compare-exchanges on scalars
+    (registers, no buffer; the median lands in p4)."""
+    p1, p2 = min(p1, p2), max(p1, p2)
+    p4, p5 = min(p4, p5), max(p4, p5)
+    p7, p8 = min(p7, p8), max(p7, p8)
+    p0, p1 = min(p0, p1), max(p0, p1)
+    p3, p4 = min(p3, p4), max(p3, p4)
+    p6, p7 = min(p6, p7), max(p6, p7)
+    p1, p2 = min(p1, p2), max(p1, p2)
+    p4, p5 = min(p4, p5), max(p4, p5)
+    p7, p8 = min(p7, p8), max(p7, p8)
+    p0, p3 = min(p0, p3), max(p0, p3)
+    p5, p8 = min(p5, p8), max(p5, p8)
+    p4, p7 = min(p4, p7), max(p4, p7)
+    p3, p6 = min(p3, p6), max(p3, p6)
+    p1, p4 = min(p1, p4), max(p1, p4)
+    p2, p5 = min(p2, p5), max(p2, p5)
+    p4, p7 = min(p4, p7), max(p4, p7)
+    p4, p2 = min(p4, p2), max(p4, p2)
+    p6, p4 = min(p6, p4), max(p6, p4)
+    p4, p2 = min(p4, p2), max(p4, p2)
+    return p4
 
 
 @nb.njit(cache=True, nogil=True, inline="always")
-def _interior_median(z, i, j, edge, buf, net):  # pragma: no cover - numba
-    """The anchor of an interior pixel whose 8 neighbours all lie within ``edge`` of it and
-    of their median (the common case; both steps of the general rule give that median), or
-    0 where that does not hold."""
-    v = z[i, j]
-    m = 0
-    for a in range(i - 1, i + 2):
-        for b in range(j - 1, j + 2):
-            u = z[a, b]
-            if not (u > 0 and abs(u - v) <= edge):
-                return 0.0
-            buf[m] = u
-            m += 1
-    for q in range(net.shape[0]):
-        x = buf[net[q, 0]]
-        y = buf[net[q, 1]]
-        buf[net[q, 0]] = min(x, y)
-        buf[net[q, 1]] = max(x, y)
-    c = buf[4]
-    for a in range(i - 1, i + 2):
-        for b in range(j - 1, j + 2):
-            if abs(z[a, b] - c) > edge:
-                return 0.0
-    return c
+def _near(u, v, edge):  # pragma: no cover - numba
+    """Whether ``u`` has depth and lies within ``edge`` of ``v`` (without a branch)."""
+    return (u > 0) & (abs(u - v) <= edge)
+
+
+@nb.njit(cache=True, nogil=True, inline="always")
+def _interior_medians(z, i, edge, out):  # pragma: no cover - numba
+    """out[j] (0 < j < w − 1): the anchor of interior pixel (i, j) whose 8 neighbours all
+    lie within ``edge`` of it and of their median (the common case; both steps of the
+    general rule give that median), or 0 where that does not hold. Branch-free over the
+    row, whose loop reads only shifted row slices (SIMD)."""
+    n = z.shape[1] - 2
+    u0, u1, u2 = z[i - 1, 0:n], z[i - 1, 1 : n + 1], z[i - 1, 2 : n + 2]
+    m0, m1, m2 = z[i, 0:n], z[i, 1 : n + 1], z[i, 2 : n + 2]
+    d0, d1, d2 = z[i + 1, 0:n], z[i + 1, 1 : n + 1], z[i + 1, 2 : n + 2]
+    o = out[1 : n + 1]
+    for j in range(n):
+        v = m1[j]
+        p0, p1, p2 = u0[j], u1[j], u2[j]
+        p3, p5 = m0[j], m2[j]
+        p6, p7, p8 = d0[j], d1[j], d2[j]
+        ok = (
+            _near(p0, v, edge) & _near(p1, v, edge) & _near(p2, v, edge)
+            & _near(p3, v, edge) & _near(v, v, edge) & _near(p5, v, edge)
+            & _near(p6, v, edge) & _near(p7, v, edge) & _near(p8, v, edge)
+        )  # fmt: skip
+        c = _median9(p0, p1, p2, p3, v, p5, p6, p7, p8)
+        ok &= (
+            (abs(p0 - c) <= edge) & (abs(p1 - c) <= edge) & (abs(p2 - c) <= edge)
+            & (abs(p3 - c) <= edge) & (abs(v - c) <= edge) & (abs(p5 - c) <= edge)
+            & (abs(p6 - c) <= edge) & (abs(p7 - c) <= edge) & (abs(p8 - c) <= edge)
+        )  # fmt: skip
+        o[j] = c if ok else np.float32(0.0)
 
 
 @nb.njit(cache=True, nogil=True, inline="always")
@@ -147,16 +174,18 @@ def _anchor_kernel(
     z, steep, edge, sigma, power, k, floor, own_surface, anchor, tol
 ):  # pragma: no cover - numba
     h, w = z.shape
-    net = _MEDIAN9
     for i in nb.prange(h):
         buf = np.empty(9, np.float32)
+        medians = np.zeros(w, np.float32)
+        if 0 < i < h - 1 and w > 2:
+            _interior_medians(z, i, edge, medians)
         for j in range(w):
             v = z[i, j]
             anchor[i, j] = 0.0
             if not v > 0:
                 continue
             if 0 < i < h - 1 and 0 < j < w - 1:
-                c = _interior_median(z, i, j, edge, buf, net)
+                c = np.float64(medians[j])
                 if c > 0:
                     anchor[i, j] = _own_surface(z, i, j, c, sigma, power, edge, buf, own_surface)
                     continue
@@ -224,40 +253,73 @@ def _members(z, i, j, v, c):  # pragma: no cover - numba
     return n, last
 
 
+@nb.njit(cache=True, nogil=True, inline="always")
+def _outlier_medians(z, i, out):  # pragma: no cover - numba
+    """out[j] (0 < j < w − 1): the median of the 3×3 samples around (i, j) where all 9 have
+    depth and at most one of the 8 neighbours lies beyond the pixel's sample on either side
+    (a candidate outlier of :func:`noise_outliers`), else 0. Branch-free over the row, whose
+    loop reads only shifted row slices (SIMD)."""
+    n = z.shape[1] - 2
+    u0, u1, u2 = z[i - 1, 0:n], z[i - 1, 1 : n + 1], z[i - 1, 2 : n + 2]
+    m0, m1, m2 = z[i, 0:n], z[i, 1 : n + 1], z[i, 2 : n + 2]
+    d0, d1, d2 = z[i + 1, 0:n], z[i + 1, 1 : n + 1], z[i + 1, 2 : n + 2]
+    o = out[1 : n + 1]
+    for j in range(n):
+        v = m1[j]
+        p0, p1, p2 = u0[j], u1[j], u2[j]
+        p3, p5 = m0[j], m2[j]
+        p6, p7, p8 = d0[j], d1[j], d2[j]
+        ok = (v > 0) & (p0 > 0) & (p1 > 0) & (p2 > 0) & (p3 > 0)
+        ok &= (p5 > 0) & (p6 > 0) & (p7 > 0) & (p8 > 0)
+        above = (
+            np.int32(p0 > v) + np.int32(p1 > v) + np.int32(p2 > v) + np.int32(p3 > v)
+            + np.int32(p5 > v) + np.int32(p6 > v) + np.int32(p7 > v) + np.int32(p8 > v)
+        )  # fmt: skip
+        below = (
+            np.int32(p0 < v) + np.int32(p1 < v) + np.int32(p2 < v) + np.int32(p3 < v)
+            + np.int32(p5 < v) + np.int32(p6 < v) + np.int32(p7 < v) + np.int32(p8 < v)
+        )  # fmt: skip
+        ok &= min(above, below) <= 1
+        c = _median9(p0, p1, p2, p3, v, p5, p6, p7, p8)
+        o[j] = c if ok else np.float32(0.0)
+
+
+@nb.njit(cache=True, nogil=True, inline="always")
+def _off_median(u, c):  # pragma: no cover - numba
+    """|u − c| (float64 c, rounded to float32 as a buffer of samples holds it)."""
+    return np.float32(abs(u - c))
+
+
 @nb.njit(cache=True, nogil=True, parallel=True)
 def _outlier_kernel(z, sigma, power, around, limit):  # pragma: no cover - numba
     h, w = z.shape
     for i in nb.prange(h):
-        buf = np.empty(9, np.float32)
+        medians = np.zeros(w, np.float32)
+        if 0 < i < h - 1 and w > 2:
+            _outlier_medians(z, i, medians)
         for j in range(w):
             around[i, j] = 0.0
             limit[i, j] = 0.0
-            v = z[i, j]
-            if not v > 0:
-                continue
-            m = 0
-            above = 0
-            below = 0
-            for a in range(max(i - 1, 0), min(i + 2, h)):
-                for b in range(max(j - 1, 0), min(j + 2, w)):
-                    u = z[a, b]
-                    if u > 0:
-                        buf[m] = u
-                        m += 1
-                        above += u > v
-                        below += u < v
             # (beside a hole or the border a slope's median is one-sided; and a neighbour
             # beyond v, away from the median, is nearer to v: an outlier has at most one)
-            if m < 9 or min(above, below) > 1:
+            if not medians[j] > 0:
                 continue
-            c = _small_median(buf, m)
+            v = z[i, j]
+            p0, p1, p2 = z[i - 1, j - 1], z[i - 1, j], z[i - 1, j + 1]
+            p3, p5 = z[i, j - 1], z[i, j + 1]
+            p6, p7, p8 = z[i + 1, j - 1], z[i + 1, j], z[i + 1, j + 1]
+            c = np.float64(medians[j])
             sig = _sigma_at(sigma, power, c)
             if not abs(v - c) > OWN_SURFACE_SIGMAS * sig:
                 continue
             # the spread of the samples around the median (a slope's relief, the noise)
-            for q in range(m):
-                buf[q] = abs(buf[q] - c)
-            spread = _small_median(buf, m)
+            spread = np.float64(
+                _median9(
+                    _off_median(p0, c), _off_median(p1, c), _off_median(p2, c),
+                    _off_median(p3, c), _off_median(v, c), _off_median(p5, c),
+                    _off_median(p6, c), _off_median(p7, c), _off_median(p8, c),
+                )
+            )  # fmt: skip
             dev = abs(v - c) - spread
             if not (OWN_SURFACE_SIGMAS * sig < dev <= OUTLIER_MAX_SIGMAS * sig):
                 continue
