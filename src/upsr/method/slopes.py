@@ -262,12 +262,17 @@ def _slopes_kernel(z, edge, kept, out):  # pragma: no cover - numba
     for i in nb.prange(h):
         row = z[i]
         krow = kept[i]
+        # links[k + 1]: link k of the row (k = −1 … w − 1; NaN beyond it), each computed
+        # once for the two pixels it joins
+        links = np.empty(w + 1, np.float64)
+        for k in range(-1, w):
+            links[k + 1] = _link(row, k, edge, krow)
         for j in range(w):
             if not row[j] > 0:
                 out[i, j] = 0.0
                 continue
-            left = _link(row, j - 1, edge, krow)
-            right = _link(row, j, edge, krow)
+            left = links[j]
+            right = links[j + 1]
             if left != left:
                 out[i, j] = 0.0 if right != right else right
             elif right != right:
