@@ -155,10 +155,12 @@ def finish_frame(
     ndarray float32 (r·h, r·w)
     """
     r = cfg.scale
-    if anchor is not None:
-        # (and the steep surfaces one pixel wide that have an anchor of their own)
+    erased = None if anchor is None else (out == 0) & (fused > 0)
+    if erased is not None and erased.any():
+        # (and the steep surfaces one pixel wide that have an anchor of their own; looked
+        # for only where the finishing erased something)
         keep = surface_support(reference, edge_mm) | (np.asarray(anchor) > 0)
-        lost = np.repeat(np.repeat(keep, r, axis=0), r, axis=1) & (out == 0) & (fused > 0)
+        lost = np.repeat(np.repeat(keep, r, axis=0), r, axis=1) & erased
         if lost.any():
             out = np.where(lost, fused, out)
     if measured is not None:
