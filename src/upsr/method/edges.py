@@ -83,25 +83,69 @@ def edge_band(reference: npt.ArrayLike, edge_mm: float, *, slopes: bool = False)
     return band
 
 
+@nb.njit(cache=True, nogil=True, inline="always")
+def _band_at(z, i, j, edge, ends, use_ends):  # pragma: no cover - numba
+    """:func:`_band_kernel`'s test at one pixel (the 3×3 clipped at the border)."""
+    h, w = z.shape
+    hi = 0.0
+    lo = np.inf
+    near_end = not use_ends
+    for a in range(max(i - 1, 0), min(i + 2, h)):
+        for b in range(max(j - 1, 0), min(j + 2, w)):
+            v = z[a, b]
+            if v > 0:  # (False for NaN and removed samples)
+                hi = max(hi, v)
+                lo = min(lo, v)
+            if use_ends and ends[a, b]:
+                near_end = True
+    return hi > 0 and hi - lo > edge and near_end
+
+
+@nb.njit(cache=True, nogil=True, inline="always")
+def _valid_max(hi, v):  # pragma: no cover - numba
+    """max(hi, v) where v > 0, else hi (hi ≥ 0), without a branch."""
+    return max(hi, v if v > 0 else np.float32(0.0))
+
+
+@nb.njit(cache=True, nogil=True, inline="always")
+def _valid_min(lo, v):  # pragma: no cover - numba
+    """min(lo, v) where v > 0, else lo, without a branch."""
+    return min(lo, v if v > 0 else np.float32(np.inf))
+
+
 @nb.njit(cache=True, nogil=True, parallel=True)
 def _band_kernel(z, edge, ends, use_ends, out):  # pragma: no cover - numba
     """out[i, j]: the valid depths of the 3×3 neighbourhood of (i, j) (clipped at the border)
-    span more than ``edge``, and (with ``use_ends``) one of its pixels is in ``ends``."""
+    span more than ``edge``, and (with ``use_ends``) one of its pixels is in ``ends``. The
+    interior of a row: branch-free passes over shifted row slices (SIMD)."""
     h, w = z.shape
     for i in nb.prange(h):
-        for j in range(w):
-            hi = 0.0
-            lo = np.inf
-            near_end = not use_ends
-            for a in range(max(i - 1, 0), min(i + 2, h)):
-                for b in range(max(j - 1, 0), min(j + 2, w)):
-                    v = z[a, b]
-                    if v > 0:  # (False for NaN and removed samples)
-                        hi = max(hi, v)
-                        lo = min(lo, v)
-                    if use_ends and ends[a, b]:
-                        near_end = True
-            out[i, j] = hi > 0 and hi - lo > edge and near_end
+        if i == 0 or i == h - 1 or w < 3:
+            for j in range(w):
+                out[i, j] = _band_at(z, i, j, edge, ends, use_ends)
+            continue
+        out[i, 0] = _band_at(z, i, 0, edge, ends, use_ends)
+        out[i, w - 1] = _band_at(z, i, w - 1, edge, ends, use_ends)
+        n = w - 2
+        u0, u1, u2 = z[i - 1, 0:n], z[i - 1, 1 : n + 1], z[i - 1, 2 : n + 2]
+        m0, m1, m2 = z[i, 0:n], z[i, 1 : n + 1], z[i, 2 : n + 2]
+        d0, d1, d2 = z[i + 1, 0:n], z[i + 1, 1 : n + 1], z[i + 1, 2 : n + 2]
+        o = out[i, 1 : n + 1]
+        for j in range(n):
+            hi = _valid_max(_valid_max(_valid_max(0.0, u0[j]), u1[j]), u2[j])
+            hi = _valid_max(_valid_max(_valid_max(hi, m0[j]), m1[j]), m2[j])
+            hi = _valid_max(_valid_max(_valid_max(hi, d0[j]), d1[j]), d2[j])
+            lo = _valid_min(_valid_min(_valid_min(np.inf, u0[j]), u1[j]), u2[j])
+            lo = _valid_min(_valid_min(_valid_min(lo, m0[j]), m1[j]), m2[j])
+            lo = _valid_min(_valid_min(_valid_min(lo, d0[j]), d1[j]), d2[j])
+            o[j] = (hi > 0) & (hi - lo > edge)
+        if use_ends:
+            e0, e1, e2 = ends[i - 1, 0:n], ends[i - 1, 1 : n + 1], ends[i - 1, 2 : n + 2]
+            f0, f1, f2 = ends[i, 0:n], ends[i, 1 : n + 1], ends[i, 2 : n + 2]
+            g0, g1, g2 = ends[i + 1, 0:n], ends[i + 1, 1 : n + 1], ends[i + 1, 2 : n + 2]
+            for j in range(n):
+                near = e0[j] | e1[j] | e2[j] | f0[j] | f1[j] | f2[j] | g0[j] | g1[j] | g2[j]
+                o[j] &= near
 
 
 @nb.njit(cache=True, nogil=True, inline="always")
