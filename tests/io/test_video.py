@@ -148,6 +148,19 @@ def test_npz_first_array_or_key(tmp_path: Path) -> None:
         io.probe(tmp_path / "v.npz", key="first", fmt="npy")
 
 
+def test_npz_without_key_reads_depth_else_the_first_video(tmp_path: Path) -> None:
+    a, b = video(1), video(2)
+    # a camera's times first, then its frames (a user's archive): the video, not the times
+    np.savez(tmp_path / "t.npz", timestamps=np.arange(a.shape[0]), frames=a)
+    np.testing.assert_array_equal(io.read_video(tmp_path / "t.npz"), a)
+    assert io.probe(tmp_path / "t.npz").key == "frames"
+    np.savez(tmp_path / "d.npz", first=a, depth=b)  # (the name upsr writes wins)
+    np.testing.assert_array_equal(io.read_video(tmp_path / "d.npz"), b)
+    np.savez(tmp_path / "none.npz", timestamps=np.arange(3), names=np.zeros((3, 2)))
+    with pytest.raises(InputError, match=r"none\.npz\[timestamps\].*shape \(3,\)"):
+        io.probe(tmp_path / "none.npz")
+
+
 def test_fmt_override(tmp_path: Path) -> None:
     v = video()
     np.save(tmp_path / "v.npy", v)

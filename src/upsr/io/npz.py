@@ -1,4 +1,4 @@
-"""``.npz`` depth videos: the first array of the archive, or the one named ``key``.
+"""``.npz`` depth videos: the array named ``key``, by default ``depth`` or the first video.
 
 Frames are decompressed one at a time (a frame range skips the frames before it in the
 decompressed stream without converting them). Written as float32 mm under the key ``"depth"``
@@ -34,10 +34,31 @@ def _member(zf: zipfile.ZipFile, key: str | None, name: str) -> tuple[str, str]:
     if not arrays:
         raise InputError(f"{name}: the .npz archive holds no arrays")
     if key is None:
-        key = arrays[0]
+        key = _default_key(zf, arrays)
     elif key not in arrays:
         raise InputError(f"{name}: no array named {key[:60]!r} (available: {short_list(arrays)})")
     return key, key + ".npy"
+
+
+#: Arrays of an archive whose headers :func:`_default_key` reads at most (a hostile archive
+#: may hold millions).
+_MAX_PROBED_ARRAYS = 64
+
+
+def _default_key(zf: zipfile.ZipFile, arrays: list[str]) -> str:
+    """The array read without ``--key``: ``depth`` (the name upsr writes), else the first
+    that holds a depth video (T, h, w) (e.g. beside a ``timestamps`` array), else the first
+    (whose error then names its shape)."""
+    if "depth" in arrays:
+        return "depth"
+    for name in arrays[:_MAX_PROBED_ARRAYS]:
+        with zf.open(name + ".npy") as f:
+            try:
+                npy.read_npy_header(f, name)
+            except InputError:
+                continue
+        return name
+    return arrays[0]
 
 
 def probe(path: Path, opts: ReadOptions | None = None, fmt: str = "npz") -> VideoInfo:

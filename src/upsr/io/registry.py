@@ -108,7 +108,7 @@ REGISTRY: dict[str, Format] = {
         ),
         Format(
             "npz",
-            "NumPy .npz, the first array (or --key) of depth in mm",
+            "NumPy .npz, the array depth, else the first video (or --key), in mm",
             (".npz",),
             "npz",
             writable=True,

@@ -11,8 +11,9 @@ the ``FrameSink`` of :mod:`upsr.io._base`. The three basic containers:
     One (T, h, w) array of depth in mm, any integer or float dtype. Read through a memory map
     (``np.load(mmap_mode="r", allow_pickle=False)``): frames are read one at a time.
 ``.npz`` (``fmt="npz"``)
-    The first array of the archive, or the one named ``key``. Frames are decompressed one at a
-    time. Written with the key ``"depth"``.
+    The array named ``key``; by default ``depth``, else the first that holds a (T, h, w)
+    video (e.g. beside ``timestamps``). Frames are decompressed one at a time. Written with
+    the key ``"depth"``.
 a folder of PNG files (``fmt="png"``)
     One 16-bit single-channel (grayscale) PNG per frame, in natural name order
     (``frame2.png`` before ``frame10.png``). A raw value v means ``v / depth_scale`` metres,
