@@ -130,6 +130,21 @@ def test_detect_tum_scale(tmp_path: Path) -> None:
     assert "the values" in uio.detect_tum_scale(plain, far)
 
 
+def test_detect_sun_packing() -> None:
+    y, x = np.mgrid[0:12, 0:16]
+    mm = (1000 + 37 * x + 11 * y).astype(np.uint16)  # 1.0–1.7 m, not multiples of 8
+    packed = ((mm.astype(np.uint32) << 3) | (mm >> 13)).astype(np.uint16)  # SUN RGB-D
+    msg = uio.detect_sun_packing("d.png", packed)
+    assert msg is not None and msg.startswith("d.png: use --input-format sun")
+    assert "median 1.34 m unpacked" in msg
+    assert uio.detect_sun_packing("d.png", mm) is None  # plain mm
+    assert uio.detect_sun_packing("d.png", packed[:5, :5]) is None  # too few values
+    assert uio.detect_sun_packing("d.png", packed * 0 + 8) is None  # 1 mm unpacked: no camera
+    noisy = packed.copy()
+    noisy[::2] += 1  # half of them no multiple of 8
+    assert uio.detect_sun_packing("d.png", noisy) is None
+
+
 def test_check_output_capacity(tmp_path: Path) -> None:
     with pytest.raises(InputError, match=r"single \.exr file holds one frame"):
         uio.check_output_capacity(tmp_path / "x.exr", 3)

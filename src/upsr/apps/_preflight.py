@@ -96,10 +96,11 @@ def check_units(
     scale_given: bool,
     depth_scale: float,
 ) -> None:
-    """TUM PNGs read as mm (refused), then the plausible depth range (warned, or refused).
+    """SUN RGB-D or TUM PNGs read as mm (refused), then the plausible depth range (warned, or
+    refused).
 
     ``in_fmt``: the input's resolved format; ``scale_given``: an input depth scale was given
-    (then the TUM check is skipped: the user chose the unit).
+    (then the SUN and TUM checks are skipped: the user chose the unit).
     """
     from upsr.io import units
 
@@ -107,8 +108,11 @@ def check_units(
         from upsr.io.identity import read_frame_names
 
         names = read_frame_names(path, fmt=in_fmt) if path.is_dir() else [path.stem]
-        # at the default 1000 units per metre the raw PNG values are the mm values
-        message = units.detect_tum_scale(path, frame0_mm, frame_names=names)
+        # at the default 1000 units per metre the raw PNG values are the mm values (SUN's
+        # packed values fit TUM's range too: its test first)
+        message = units.detect_sun_packing(path, frame0_mm) or units.detect_tum_scale(
+            path, frame0_mm, frame_names=names
+        )
         if message is not None:
             raise InputError(message)
     units.check_depth_range(

@@ -25,6 +25,7 @@ __getattr__, __dir__, __all__ = attach(
         units=[
             "check_depth_range",
             "check_output_capacity",
+            "detect_sun_packing",
             "detect_tum_scale",
             "resolve_depth_scales",
         ],

@@ -35,6 +35,7 @@ __all__ = [
     "DepthUnitWarning",
     "check_depth_range",
     "check_output_capacity",
+    "detect_sun_packing",
     "detect_tum_scale",
     "resolve_depth_scales",
 ]
@@ -227,6 +228,47 @@ def detect_tum_scale(
             f"{med / 1000:.1f} m as mm)"
         )
     return None
+
+
+#: Share of the valid raw values that must be multiples of 8 for :func:`detect_sun_packing`
+#: (a plain mm PNG has 1/8 of them by chance).
+SUN_PACKED_SHARE = 0.95
+
+
+def detect_sun_packing(path: PathLike, raw: np.ndarray) -> str | None:
+    """A one-line message when a PNG input read as plain mm PNGs looks like SUN RGB-D.
+
+    SUN RGB-D rotates each 16-bit depth value (mm) left by 3 bits: below 8.192 m every raw
+    value is 8 times the depth, so (nearly) all of them are multiples of 8, which a plain mm
+    PNG's are by chance only (1 in 8), and their eighths lie in a camera's range. Flagged when
+    at least :data:`SUN_PACKED_SHARE` of at least 100 valid raw values are multiples of 8 and
+    their eighths have a median of 300 mm – 10 m.
+
+    Parameters
+    ----------
+    path : path-like
+        The PNG file or folder (for the message).
+    raw : ndarray
+        Raw 16-bit values of one or more frames (as stored, before any scale).
+
+    Returns
+    -------
+    str or None
+        The message (None: does not look like SUN RGB-D).
+    """
+    v = np.asarray(raw).reshape(-1)
+    v = v[np.isfinite(v) & (v > 0)]
+    if v.size < 100 or np.any(v != np.round(v)):
+        return None
+    packed = float(np.mean(np.mod(v, 8) == 0))
+    med = float(np.median(v)) / 8.0
+    if packed < SUN_PACKED_SHARE or not 300.0 <= med <= 10_000.0:
+        return None
+    return (
+        f"{Path(path).name}: use --input-format sun: looks like SUN RGB-D depth, each value "
+        f"rotated by 3 bits ({100 * packed:.0f} % of the raw values are multiples of 8; "
+        f"median {med / 1000:.2f} m unpacked, {8 * med / 1000:.1f} m as mm)"
+    )
 
 
 def check_output_capacity(

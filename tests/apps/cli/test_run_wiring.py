@@ -117,6 +117,19 @@ def test_tum_pngs_read_as_mm_are_refused_before_processing(capsys, here: Path, m
         assert abs(np.median(out[out > 0]) - np.median(video())) < 50
 
 
+def test_a_sun_rgbd_png_read_as_mm_is_refused_with_the_right_format(capsys, here: Path) -> None:
+    """A SUN RGB-D frame's raw values fit TUM's range too: the advice names SUN, and the
+    frame read with it has the depth of ``--input-format sun``."""
+    sun = Path(__file__).resolve().parents[2] / "io" / "data" / "formats" / "sun_depth_crop.png"
+    rc, _, err = run_cli(capsys, "run", sun, "-o", "s.npy", "-r", 1, *FAST, "-n", 1)
+    _one_error(rc, err, "use --input-format sun")
+    assert "TUM" not in err and not Path("s.npy").exists()
+    rc, _, err = run_cli(
+        capsys, "run", sun, "-o", "s.npy", "-r", 1, *FAST, "-n", 1, "--input-format", "sun"
+    )
+    assert rc == 0, err
+
+
 @pytest.mark.parametrize("suffix", ["exr", "png"])
 def test_multi_frame_single_file_fails_before_processing(
     capsys, here: Path, monkeypatch, suffix: str
