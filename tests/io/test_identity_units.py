@@ -117,6 +117,14 @@ def test_depth_range_metres_read_as_mm() -> None:
         uio.check_depth_range(metres, sensor="sonar")
 
 
+def test_depth_range_mm_read_as_metres_is_told_mm() -> None:
+    mm = np.full((10, 10), 1860.0, np.float32)  # raw mm given --input-depth-scale 1
+    r = uio.check_depth_range(mm * 1000, depth_scale=1.0, action="ignore")
+    assert "look like mm (--input-depth-scale 1000)" in r.message  # (not cm: 18.6 m)
+    r = uio.check_depth_range(mm * 1000, action="ignore")  # (at 1000 mm is the reading)
+    assert "mm (--input-depth-scale 1000)" not in r.message
+
+
 def test_detect_tum_scale(tmp_path: Path) -> None:
     y, x = np.mgrid[0:6, 0:8]
     tum_raw = (5000 * (1.0 + 0.3 * x + 0.1 * y)).astype(np.uint16)  # 1–3.4 m at 5000/m
@@ -140,6 +148,7 @@ def test_detect_sun_packing() -> None:
     assert uio.detect_sun_packing("d.png", mm) is None  # plain mm
     assert uio.detect_sun_packing("d.png", packed[:5, :5]) is None  # too few values
     assert uio.detect_sun_packing("d.png", packed * 0 + 8) is None  # 1 mm unpacked: no camera
+    assert uio.detect_sun_packing("d.png", packed * 0 + 8 * 1500) is None  # constant: unknown
     noisy = packed.copy()
     noisy[::2] += 1  # half of them no multiple of 8
     assert uio.detect_sun_packing("d.png", noisy) is None

@@ -161,6 +161,18 @@ def test_npz_without_key_reads_depth_else_the_first_video(tmp_path: Path) -> Non
         io.probe(tmp_path / "none.npz")
 
 
+def test_arrays_take_a_depth_scale_and_fixed_unit_formats_refuse_one(tmp_path: Path) -> None:
+    v = video()
+    np.save(tmp_path / "m.npy", v / 1000.0)  # metres
+    np.savez(tmp_path / "m.npz", depth=v / 1000.0)
+    for name in ("m.npy", "m.npz"):
+        got = io.read_video(tmp_path / name, depth_scale=1.0)
+        np.testing.assert_allclose(got, v, rtol=1e-6)
+        np.testing.assert_array_equal(io.read_video(tmp_path / name), (v / 1000.0).astype("f4"))
+    with pytest.raises(InputError, match="does not apply to tum input"):
+        list(io.iter_frames(tmp_path / "m.npy", fmt="tum", depth_scale=5000.0))
+
+
 def test_fmt_override(tmp_path: Path) -> None:
     v = video()
     np.save(tmp_path / "v.npy", v)
@@ -327,7 +339,7 @@ def test_missing_and_unreadable_inputs(tmp_path: Path) -> None:
         io.probe(tmp_path / "empty")
     (tmp_path / "tum" / "depth").mkdir(parents=True)
     with pytest.raises(
-        InputError, match=r"subfolders: depth: give one of them; upsr batch .*/\* takes each"
+        InputError, match=r"give a subfolder \(depth\), or all to upsr batch .*/\*$"
     ):
         io.probe(tmp_path / "tum")
     (tmp_path / "d.npy").mkdir()  # a folder is a folder of PNG frames, whatever its name

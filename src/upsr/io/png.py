@@ -83,8 +83,7 @@ def frame_files(path: Path) -> list[Path]:
     if not files:
         subdirs = sorted(e.name for e in entries if e.is_dir() and not e.name.startswith("."))
         hint = (
-            f" (subfolders: {', '.join(subdirs[:5])}: give one of them; upsr batch "
-            f"{path}/* takes each as a recording)"
+            f": give a subfolder ({', '.join(subdirs[:5])}), or all to upsr batch {path}/*"
             if subdirs
             else ""
         )

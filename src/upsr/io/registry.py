@@ -100,7 +100,7 @@ REGISTRY: dict[str, Format] = {
     for f in (
         Format(
             "npy",
-            "NumPy .npy, one (T, h, w) array of depth in mm (any integer or float dtype)",
+            "NumPy .npy, one (T, h, w) array of depth in mm or raw/depth-scale = m (any dtype)",
             (".npy",),
             "npy",
             writable=True,
@@ -108,7 +108,7 @@ REGISTRY: dict[str, Format] = {
         ),
         Format(
             "npz",
-            "NumPy .npz, the array depth, else the first video (or --key), in mm",
+            "NumPy .npz, the array depth, else the first video (or --key), as .npy",
             (".npz",),
             "npz",
             writable=True,
@@ -214,7 +214,7 @@ def _files(folder: Path) -> Iterator[str]:
     with os.scandir(folder) as it:
         for e in it:
             if not e.name.startswith(".") and e.is_file():
-                yield e.name.lower()
+                yield e.name
 
 
 def detect_folder(folder: Path) -> str | None:
@@ -236,7 +236,7 @@ def detect_folder(folder: Path) -> str | None:
         raise InputError(f"{folder}: cannot list ({e.strerror or e})") from None
     found: dict[str, str] = {}
     for n in names:
-        suffix = os.path.splitext(n)[1]
+        suffix = os.path.splitext(n)[1].lower()  # (the name as it is, for the message)
         if suffix == ".png":
             found.setdefault("png", n)
             continue

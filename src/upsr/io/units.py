@@ -100,8 +100,10 @@ def resolve_depth_scales(
 
 
 def _scale_hint(median_mm: float, lo: float, hi: float, depth_scale: float) -> str:
-    """Which input depth scale would bring the median to a typical 1.5 m."""
+    """Which input depth scale would bring the median into the sensor's range (and 0.2–20 m):
+    mm first where another scale was given (raw values in mm read as metres look like cm)."""
     for label, factor in (
+        *([("mm (--input-depth-scale 1000)", 1.0)] if depth_scale != 1000.0 else []),
         ("metres (--input-depth-scale 1)", 1000.0),
         ("cm (--input-depth-scale 100)", 10.0),
         ("TUM's 1/5000 m (--input-format tum or --input-depth-scale 5000)", 0.2),
@@ -110,7 +112,7 @@ def _scale_hint(median_mm: float, lo: float, hi: float, depth_scale: float) -> s
     ):
         guess = median_mm * factor * depth_scale / 1000.0
         if lo <= guess <= hi and 200.0 <= guess <= 20_000.0:
-            return f"; the raw values look like {label}"
+            return f" The raw values look like {label}"
     return ""
 
 
@@ -163,11 +165,11 @@ def check_depth_range(
     outside = float(np.mean((vals < lo) | (vals > hi)))
     message = None
     if outside > max_outside or not lo <= med <= hi:
+        # (the advice first: the one-line limit must not cut it)
         message = (
-            f"{name}: {100 * outside:.0f}% of the valid depth lies outside the plausible "
-            f"{lo:g}–{hi:g} mm of a {sensor} sensor (median {med:.4g} mm, 1–99% "
-            f"{p01:.4g}–{p99:.4g} mm): wrong depth units?"
-            f"{_scale_hint(med, lo, hi, depth_scale)}"
+            f"{name}: wrong depth units?{_scale_hint(med, lo, hi, depth_scale)}: "
+            f"{100 * outside:.0f}% of the depth is outside the plausible {lo:g}–{hi:g} mm "
+            f"({sensor} sensor; median {med:.4g} mm, 1–99% {p01:.4g}–{p99:.4g} mm)"
         )
         if action == "refuse":
             raise InputError(message)
@@ -233,6 +235,7 @@ def detect_tum_scale(
 #: Share of the valid raw values that must be multiples of 8 for :func:`detect_sun_packing`
 #: (a plain mm PNG has 1/8 of them by chance).
 SUN_PACKED_SHARE = 0.95
+SUN_MIN_DISTINCT = 4
 
 
 def detect_sun_packing(path: PathLike, raw: np.ndarray) -> str | None:
@@ -241,8 +244,9 @@ def detect_sun_packing(path: PathLike, raw: np.ndarray) -> str | None:
     SUN RGB-D rotates each 16-bit depth value (mm) left by 3 bits: below 8.192 m every raw
     value is 8 times the depth, so (nearly) all of them are multiples of 8, which a plain mm
     PNG's are by chance only (1 in 8), and their eighths lie in a camera's range. Flagged when
-    at least :data:`SUN_PACKED_SHARE` of at least 100 valid raw values are multiples of 8 and
-    their eighths have a median of 300 mm – 10 m.
+    at least :data:`SUN_PACKED_SHARE` of at least 100 valid raw values (of at least
+    :data:`SUN_MIN_DISTINCT` distinct ones) are multiples of 8 and their eighths have a median
+    of 300 mm – 10 m.
 
     Parameters
     ----------
@@ -258,7 +262,8 @@ def detect_sun_packing(path: PathLike, raw: np.ndarray) -> str | None:
     """
     v = np.asarray(raw).reshape(-1)
     v = v[np.isfinite(v) & (v > 0)]
-    if v.size < 100 or np.any(v != np.round(v)):
+    # (a few distinct values, e.g. a constant frame, say nothing about the packing)
+    if v.size < 100 or np.any(v != np.round(v)) or np.unique(v).size < SUN_MIN_DISTINCT:
         return None
     packed = float(np.mean(np.mod(v, 8) == 0))
     med = float(np.median(v)) / 8.0

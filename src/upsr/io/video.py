@@ -21,7 +21,8 @@ a folder of PNG files (``fmt="png"``)
     ``5000`` for the TUM RGB-D benchmark. A single ``.png`` file is read as a 1-frame video.
     Written as ``000000.png``, ``000001.png``, …, or one frame to a ``.png`` file.
 
-``depth_scale`` applies to PNG frames only: ``.npy``/``.npz`` arrays always hold mm.
+``depth_scale`` (raw units per metre) applies to PNG, TIFF, EXR and PGM frames and to
+``.npy``/``.npz`` input arrays (mm by default; outputs always hold mm).
 Depth 0 or NaN means "no measurement" (``SPEC.md`` §1).
 
 More formats are registered in :mod:`upsr.io.registry` and read through the same functions:
@@ -120,9 +121,8 @@ def _input_format(path: Path, fmt: str | None) -> str:
         f = suffix[1:] if suffix in (".npy", ".npz", ".png") else formats.detect_file(path)
         if f is None:
             raise InputError(
-                f"{path}: unknown input format {path.suffix or '(no suffix)'!r}: "
-                f"expected a .npy or .npz file, a folder of 16-bit PNG frames, or another "
-                f"format (--input-format / fmt=: {', '.join(FORMATS[3:])})"
+                f"{path}: unknown input format {path.suffix or '(no suffix)'!r} (npy, npz, "
+                f"PNG frames, or --input-format {', '.join(FORMATS[3:])})"
             )
     if f in ("npy", "npz") and is_dir:
         raise InputError(f"{path}: is a folder, not a .{f} file")
@@ -230,8 +230,9 @@ def iter_frames(
     path, key, fmt, topic
         As for :func:`probe`.
     depth_scale : float
-        PNG, TIFF, EXR and plain PGM frames: raw units per metre (1000: mm, TUM: 5000,
-        metres: 1); mm = raw · 1000 / depth_scale. Formats with fixed units ignore it.
+        PNG, TIFF, EXR and plain PGM frames, ``.npy``/``.npz`` arrays: raw units per metre
+        (1000: mm, TUM: 5000, metres: 1); mm = raw · 1000 / depth_scale. Formats whose units
+        are fixed (ROS bags, ``nyu``, ``tum``, ``sun``) refuse any other value than 1000.
     start : int
         First frame read (0 ≤ start < T).
     stop : int, optional
@@ -256,6 +257,11 @@ def iter_frames(
     f = _input_format(p, fmt)
     _check_key_topic(f, key, topic)
     opts = ReadOptions(key=key, depth_scale=scale, topic=topic)
+    if scale != 1000.0 and f not in SCALED_FORMATS + ARRAY_FORMATS:
+        raise InputError(
+            f"{p}: a depth scale ({scale:g} units/m) does not apply to {f} input, whose units "
+            f"the format fixes"
+        )
     impl = _format_module(f)
     info = impl.probe(p, opts, f)  # validate the container before the first frame is asked for
     first, last = check_frame_range(start, stop, info.n_frames, str(p))
@@ -263,7 +269,21 @@ def iter_frames(
         frames = impl.frames(p, opts, f)
     else:
         frames = impl.frames(p, opts, f, start=first, stop=last)
+    if scale != 1000.0 and f in ARRAY_FORMATS:
+        frames = _rescaled(frames, np.float32(1000.0 / scale))
     return _require_valid(frames, str(p))
+
+
+#: Formats whose readers turn raw values into mm with the depth scale themselves.
+SCALED_FORMATS = ("png", "tiff", "exr", "pgm")
+#: Formats of arrays in mm, or in raw units of ``depth_scale`` per metre when it is given.
+ARRAY_FORMATS = ("npy", "npz")
+
+
+def _rescaled(frames: Iterator[np.ndarray], mm_per_unit: np.float32) -> Iterator[np.ndarray]:
+    with contextlib.closing(frames):
+        for frame in frames:
+            yield frame * mm_per_unit
 
 
 def _require_valid(frames: Iterator[np.ndarray], name: str) -> Iterator[np.ndarray]:

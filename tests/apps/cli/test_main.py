@@ -68,6 +68,7 @@ def test_warnings_are_one_line(
     rc, _out, err = run_cli(capsys, "run", "in.npy", "-o", "o.npy", "-r", 1, "-n", 1, "-q")
     assert rc == 0
     assert err.startswith("upsr: warning: ") and "plausible" in err and "metres" in err
+    assert "look like metres (--input-depth-scale 1)" in err  # (the advice, never cut)
     assert len(err.strip().splitlines()) == 1 and len(err.strip()) <= 200
 
 

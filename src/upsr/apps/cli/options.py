@@ -186,8 +186,8 @@ InputDepthScaleOpt = Annotated[
         "--input-depth-scale",
         metavar="UNITS_PER_M",
         show_default=False,
-        help="PNG/TIFF/EXR/PGM input: raw units per metre (1000 = mm, 1 = metres, "
-        "5000 = TUM) [default: 1000]. .npy/.npz always hold mm.",
+        help="Input raw units per metre (1000 = mm, 1 = metres, 5000 = TUM) of PNG/TIFF/"
+        "EXR/PGM frames and .npy/.npz arrays [default: 1000]; bags and datasets fix theirs.",
     ),
 ]
 OutputDepthScaleOpt = Annotated[
