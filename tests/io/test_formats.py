@@ -204,6 +204,12 @@ def test_exr_round_trip(tmp_path: Path) -> None:
     with pytest.raises(InputError, match="holds one frame"):
         io.write_video(tmp_path / "many.exr", v)
     assert not (tmp_path / "many.exr").exists()
+    # a stream of unknown length finds out at its second frame: the message names the output
+    with pytest.raises(InputError, match=r"holds one frame.*not streamed\.exr$"):
+        with io.VideoWriter(tmp_path / "streamed.exr") as writer:
+            writer.write(v[0])
+            writer.write(v[1])
+    assert not (tmp_path / "streamed.exr").exists()
     assert [n for n in listing(tmp_path) if n.startswith(".")] == []
 
 

@@ -196,6 +196,7 @@ class FrameSink:
         if fh is not None:
             fh.close()
         self._temp = temp
+        self._dest = dest
         self._scale = np.float32(depth_scale / 1000.0)
         self.is_folder = writes_folder(dest)
 
@@ -204,7 +205,7 @@ class FrameSink:
         if not self.is_folder and t > 0:
             raise InputError(
                 f"an .exr file holds one frame: write a video of several frames to a folder "
-                f"(output name without suffix and --format exr), not {self._temp.name}"
+                f"(output name without suffix and --format exr), not {self._dest.name}"
             )
         data = frame_mm if self._scale == 1 else frame_mm * self._scale
         header = {"compression": self._exr.ZIP_COMPRESSION, "type": self._exr.scanlineimage}

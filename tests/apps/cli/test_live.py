@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import ctypes.util
 import importlib.util
+import json
 import sys
 from pathlib import Path
 
@@ -302,6 +303,27 @@ def test_a_second_ctrl_c_while_the_frames_finish_discards_the_output(tmp_path, c
 
 
 @needs_sdk
+@pytest.mark.parametrize("suffix", ["png", "exr"])
+def test_a_single_file_output_is_refused_before_the_stream_unless_one_frame(
+    tmp_path, capsys, suffix
+):
+    """A single .png or .exr file holds one frame: refused before the stream starts (it
+    stopped at the second frame with its work lost, naming a temporary file), unless
+    --max-frames 1."""
+    if suffix == "exr":
+        pytest.importorskip("OpenEXR")
+    out = tmp_path / f"one.{suffix}"
+    rc, stdout, err = run_cli(capsys, "live", FIXTURE, "--no-real-time", "-o", out, "-r", "2")
+    assert_user_error(rc, stdout, err, f"one.{suffix}: a single .{suffix} file holds one frame")
+    assert "--max-frames 1" in err
+    assert not out.exists()
+    rc, stdout, err = run_cli(capsys, "live", FIXTURE, "--no-real-time", "-o", out, "-r", "2",
+                              "--max-frames", "1", "-q")  # fmt: skip
+    assert rc == 0 and "1 frames" in stdout, err
+    assert upsr.io.read_video(out).shape == (1, 80, 96)
+
+
+@needs_sdk
 def test_live_valid_range_as_run(tmp_path, capsys):
     """--valid-range 1500,5000 drops the recording's box (1.3 m) as `upsr run` does."""
     out, ref = tmp_path / "live.npy", tmp_path / "run.npy"
@@ -462,6 +484,14 @@ def test_live_stamps_its_output_with_the_sdks_times_as_run_does(tmp_path, capsys
     rc, _, err = run_cli(capsys, "run", FIXTURE, "-o", ref, "-r", "2", "--recursive", "-q")
     assert rc == 0, err
     np.testing.assert_array_equal(read_timestamps(ref), want)
+    # a PNG folder holds no times: OUTPUT.intrinsics.json has them, as `upsr run` writes it
+    sidecars = []
+    for command in (["live", FIXTURE, "--no-real-time"], ["run", FIXTURE, "--recursive"]):
+        out = tmp_path / f"{command[0]}_png"
+        rc, _, err = run_cli(capsys, *command, "-o", out, "-r", "2", "-q")
+        assert rc == 0, err
+        sidecars.append(json.loads(upsr.io.intrinsics_path(out).read_text()))
+    assert sidecars[0]["timestamps_ns"] == list(want) == sidecars[1]["timestamps_ns"]
 
 
 @needs_sdk

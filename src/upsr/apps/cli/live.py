@@ -213,6 +213,14 @@ def live(
     )
     out_fmt = fmt(output_format)
     io.check_output_path([] if recording is None else [recording], output, overwrite, fmt=out_fmt)
+    resolved = io._output_format(output, out_fmt)
+    if resolved in ("exr", "png") and not io._folder_output(resolved, output) and max_frames != 1:
+        # (before the stream: it would stop at its second frame, its work lost)
+        raise InputError(
+            f"{output.name}: a single .{resolved} file holds one frame: give --max-frames 1, "
+            f"or write the stream to a folder (a name without suffix"
+            f"{', --format exr' if resolved == 'exr' else ''})"
+        )
     if preview is not None:
         _check_preview(preview, recording, output)
     mem = pre.memory_limit(max_memory)
@@ -225,7 +233,6 @@ def live(
             cfg = camera_motion_config(cfg, source.intrinsics)
         h, w = source.shape
         # (one frame's work: the stream's length is not known, its disk not checked)
-        resolved = io._output_format(output, out_fmt)
         pre.check_run_resources(
             (1, h, w), cfg, workers=1, out_fmt=resolved, output=None, max_memory=mem
         )
@@ -314,9 +321,11 @@ def _stream(
             depth_scale=depth_scale,
             overwrite=overwrite,
             camera=camera.scaled(r),
-        ) as writer:
-            writer.add_sidecar(io.intrinsics_path(output), intrinsics_sidecar(camera, r))
-            yield writer
+        ) as sink:
+            yield sink
+            # (at the end: with the SDK's times of the frames written, as `upsr run` gives)
+            sidecar = intrinsics_sidecar(camera, r, writer.stamps)
+            sink.add_sidecar(io.intrinsics_path(output), sidecar)
 
     def written(frame: Any, out: Any) -> None:  # (on the writer's thread)
         stats["done"] += 1
@@ -387,6 +396,8 @@ class _Writer(threading.Thread):
         #: closed); ``completed``: the output was closed, complete, before that.
         self.abort = threading.Event()
         self.completed = False
+        #: The time (ns) of each frame written.
+        self.stamps: list[int] = []
 
     def run(self) -> None:
         try:
@@ -400,6 +411,7 @@ class _Writer(threading.Thread):
                     # last time again, rather than a stream refused)
                     last = max(last, stamp)
                     writer.write(out, timestamp_ns=last)
+                    self.stamps.append(last)
                     self._written(frame, out)
                 if self.abort.is_set():
                     raise _Aborted
