@@ -97,7 +97,7 @@ def prepare_recording(
     sensor, strict, scale_given, out_scale = lim.get("units", ("default", False, False, 1000.0))
     check_first_frame(
         rec.input,
-        first[0],
+        next((f for f in first if (f > 0).any()), first[0]),
         rec.output,
         info.n_frames,
         in_fmt=info.format,

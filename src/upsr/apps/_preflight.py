@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import os
 import sys
+from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
@@ -146,6 +147,23 @@ def kernel_note(quiet: bool = False) -> None:
     print(KERNEL_NOTE, file=sys.stderr, flush=True)
 
 
+#: Frames :func:`frames_until_depth` reads at most to find one with depth.
+UNITS_LOOKAHEAD_FRAMES = 30
+
+
+def frames_until_depth(source: Iterator[Any]) -> list[Any]:
+    """The frames of ``source`` up to the first with depth (the last one of the list), at
+    most :data:`UNITS_LOOKAHEAD_FRAMES`: its units are checked (a camera's first frames are
+    often empty); the caller processes them before the rest of ``source``."""
+    read = [next(source)]
+    while not (read[-1] > 0).any() and len(read) < UNITS_LOOKAHEAD_FRAMES:
+        frame = next(source, None)
+        if frame is None:
+            break
+        read.append(frame)
+    return read
+
+
 def check_first_frame(
     input_path: Path,
     frame0: Any,
@@ -159,7 +177,7 @@ def check_first_frame(
     scales: tuple[float, float],
 ) -> None:
     """Before any processing (``upsr run``, each recording of ``upsr batch``): the units of
-    the first frame (``--sensor``, ``--strict-units``, TUM PNGs read as mm), whether the
+    the first frame with depth (``--sensor``, ``--strict-units``, TUM PNGs read as mm), whether the
     output format can hold ``n_frames`` frames, and whether a PNG output can hold the first
     frame's depth at the output scale (``scales``: input, output raw units per metre)."""
     from upsr.io import units

@@ -93,7 +93,9 @@ def test_batch_checks_each_recordings_units_and_output_before_its_work(
         _, buf = cv2.imencode(".png", np.round(frame).astype(np.uint16))
         (tum / f"1305031102.{175304 + 33 * i}.png").write_bytes(buf.tobytes())
     far = tmp_path / "far.npy"
-    np.save(far, np.load(d / "b.npy") * 100.0)  # metres read as mm: 100-400 m
+    far_video = np.load(d / "b.npy") * 100.0  # metres read as mm: 100-400 m
+    far_video[0] = 0.0  # (an empty first frame: the units of the first with depth)
+    np.save(far, far_video)
     out = tmp_path / "out"
     base = ["--out", str(out), "-r", str(R), "-n", str(N), "-w", "1", "-q"]
     assert main(["batch", str(tum), str(far), str(d / "b.npy"), *base, "--strict-units"]) == 2

@@ -97,6 +97,26 @@ def test_metres_read_as_mm_warn_or_refuse(capsys, here: Path, monkeypatch) -> No
     assert rc == 2
 
 
+def test_units_are_checked_on_the_first_frame_with_depth(capsys, here: Path, monkeypatch) -> None:
+    """A camera's first frames are often empty: --strict-units looks at the first with depth
+    (it passed a video in metres whose first frame was empty), and the frames read to find it
+    are all processed."""
+    v = video() / 1000.0  # metres
+    v[:2] = 0.0
+    np.save("m.npy", v)
+    real = pipeline.UPSR
+    _no_engine(monkeypatch)
+    rc, _, err = run_cli(capsys, "run", "m.npy", "-o", "s.npy", "-r", 1, *FAST, "--strict-units")
+    _one_error(rc, err, "--input-depth-scale 1")
+    assert not Path("s.npy").exists()
+    monkeypatch.setattr(pipeline, "UPSR", real)
+    rc, _, err = run_cli(capsys, "run", "m.npy", "-o", "s.npy", "-r", 1, *FAST, "--strict-units",
+                         "--input-depth-scale", 1)  # fmt: skip
+    assert rc == 0, err
+    out = np.load("s.npy")
+    assert out.shape[0] == v.shape[0] and not out[:2].any() and out[2:].all()
+
+
 def test_tum_pngs_read_as_mm_are_refused_before_processing(capsys, here: Path, monkeypatch) -> None:
     folder = here / "depth"
     folder.mkdir()

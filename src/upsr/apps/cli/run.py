@@ -182,10 +182,10 @@ def run(
     stamps = identity.read_timestamps(input_path, fmt=in_fmt, topic=topic, key=key)
     source = io.iter_frames(input_path, key=key, depth_scale=s_in, fmt=in_fmt, topic=topic)
     with contextlib.closing(source):
-        frame0 = next(source)
+        read = pre.frames_until_depth(source)
         pre.check_first_frame(
             input_path,
-            frame0,
+            read[-1],
             output,
             info.n_frames,
             in_fmt=io._input_format(input_path, in_fmt),
@@ -200,7 +200,7 @@ def run(
         sidecar = intrinsics_sidecar(camera, cfg.scale, stamps, names)
         start = time.perf_counter()
         _write_video(
-            engine.process(itertools.chain([frame0], source)),
+            engine.process(itertools.chain(read, source)),
             output,
             n_frames=info.n_frames,
             out_fmt=out_fmt,
