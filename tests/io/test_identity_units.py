@@ -163,6 +163,11 @@ def test_check_output_capacity(tmp_path: Path) -> None:
     with pytest.raises(InputError, match="output-depth-scale 655"):
         uio.check_output_capacity(tmp_path / "pngs", 3, max_depth_mm=10_000, depth_scale=10_000)
     uio.check_output_capacity(tmp_path / "x.npy", 5, max_depth_mm=1e9)
+    # whole metres in a 16-bit PNG: the depth rounded away (a float format keeps it)
+    with pytest.raises(InputError, match="steps of 1000 mm: use 100 or more"):
+        uio.check_output_capacity(tmp_path / "pngs", 3, depth_scale=1.0)
+    uio.check_output_capacity(tmp_path / "pngs", 3, depth_scale=100.0)  # (cm)
+    uio.check_output_capacity(tmp_path / "x.tif", 3, depth_scale=1.0)
 
 
 # ---------------------------------------------------------------------------------------------

@@ -30,6 +30,7 @@ from upsr.errors import InputError
 from upsr.io._base import PathLike, check_depth_scale
 
 __all__ = [
+    "MIN_PNG_DEPTH_SCALE",
     "SENSOR_RANGES_MM",
     "DepthRange",
     "DepthUnitWarning",
@@ -99,20 +100,21 @@ def resolve_depth_scales(
     return s_in, s_out
 
 
-def _scale_hint(median_mm: float, lo: float, hi: float, depth_scale: float) -> str:
-    """Which input depth scale would bring the median into the sensor's range (and 0.2–20 m):
-    mm first where another scale was given (raw values in mm read as metres look like cm)."""
+def _scale_hint(median_mm: float, lo: float, hi: float, depth_scale: float, option: str) -> str:
+    """Which input depth scale (``option``) would bring the median into the sensor's range
+    (and 0.2–20 m): mm first where another scale was given (raw values in mm read as metres
+    look like cm)."""
     for label, factor in (
-        *([("mm (--input-depth-scale 1000)", 1.0)] if depth_scale != 1000.0 else []),
-        ("metres (--input-depth-scale 1)", 1000.0),
-        ("cm (--input-depth-scale 100)", 10.0),
-        ("TUM's 1/5000 m (--input-format tum or --input-depth-scale 5000)", 0.2),
-        ("0.1 mm (--input-depth-scale 10000)", 0.1),
-        ("µm (--input-depth-scale 1000000)", 0.001),
+        *([("mm ({} 1000)", 1.0)] if depth_scale != 1000.0 else []),
+        ("metres ({} 1)", 1000.0),
+        ("cm ({} 100)", 10.0),
+        ("TUM's 1/5000 m (--input-format tum or {} 5000)", 0.2),
+        ("0.1 mm ({} 10000)", 0.1),
+        ("µm ({} 1000000)", 0.001),
     ):
         guess = median_mm * factor * depth_scale / 1000.0
         if lo <= guess <= hi and 200.0 <= guess <= 20_000.0:
-            return f" The raw values look like {label}"
+            return f" The raw values look like {label.format(option)}"
     return ""
 
 
@@ -126,6 +128,7 @@ def check_depth_range(
     name: str = "input",
     action: str = "warn",
     max_outside: float = 0.05,
+    option: str = "--input-depth-scale",
 ) -> DepthRange:
     """Check that depth (mm, after scaling) lies in the sensor's plausible range.
 
@@ -144,6 +147,8 @@ def check_depth_range(
     action : {"warn", "refuse", "ignore"}
         When more than ``max_outside`` of the valid pixels (or the median) leave the range:
         warn (:class:`DepthUnitWarning`), raise InputError, or only report.
+    option : str
+        The command line option of the input's depth scale, for the message's hint.
 
     Returns
     -------
@@ -167,7 +172,7 @@ def check_depth_range(
     if outside > max_outside or not lo <= med <= hi:
         # (the advice first: the one-line limit must not cut it)
         message = (
-            f"{name}: wrong depth units?{_scale_hint(med, lo, hi, depth_scale)}: "
+            f"{name}: wrong depth units?{_scale_hint(med, lo, hi, depth_scale, option)}: "
             f"{100 * outside:.0f}% of the depth is outside the plausible {lo:g}–{hi:g} mm "
             f"({sensor} sensor; median {med:.4g} mm, 1–99% {p01:.4g}–{p99:.4g} mm)"
         )
@@ -276,6 +281,10 @@ def detect_sun_packing(path: PathLike, raw: np.ndarray) -> str | None:
     )
 
 
+#: Fewest raw units per metre of a 16-bit PNG output (100: 1 cm steps).
+MIN_PNG_DEPTH_SCALE = 100.0
+
+
 def check_output_capacity(
     path: PathLike,
     n_frames: int,
@@ -289,7 +298,9 @@ def check_output_capacity(
     - a single ``.exr`` or ``.png`` file holds one frame (write a folder: a name without
       suffix, with ``--format exr`` for EXR frames);
     - a 16-bit PNG folder holds raw values ≤ 65535: with ``max_depth_mm`` (the input's
-      largest depth) beyond 65535 / depth_scale m, refused with the scale that fits.
+      largest depth) beyond 65535 / depth_scale m, refused with the scale that fits;
+    - a 16-bit PNG holds whole raw units: below :data:`MIN_PNG_DEPTH_SCALE` units per metre
+      (steps of more than 1 cm; 1 = whole metres) the depth would be rounded away.
 
     Raises
     ------
@@ -307,6 +318,12 @@ def check_output_capacity(
         raise InputError(
             f"{p}: a single .{f} file holds one frame, the video has {n_frames}: write a "
             f"folder of {f.upper()} frames ({how} without suffix)"
+        )
+    if f == "png" and check_depth_scale(depth_scale) < MIN_PNG_DEPTH_SCALE:
+        raise InputError(
+            f"{p}: a 16-bit PNG at --output-depth-scale {depth_scale:g} stores depth in steps "
+            f"of {1000.0 / depth_scale:g} mm: use {MIN_PNG_DEPTH_SCALE:g} or more (1000 = mm), "
+            f"or a float format (.npy, .tif, .exr)"
         )
     if f == "png" and max_depth_mm is not None:
         raw_max = max_depth_mm * check_depth_scale(depth_scale) / 1000.0

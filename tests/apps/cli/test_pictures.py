@@ -117,3 +117,22 @@ def test_pictures_never_write_into_or_over_an_input(tmp_path, capsys) -> None:
         rc, _, err = run_cli(capsys, *args)
         assert rc == 2 and "input" in err and len(err.strip().splitlines()) == 1, err
     assert {p.name: p.read_bytes() for p in frames.iterdir()} == before
+
+
+def test_view_and_export_ply_warn_of_a_file_in_metres_read_as_mm(tmp_path: Path, capsys) -> None:
+    """A TIFF written in metres (``--output-depth-scale 1``) read at the default 1000 units
+    per metre renders and back-projects a scene 1000 times too small: both commands say so
+    and name their option (``--depth-scale``), as ``upsr run`` warns."""
+    pytest.importorskip("tifffile")
+    from upsr.io import video as io
+
+    io.write_video(tmp_path / "m.tif", scene()[:2], depth_scale=1.0)
+    for command in (
+        ["view", tmp_path / "m.tif", "-o", tmp_path / "v.png"],
+        ["export-ply", tmp_path / "m.tif", "-o", tmp_path / "p", "--intrinsics", "40,40,15,12",
+         "-q"],
+    ):  # fmt: skip
+        rc, _, err = run_cli(capsys, *command)
+        assert rc == 0 and "look like metres (--depth-scale 1)" in err, err
+        rc, _, err = run_cli(capsys, *command, "--depth-scale", "1", "--overwrite")
+        assert rc == 0 and "warning" not in err, err

@@ -196,6 +196,7 @@ def live(
     from upsr.apps import _preflight as pre
     from upsr.apps._camera import camera_motion_config
     from upsr.geometry.camera import PinholeCamera
+    from upsr.io import units
     from upsr.io import video as io
     from upsr.method.recursive import RecursiveUPSR
     from upsr.method.warmup import warm_up
@@ -214,6 +215,7 @@ def live(
     out_fmt = fmt(output_format)
     io.check_output_path([] if recording is None else [recording], output, overwrite, fmt=out_fmt)
     resolved = io._output_format(output, out_fmt)
+    units.check_output_capacity(output, 1, fmt=out_fmt, depth_scale=depth_scale)
     if resolved in ("exr", "png") and not io._folder_output(resolved, output) and max_frames != 1:
         # (before the stream: it would stop at its second frame, its work lost)
         raise InputError(

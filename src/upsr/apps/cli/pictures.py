@@ -268,6 +268,7 @@ def view(
     """
     from upsr.apps._camera import input_camera
     from upsr.geometry.camera import PinholeCamera
+    from upsr.io import units
     from upsr.io import video as io
     from upsr.io.paths import check_apart_from_inputs
     from upsr.viz.colormaps import write_png
@@ -290,6 +291,9 @@ def view(
     if cam is None:
         cam = PinholeCamera.from_fov(info.width, info.height, 60.0)
     depth = _nth(io.iter_frames(input_path, **read), k)
+    # (a metres file read as mm renders a scene 1000 times too small)
+    units.check_depth_range(depth, depth_scale=depth_scale, name=str(input_path),
+                            option="--depth-scale")  # fmt: skip
     img = render_view(
         depth,
         cam,

@@ -83,6 +83,7 @@ def export_ply(
     from tqdm import tqdm
 
     from upsr.apps._camera import input_camera
+    from upsr.io import units
     from upsr.io import video as io
     from upsr.io.paths import check_apart_from_inputs
     from upsr.io.pointcloud import write_ply
@@ -108,7 +109,12 @@ def export_ply(
     vmin = vmax = None
     points = 0
     with tqdm(total=info.n_frames, desc="export-ply", file=sys.stderr, disable=quiet) as bar:
+        checked = False
         for t, depth in enumerate(io.iter_frames(input_path, **read)):
+            if not checked and (depth > 0).any():  # (a metres file read as mm: 1000× small)
+                units.check_depth_range(depth, depth_scale=depth_scale, name=str(input_path),
+                                        option="--depth-scale")  # fmt: skip
+                checked = True
             src = colours[t]
             if src is None and vmin is None:
                 vals = depth[depth > 0]
