@@ -32,6 +32,7 @@ __all__ = [
     "publish",
     "remove",
     "remove_stale",
+    "remove_stale_in",
     "temp_name",
     "write_bytes_atomic",
     "write_text_atomic",
@@ -110,6 +111,20 @@ def remove_stale(dest: Path) -> list[Path]:
         remove(p)
         removed.append(p)
     return removed
+
+
+#: Any name :func:`temp_name` writes (the destination's stem in group 1).
+_ANY_TEMP = re.compile(r"\.(.+)\.~[0-9a-f]{6}-[0-9]+-[0-9a-f]{8}\.[a-z]+")
+
+
+def remove_stale_in(folder: Path) -> list[Path]:
+    """:func:`remove_stale` for every destination in ``folder`` that has temporaries (e.g. the
+    chunks of killed workers); return what was removed."""
+    try:
+        names = {m.group(1) for e in os.scandir(folder) if (m := _ANY_TEMP.fullmatch(e.name))}
+    except OSError:
+        return []
+    return [p for name in sorted(names) for p in remove_stale(folder / name)]
 
 
 _RENAME_NOREPLACE = 1

@@ -122,6 +122,32 @@ def test_stale_part_files_of_dead_processes_removed(tmp_path: Path) -> None:
     assert sorted(os.listdir(tmp_path)) == sorted([live.name, "frames", "o.npy"])
 
 
+def test_stale_temporaries_of_a_folder_removed(tmp_path: Path) -> None:
+    """``remove_stale_in`` (what ``upsr batch`` runs in its chunk folders after Ctrl-C killed
+    its workers): the temporaries of every destination of dead writers go, a live one's and
+    the complete files stay."""
+    from upsr._atomic import remove_stale_in
+
+    code = (
+        "import os, sys\nfrom upsr import io\nimport numpy as np\n"
+        "ws = [io.VideoWriter(p, fmt='npy') for p in sys.argv[1:]]\n"
+        "for w in ws:\n"
+        "    w.write(np.ones((4, 4), np.float32))\n"
+        "os._exit(0)  # like SIGKILL: no cleanup\n"
+    )
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join(sys.path)}
+    names = ("chunk_0_4.npy", "chunk_4_8.npy")
+    subprocess.run([sys.executable, "-c", code, *(str(tmp_path / n) for n in names)],
+                   check=True, timeout=60, env=env)  # fmt: skip
+    (tmp_path / "done.npy").write_bytes(b"x")
+    live = temp_name(tmp_path / "chunk_8_12.npy", "part")  # ours (a live PID): kept
+    live.write_bytes(b"")
+    assert len(os.listdir(tmp_path)) == 4
+    assert len(remove_stale_in(tmp_path)) == 2
+    assert sorted(os.listdir(tmp_path)) == sorted([live.name, "done.npy"])
+    assert remove_stale_in(tmp_path / "missing") == []
+
+
 def test_sidecar_failure_leaves_no_complete_output(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:

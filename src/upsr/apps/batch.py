@@ -34,6 +34,7 @@ from typing import Any
 
 import numpy as np
 
+from upsr._atomic import remove_stale_in
 from upsr.apps._batch_plan import prepare_recording
 from upsr.apps._batch_state import (
     _batch_folder,
@@ -409,6 +410,9 @@ def _run_locked(
         bar.close()
         if executor is not None:
             executor.shutdown()
+            for rec in recs:  # (the half-written chunks of the workers it killed: Ctrl-C)
+                if rec.work is not None and rec.work.is_dir():
+                    remove_stale_in(rec.work)
     for rec in recs:
         if rec.status == "failed":
             _drop_work(rec)  # chunks that were still running when it failed

@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import contextlib
 import functools
+import math
 import queue
 import signal
 import sys
@@ -121,9 +122,17 @@ MaxFramesOpt = Annotated[
     int | None,
     typer.Option("--max-frames", min=1, help="Stop after this many processed frames."),
 ]
+
+
+def _check_seconds(value: float | None) -> float | None:
+    if value is not None and not (math.isfinite(value) and value > 0):
+        raise typer.BadParameter(f"must be a finite number of seconds > 0, got {value}")
+    return value
+
+
 SecondsOpt = Annotated[
     float | None,
-    typer.Option("--seconds", min=0.0, help="Stop after this many seconds."),
+    typer.Option("--seconds", callback=_check_seconds, help="Stop after this many seconds."),
 ]
 LiveOverwriteOpt = Annotated[bool, typer.Option("--overwrite", help="Replace OUTPUT if it exists.")]
 #: (the camera's or recording's depth units come from the SDK: only the output's are chosen;
@@ -259,14 +268,20 @@ def live(
         source.close()
         if not quiet:
             sys.stderr.write("\n")
-    elapsed = time.perf_counter() - start
+    end = time.perf_counter()
+    # (the stream's rate up to its last output; closing the output, e.g. compressing a .npz,
+    # is reported apart)
+    elapsed = stats.get("last_output", end) - start
+    closing = end - start - elapsed
     done = stats["done"]
     rate = done / elapsed if elapsed > 0 else float("inf")
     lat = sorted(stats["latency_ms"])
     typer.echo(
         f"upsr live: {done} frames {w}x{h} -> {w * r}x{h * r} (r={r}, recursive) in "
         f"{elapsed:.1f} s ({rate:.1f} frames/s, latency {lat[len(lat) // 2]:.0f} ms median, "
-        f"{lat[-1]:.0f} ms max, {source.dropped} dropped) -> {output}"
+        f"{lat[-1]:.0f} ms max, {source.dropped} dropped"
+        + (f"; output closed in {closing:.1f} s more" if closing >= 0.5 else "")
+        + f") -> {output}"
         + (" (stopped by Ctrl-C)" if stats.get("stopped") else "")
     )
     hint = drop_hint(done, source.dropped, cfg.flow_preset)
@@ -332,6 +347,7 @@ def _stream(
     def written(frame: Any, out: Any) -> None:  # (on the writer's thread)
         stats["done"] += 1
         done, now = stats["done"], time.perf_counter()
+        stats["last_output"] = now
         if preview is not None and (done == 1 or done % preview_every == 0):
             _write_preview(preview, frame, out, r, done)
         if not quiet and now - stats["last_status"] > 0.25:
