@@ -90,6 +90,9 @@ class FrameSource:
                 profile = self._resolve_pipeline(recording)
         except RuntimeError as e:
             offered = self._offered(recording)
+            if not offered and recording is not None:  # (the SDK's reason, without its request)
+                reason = str(e).rsplit("Reason: ", 1)[-1]
+                raise InputError(f"{recording}: the RealSense SDK cannot play it: {reason}") from e
             if not offered:  # (no stream asked for, or no device: the SDK's own words)
                 raise InputError(f"RealSense: {e}") from e
             where = recording if recording is not None else "RealSense camera"

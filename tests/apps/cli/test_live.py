@@ -158,6 +158,12 @@ def test_live_bad_recording(tmp_path, capsys):
     for odd in (tmp_path / "dir.db3", Path("/dev/null")):
         rc, out, err = run_cli(capsys, "live", odd, "-o", tmp_path / "o.npy", "-r", "2")
         assert_user_error(rc, out, err, "not a regular file")
+    # a file the SDK cannot open: its name and the SDK's reason, the reason's end on the line
+    (tmp_path / "text.db3").write_text("not a recording\n" * 20)
+    rc, out, err = run_cli(capsys, "live", tmp_path / "text.db3", "-o", tmp_path / "o.npy",
+                           "-r", "2")  # fmt: skip
+    assert_user_error(rc, out, err, "text.db3: the RealSense SDK cannot play it")
+    assert err.strip().endswith("file is not a database"), err
 
 
 @needs_sdk
