@@ -76,21 +76,37 @@ def _near(u, v, edge):  # pragma: no cover - numba
 
 
 @nb.njit(cache=True, nogil=True, inline="always")
+def _shifted_rows(z, i):  # pragma: no cover - numba
+    """Rows i − 1, i and i + 1 of ``z``, each as three slices of w − 2 shifted by 0, 1 and 2
+    columns: element j of the nine is the 3×3 neighbourhood of (i, j + 1) in row-major order,
+    read in a loop over j without index arithmetic (SIMD)."""
+    n = z.shape[1] - 2
+    return (
+        z[i - 1, 0:n], z[i - 1, 1 : n + 1], z[i - 1, 2 : n + 2],
+        z[i, 0:n], z[i, 1 : n + 1], z[i, 2 : n + 2],
+        z[i + 1, 0:n], z[i + 1, 1 : n + 1], z[i + 1, 2 : n + 2],
+    )  # fmt: skip
+
+
+@nb.njit(cache=True, nogil=True, inline="always")
+def _nine(rows, j):  # pragma: no cover - numba
+    """The nine samples around (i, j + 1) from :func:`_shifted_rows`, row-major."""
+    return (
+        rows[0][j], rows[1][j], rows[2][j], rows[3][j], rows[4][j], rows[5][j],
+        rows[6][j], rows[7][j], rows[8][j],
+    )  # fmt: skip
+
+
+@nb.njit(cache=True, nogil=True, inline="always")
 def _interior_medians(z, i, edge, out):  # pragma: no cover - numba
     """out[j] (0 < j < w − 1): the anchor of interior pixel (i, j) whose 8 neighbours all
     lie within ``edge`` of it and of their median (the common case; both steps of the
     general rule give that median), or 0 where that does not hold. Branch-free over the
     row, whose loop reads only shifted row slices (SIMD)."""
-    n = z.shape[1] - 2
-    u0, u1, u2 = z[i - 1, 0:n], z[i - 1, 1 : n + 1], z[i - 1, 2 : n + 2]
-    m0, m1, m2 = z[i, 0:n], z[i, 1 : n + 1], z[i, 2 : n + 2]
-    d0, d1, d2 = z[i + 1, 0:n], z[i + 1, 1 : n + 1], z[i + 1, 2 : n + 2]
-    o = out[1 : n + 1]
-    for j in range(n):
-        v = m1[j]
-        p0, p1, p2 = u0[j], u1[j], u2[j]
-        p3, p5 = m0[j], m2[j]
-        p6, p7, p8 = d0[j], d1[j], d2[j]
+    rows = _shifted_rows(z, i)
+    o = out[1 : z.shape[1] - 1]
+    for j in range(o.size):
+        p0, p1, p2, p3, v, p5, p6, p7, p8 = _nine(rows, j)
         ok = (
             _near(p0, v, edge) & _near(p1, v, edge) & _near(p2, v, edge)
             & _near(p3, v, edge) & _near(v, v, edge) & _near(p5, v, edge)
@@ -259,16 +275,10 @@ def _outlier_medians(z, i, out):  # pragma: no cover - numba
     depth and at most one of the 8 neighbours lies beyond the pixel's sample on either side
     (a candidate outlier of :func:`noise_outliers`), else 0. Branch-free over the row, whose
     loop reads only shifted row slices (SIMD)."""
-    n = z.shape[1] - 2
-    u0, u1, u2 = z[i - 1, 0:n], z[i - 1, 1 : n + 1], z[i - 1, 2 : n + 2]
-    m0, m1, m2 = z[i, 0:n], z[i, 1 : n + 1], z[i, 2 : n + 2]
-    d0, d1, d2 = z[i + 1, 0:n], z[i + 1, 1 : n + 1], z[i + 1, 2 : n + 2]
-    o = out[1 : n + 1]
-    for j in range(n):
-        v = m1[j]
-        p0, p1, p2 = u0[j], u1[j], u2[j]
-        p3, p5 = m0[j], m2[j]
-        p6, p7, p8 = d0[j], d1[j], d2[j]
+    rows = _shifted_rows(z, i)
+    o = out[1 : z.shape[1] - 1]
+    for j in range(o.size):
+        p0, p1, p2, p3, v, p5, p6, p7, p8 = _nine(rows, j)
         ok = (v > 0) & (p0 > 0) & (p1 > 0) & (p2 > 0) & (p3 > 0)
         ok &= (p5 > 0) & (p6 > 0) & (p7 > 0) & (p8 > 0)
         above = (
