@@ -177,9 +177,10 @@ def check_first_frame(
     scales: tuple[float, float],
 ) -> None:
     """Before any processing (``upsr run``, each recording of ``upsr batch``): the units of
-    the first frame with depth (``--sensor``, ``--strict-units``, TUM PNGs read as mm), whether the
-    output format can hold ``n_frames`` frames, and whether a PNG output can hold the first
-    frame's depth at the output scale (``scales``: input, output raw units per metre)."""
+    ``frame0``, the first frame with depth (``--sensor``, ``--strict-units``, SUN or TUM PNGs
+    read as mm), whether the output format can hold ``n_frames`` frames, and whether a PNG
+    output can hold that frame's depth at the output scale (``scales``: input, output raw
+    units per metre)."""
     from upsr.io import units
 
     sensor, strict = units_options
