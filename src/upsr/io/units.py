@@ -240,6 +240,8 @@ def detect_tum_scale(
 #: Share of the valid raw values that must be multiples of 8 for :func:`detect_sun_packing`
 #: (a plain mm PNG has 1/8 of them by chance).
 SUN_PACKED_SHARE = 0.95
+#: ... of at least this many distinct values (a constant frame, e.g. 30000 everywhere, is a
+#: multiple of 8 by chance; the SUN fixture's 64×48 crop of a wall has 10).
 SUN_MIN_DISTINCT = 4
 
 
