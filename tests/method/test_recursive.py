@@ -109,6 +109,44 @@ def test_process_finishes_each_frame_on_a_helper_thread_with_the_same_outputs():
             RecursiveUPSR(scale=2, workers=bad)
 
 
+@pytest.mark.parametrize("workers", [0, 1])
+def test_a_frames_error_is_raised_by_its_own_future_only(workers):
+    """A `then` that fails on frame 1 fails frame 1's future; the next push_async does not
+    raise it again, and frame 2's output is not lost."""
+    video = np.stack([np.full((8, 8), 1000.0 + 10 * t, np.float32) for t in range(4)])
+    want = list(RecursiveUPSR(scale=2, n_frames=3, workers=0).process(video))
+    engine = RecursiveUPSR(scale=2, n_frames=3, workers=workers)
+    calls = []
+
+    def then(out):
+        calls.append(out)
+        if len(calls) == 2:
+            raise RuntimeError("writer hiccup")
+
+    futures = [engine.push_async(f, then=then) for f in video]
+    engine.wait()
+    with pytest.raises(RuntimeError, match="writer hiccup"):
+        futures[1].result()
+    for k in (0, 2, 3):
+        np.testing.assert_array_equal(futures[k].result(), want[k])
+    assert len(calls) == 4
+
+
+@pytest.mark.parametrize("mode", ["windowed", "recursive"])
+def test_a_video_that_fails_in_process_leaves_nothing_for_the_next(mode):
+    """process() on a video with a bad frame raises; the same engine then gives the next
+    video's outputs exactly as a fresh engine does (it returned 13-14 outputs for 10)."""
+    rng = np.random.default_rng(0)
+    video = (1500.0 + rng.normal(0, 5, (8, 12, 14))).astype(np.float32)
+    bad = video.copy()
+    bad[5, 0, 0] = -1.0
+    engine = upsr.UPSR(2, 3, mode=mode)
+    with pytest.raises(InputError, match="frame 5"):
+        list(engine.process(bad))
+    got = np.stack(list(engine.process(video)))
+    np.testing.assert_array_equal(got, upsr.super_resolve(video, 2, n_frames=3, mode=mode))
+
+
 def test_a_bad_frame_in_push_async_raises_here_and_the_frame_in_flight_still_finishes():
     engine = RecursiveUPSR(scale=2, n_frames=5, workers=1)
     first = engine.push_async(np.full((8, 8), 1000.0))

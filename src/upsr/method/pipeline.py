@@ -12,6 +12,7 @@ for a later one, and a frame takes the slower stage's time instead of both's.
 
 from __future__ import annotations
 
+import concurrent.futures
 import contextlib
 import time
 from collections.abc import Callable, Iterable, Iterator
@@ -70,7 +71,10 @@ class TwoStagePipeline:
         overlaps this one's finishing): the future's result is :meth:`push`'s output, and
         ``then(output)`` runs on the helper first (in frame order, e.g. to write it). One
         frame at a time is finished: a call waits for the previous frame's finishing after
-        its own update. Without workers everything runs here (a finished future).
+        its own update. Without workers everything runs here (a finished future). A frame's
+        error (of its finishing or of ``then``) is raised by its own future only (and by
+        :meth:`wait` for the last frame), never by a later call: that frame's output is not
+        lost.
         """
         pool = window_pool(self.workers) if self._pipelined is not False else None
         start = time.perf_counter()
@@ -92,13 +96,23 @@ class TwoStagePipeline:
         if pool is None:
             # a frame still finishing on the helper (the probe turned the pipeline off during
             # it) goes first: outputs and ``then`` in frame order
-            self.wait()
+            self._settle()
             done: Future = Future()
-            done.set_result(finish())
+            try:
+                done.set_result(finish())
+            except Exception as e:  # (in this frame's future, as on the helper)
+                done.set_exception(e)
             return done
-        self.wait()
+        self._settle()
         self._pending = pool.submit(finish)
         return self._pending
+
+    def _settle(self) -> None:
+        """Wait for the frame in flight, if any, without raising its error (its future holds
+        it)."""
+        pending, self._pending = self._pending, None
+        if pending is not None:
+            concurrent.futures.wait([pending])
 
     def _probe(self, update_s: float, finish_s: float) -> None:
         """Keep the pipeline of :meth:`push_async` only where its two stages take about the
@@ -121,17 +135,23 @@ class TwoStagePipeline:
         """Super-resolve a stream of frames; yields one output per frame, in order. With
         ``workers``, through :meth:`push_async`: frame t is finished while frame t + 1
         updates the state, so its output comes once frame t + 1 has been read (a
-        recording); without, through :meth:`push`, which never waits for a later frame."""
-        if window_pool(self.workers) is None:
-            for frame in frames:
-                yield self.push(frame)
-        else:
-            last = None
-            for frame in frames:
-                current = self.push_async(frame)
+        recording); without, through :meth:`push`, which never waits for a later frame. A
+        video that fails (or is abandoned) resets the engine: the next starts afresh."""
+        try:
+            if window_pool(self.workers) is None:
+                for frame in frames:
+                    yield self.push(frame)
+            else:
+                last = None
+                for frame in frames:
+                    current = self.push_async(frame)
+                    if last is not None:
+                        yield last.result()
+                    last = current
                 if last is not None:
                     yield last.result()
-                last = current
-            if last is not None:
-                yield last.result()
+        except BaseException:
+            self._settle()
+            self.reset()
+            raise
         self.flush()

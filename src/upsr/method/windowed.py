@@ -613,7 +613,15 @@ class UPSR:
         """Super-resolve a stream of frames; yields one high-res frame per input frame, in
         order. Without workers each comes as soon as its window is complete (see
         :meth:`feed`); with workers, once a worker has finished it (the engine reads up to
-        2·``workers`` windows ahead)."""
+        2·``workers`` windows ahead). A video that fails (or is abandoned) resets the
+        engine: the next starts afresh."""
+        try:
+            yield from self._process(frames)
+        except BaseException:
+            self.reset()
+            raise
+
+    def _process(self, frames: Iterable[npt.ArrayLike]) -> Iterator[np.ndarray]:
         if self._pool is None:
             for frame in frames:
                 yield from self.feed(frame)

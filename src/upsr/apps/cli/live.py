@@ -24,6 +24,7 @@ Ctrl-C ends the stream as the end of a recording does.
 
 from __future__ import annotations
 
+import collections
 import contextlib
 import functools
 import math
@@ -362,10 +363,17 @@ def _stream(
     writer.start()
     submitted = 0
     complete = False
+    futures: collections.deque[Any] = collections.deque()
     try:
         try:
             for frame, arrived, stamp in source:
-                engine.push_async(frame, then=functools.partial(emit, frame, arrived, stamp))
+                futures.append(
+                    engine.push_async(frame, then=functools.partial(emit, frame, arrived, stamp))
+                )
+                while (
+                    futures and futures[0].done()
+                ):  # (a frame's error is in its future: raised here)
+                    futures.popleft().result()
                 submitted += 1
                 if writer.error is not None or (
                     (max_frames is not None and submitted >= max_frames)
@@ -382,6 +390,8 @@ def _stream(
             _second_interrupt_discards(writer.abort)
         finally:
             engine.wait()  # every frame handed to the writer before it closes
+        for future in futures:
+            future.result()
         complete = bool(stats["latency_ms"])
     finally:
         writer.finish(complete)
