@@ -221,11 +221,15 @@ def _assemble(
         text = intrinsics_sidecar(rec.camera, cfg.scale, rec.timestamps, rec.frame_names)
         if text is not None:
             writer.add_sidecar(io.intrinsics_path(rec.output), text)
+        measured = False
         for spec in rec.chunks:
             part = np.load(spec["part"], mmap_mode="r", allow_pickle=False)
             for frame in part:
+                measured = measured or bool((frame > 0).any())
                 writer.write(np.asarray(frame))
             del part
+        if not measured:  # (a chunk without depth is fine, a recording without any is not)
+            raise InputError(f"{rec.input}: no valid depth in any frame (all pixels are 0 or NaN)")
     _drop_work(rec)
 
 

@@ -247,8 +247,8 @@ def iter_frames(
     ------
     InputError
         As :func:`probe`; a range that is empty or not inside the video; while iterating:
-        ±inf or negative depths (naming the frame), corrupt data; after the last frame read:
-        no valid depth in any of the frames read.
+        ±inf or negative depths (naming the frame), corrupt data; after the last frame of a
+        whole video: no valid depth in any of its frames (a range may have none).
     """
     from upsr.io.registry import ReadOptions
 
@@ -265,13 +265,15 @@ def iter_frames(
     impl = _format_module(f)
     info = impl.probe(p, opts, f)  # validate the container before the first frame is asked for
     first, last = check_frame_range(start, stop, info.n_frames, str(p))
-    if (first, last) == (0, info.n_frames):
+    whole = (first, last) == (0, info.n_frames)
+    if whole:
         frames = impl.frames(p, opts, f)
     else:
         frames = impl.frames(p, opts, f, start=first, stop=last)
     if scale != 1000.0 and f in ARRAY_FORMATS:
         frames = _rescaled(frames, np.float32(1000.0 / scale))
-    return _require_valid(frames, str(p))
+    # (a range without depth is part of a video that may have some elsewhere)
+    return _require_valid(frames, str(p)) if whole else frames
 
 
 #: Formats whose readers turn raw values into mm with the depth scale themselves.

@@ -169,3 +169,27 @@ def test_batch_and_run_valid_range(tmp_path: Path, capsys) -> None:
     assert main([*run, "--valid-range", "70000,80000"]) == 2
     assert "outside 70000-80000 mm" in capsys.readouterr().err
     assert not (tmp_path / "o.npy").exists()
+
+
+def test_batch_takes_a_recording_whose_last_chunk_has_no_depth(tmp_path: Path, capsys) -> None:
+    """A camera covered for the last frames: the chunks without depth give zeros, as one run
+    does (the chunk's read and its engine refused it: the recording failed with 2 workers, not
+    with 1); a recording without depth anywhere fails with one line."""
+    rng = np.random.default_rng(0)
+    ys, xs = np.mgrid[0:16, 0:20].astype(np.float32)
+    video = np.stack([1500 + 4 * xs + 2 * ys + rng.normal(0, 3, xs.shape) for _ in range(12)])
+    video[7:] = 0.0
+    np.save(tmp_path / "covered.npy", video.astype(np.float32))
+    common = ["-r", "2", "-n", "3", "-q"]
+    assert (
+        main(["run", str(tmp_path / "covered.npy"), "-o", str(tmp_path / "run.npy"), *common]) == 0
+    )
+    batch = ["batch", str(tmp_path / "covered.npy"), "--out", str(tmp_path / "out"), "-w", "2"]
+    assert main([*batch, *common, "--chunk-frames", "4"]) == 0, capsys.readouterr().err
+    np.testing.assert_array_equal(
+        np.load(tmp_path / "out" / "covered.npy"), np.load(tmp_path / "run.npy")
+    )
+    np.save(tmp_path / "empty.npy", np.zeros_like(video, np.float32))
+    capsys.readouterr()
+    assert main(["batch", str(tmp_path / "empty.npy"), "--out", str(tmp_path / "o2"), *common]) == 2
+    assert "no valid depth" in capsys.readouterr().err
