@@ -127,13 +127,17 @@ def test_bad_range(tmp_path: Path, start: object, stop: object, match: str) -> N
         io.iter_frames(path, start=start, stop=stop)  # type: ignore[arg-type]
 
 
-def test_range_validity_is_that_of_the_frames_read(tmp_path: Path) -> None:
+def test_a_range_may_have_no_depth_a_whole_video_may_not(tmp_path: Path) -> None:
+    """A range is part of a video whose depth may lie elsewhere (``upsr batch``'s chunk of a
+    camera covered at the end); a whole video without depth is refused."""
     v = _video()
     v[:3] = 0
     path = _npy(tmp_path, v)
     assert len(list(io.iter_frames(path, start=2))) == 4
+    empty = list(io.iter_frames(path, stop=3))
+    assert len(empty) == 3 and not np.any(empty)
     with pytest.raises(InputError, match="no valid depth in any frame"):
-        list(io.iter_frames(path, stop=3))
+        list(io.iter_frames(_npz(tmp_path, np.zeros_like(v))))
 
 
 def test_png_frames_before_the_range_are_not_decoded(tmp_path: Path) -> None:
