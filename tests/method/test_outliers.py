@@ -43,6 +43,21 @@ def test_regions_larger_than_the_size_or_joined_by_small_steps_stay():
     assert np.array_equal(remove_speckles(z2, 0, 100.0), z2)  # 0: keep everything
 
 
+def test_an_image_of_speckles_only_is_kept():
+    """Nothing for the islands to be cut off from (a 1×1 video upsampled, or two blocks in an
+    empty frame): kept as they are (a 1×1 video came out all 0 from super_resolve), by the
+    OpenCV oracle too."""
+
+    one = np.full((2, 2), 1500.0, np.float32)
+    two = np.zeros((8, 8), np.float32)
+    two[1:3, 1:3], two[5:7, 5:7] = 1500.0, 2500.0
+    for z in (one, two):
+        np.testing.assert_array_equal(remove_speckles(z, 4, 100.0), z)
+        np.testing.assert_array_equal(remove_speckles_opencv(z, 4, 100.0), z)
+    video = np.full((5, 1, 1), 1500.0, np.float32)
+    assert (upsr.super_resolve(video, 2, n_frames=3) > 0).all()
+
+
 @pytest.mark.parametrize("seed", range(4))
 def test_the_same_regions_as_opencvs_speckle_filter(seed):
     # random depth maps: surfaces, holes, islands of every size, near the int16 range too

@@ -118,7 +118,8 @@ def remove_speckles(
     Returns
     -------
     ndarray float32 (H, W): a copy of ``depth_mm`` with the speckles set to 0; every other
-    value is unchanged.
+    value is unchanged. An image made of speckles only (e.g. a 1×1 input upsampled) is
+    returned unchanged: islands are cut off from something, and nothing would be left.
     """
     depth = np.array(depth_mm, dtype=np.float32, copy=True)
     if depth.ndim != 2:
@@ -134,8 +135,9 @@ def remove_speckles(
     if max_size_px == 0 or not valid.any():
         return depth
     unit, max_diff = speckle_units(depth, max_diff_mm)
+    kept = depth.copy()
     _speckle_kernel(depth, np.float32(unit), int(max_size_px), max_diff)
-    return depth
+    return depth if (depth > 0).any() else kept
 
 
 def speckle_units(depth_mm: np.ndarray, max_diff_mm: float) -> tuple[float, int]:

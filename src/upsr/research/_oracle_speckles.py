@@ -29,5 +29,7 @@ def remove_speckles_opencv(
     np.maximum(q, 1.0, out=q, where=valid)
     q = q.astype(np.int16)
     cv2.filterSpeckles(q, 0, int(max_size_px), max_diff)
+    if not (q != 0).any():  # (speckles only: kept, as remove_speckles keeps them)
+        return depth
     depth[q == 0] = 0.0
     return depth
