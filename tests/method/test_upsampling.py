@@ -38,10 +38,14 @@ def test_upsampling_replicates_blocks_and_keeps_invalid():
     assert upsample_nearest(np.ones((5, 2, 3)), 2).shape == (5, 4, 6)
 
 
-@pytest.mark.parametrize("r", [0, -1, 1.5, True, "2"])
+@pytest.mark.parametrize("r", [0, -1, 1.5, True, "2", 17, 10000])
 def test_bad_scale_rejected(r):
-    with pytest.raises(InputError):
-        upsample_nearest(np.ones((2, 2)), r)
+    """Also beyond MAX_SCALE (16): r = 10000 took 24 GB of a 4×4 frame in a baseline."""
+    from upsr.research import baselines
+
+    for upsample in (upsample_nearest, baselines.nearest, baselines.bicubic_noflying):
+        with pytest.raises(InputError, match=r"scale r must be an integer in 1\.\.16"):
+            upsample(np.ones((2, 2)), r)
 
 
 def test_decimate_needs_divisible_shape():

@@ -11,6 +11,7 @@ import numpy as np
 import numpy.typing as npt
 
 from upsr.errors import InputError
+from upsr.method.config import MAX_SCALE
 
 __all__ = [
     "decimate",
@@ -22,8 +23,10 @@ __all__ = [
 
 
 def _check_scale(r: int) -> int:
-    if isinstance(r, bool) or not isinstance(r, (int, np.integer)) or r < 1:
-        raise InputError(f"scale r must be an integer >= 1, got {r!r}")
+    """``r`` as an int, 1 ≤ r ≤ :data:`~upsr.method.config.MAX_SCALE` (beyond, a frame's
+    output alone would not fit in memory: r = 10000 took 24 GB for a 4×4 frame)."""
+    if isinstance(r, bool) or not isinstance(r, (int, np.integer)) or not 1 <= r <= MAX_SCALE:
+        raise InputError(f"scale r must be an integer in 1..{MAX_SCALE}, got {r!r}")
     return int(r)
 
 

@@ -1,4 +1,5 @@
-"""Input checks shared by the baselines: the SR factor, a frame or a video of depth."""
+"""Input checks shared by the baselines: a frame or a video of depth (the SR factor:
+:func:`upsr.method.upsampling._check_scale`)."""
 
 from __future__ import annotations
 
@@ -9,12 +10,6 @@ from upsr.errors import InputError
 from upsr.method.validation import as_depth_frame
 
 __all__: list[str] = []
-
-
-def _check_scale(r: int) -> int:
-    if isinstance(r, bool) or not isinstance(r, (int, np.integer)) or r < 1:
-        raise InputError(f"scale r must be an integer >= 1, got {r!r}")
-    return int(r)
 
 
 def _as_frames(lowres: npt.ArrayLike) -> tuple[np.ndarray, bool]:

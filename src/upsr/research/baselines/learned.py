@@ -15,8 +15,8 @@ from scipy.spatial import cKDTree
 from upsr.errors import InputError
 from upsr.geometry.camera import PinholeCamera
 from upsr.geometry.rendering import render_depth
-from upsr.method.upsampling import upsample_nearest
-from upsr.research.baselines._common import _as_frames, _check_scale
+from upsr.method.upsampling import _check_scale, upsample_nearest
+from upsr.research.baselines._common import _as_frames
 from upsr.research.metrics import _check_mm
 from upsr.research.synth.primitives import box, merge
 

@@ -22,7 +22,8 @@ from upsr.errors import InputError
 from upsr.method.config import UPSRConfig
 from upsr.method.frontend import MotionFrontEnd
 from upsr.method.registration import flows_to_reference
-from upsr.research.baselines._common import _as_frames, _check_scale
+from upsr.method.upsampling import _check_scale
+from upsr.research.baselines._common import _as_frames
 
 __all__ = [
     "EnergyCallback",

@@ -14,8 +14,8 @@ import numpy as np
 import numpy.typing as npt
 
 from upsr.errors import InputError
-from upsr.method.upsampling import upsample_bicubic, upsample_nearest
-from upsr.research.baselines._common import _as_frames, _check_scale
+from upsr.method.upsampling import _check_scale, upsample_bicubic, upsample_nearest
+from upsr.research.baselines._common import _as_frames
 
 __all__ = [
     "bicubic",
