@@ -1,5 +1,7 @@
+import numpy as np
 import pytest
 
+import upsr
 from upsr import DeblurConfig, InputError, UPSRConfig
 
 
@@ -111,3 +113,30 @@ def test_valid_range_checked(bad):
     with pytest.raises(InputError, match="valid_range_mm"):
         UPSRConfig(valid_range_mm=bad)
     assert UPSRConfig(valid_range_mm=[100, 5000]).valid_range_mm == (100.0, 5000.0)
+
+
+def test_flags_must_be_bools_and_deblur_a_config_a_mapping_or_a_bool():
+    """A flag given as a string was taken as true (``deblur_enabled="no"`` deblurred), a dict
+    of deblurring options was taken as "enabled" and its options dropped."""
+    for bad in ({"refine": "no"}, {"fill_holes": 1}, {"deblur_enabled": "no"}):
+        with pytest.raises(InputError, match="must be True or False"):
+            UPSRConfig.from_options(2, 3, **bad)
+    with pytest.raises(InputError, match="deblur must be a DeblurConfig"):
+        UPSRConfig.from_options(2, 3, deblur="yes")
+    as_mapping = UPSRConfig.from_options(2, 3, deblur={"lam": 0.3, "iterations": 4})
+    assert (
+        as_mapping.deblur
+        == UPSRConfig.from_options(2, 3, deblur_lam=0.3, deblur_iterations=4).deblur
+    )
+    assert UPSRConfig.from_options(2, 3, deblur=False).deblur.enabled is False
+    with pytest.raises(InputError, match="unknown deblur option"):
+        UPSRConfig.from_options(2, 3, deblur={"lamda": 0.3})
+
+
+def test_super_resolve_refuses_arguments_that_disagree_with_its_config():
+    video = np.full((3, 6, 6), 1500.0, np.float32)
+    cfg = UPSRConfig(scale=2, n_frames=3)
+    assert upsr.super_resolve(video, 2, config=cfg).shape == (3, 12, 12)
+    for kwargs in ({"scale": 4}, {"scale": 2, "n_frames": 5}, {"scale": 2, "mode": "recursive"}):
+        with pytest.raises(InputError, match="give the options in the config"):
+            upsr.super_resolve(video, config=cfg, **kwargs)

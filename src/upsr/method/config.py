@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Any, Literal
 
@@ -113,6 +114,7 @@ class DeblurConfig:
     smooth_sigma_px: float | None = None
 
     def __post_init__(self) -> None:
+        _check_flags(self)
         _number("deblur lam", self.lam, 0, MAX_DEPTH_PARAM_MM)
         _number("deblur alpha", self.alpha, 0, 1, lo_open=True)
         _number("deblur radius_px (P)", self.radius_px, 1, MAX_BTV_RADIUS_PX, integer=True)
@@ -410,6 +412,7 @@ class UPSRConfig:
     deblur: DeblurConfig = field(default_factory=DeblurConfig)
 
     def __post_init__(self) -> None:
+        _check_flags(self)
         _number("scale r", self.scale, 1, MAX_SCALE, integer=True)
         _number("n_frames N", self.n_frames, 1, MAX_N_FRAMES, integer=True)
         _number("prefilter_sigma_mm", self.prefilter_sigma_mm, 0, MAX_DEPTH_PARAM_MM, lo_open=True)
@@ -512,15 +515,6 @@ class UPSRConfig:
             or (_is_str(self.remove_mixed) and self.remove_mixed == "auto"),
             f"remove_mixed must be True, False or 'auto', not {_show(self.remove_mixed)}",
         )
-        for name in (
-            "radial_compensation",
-            "check_registration",
-            "follow_slopes",
-            "fill_holes",
-            "edge_votes",
-            "thin_parts",
-        ):
-            _check(isinstance(getattr(self, name), bool), f"{name} must be True or False")
         object.__setattr__(self, "scale", int(self.scale))
         object.__setattr__(self, "n_frames", int(self.n_frames))
 
@@ -581,14 +575,32 @@ class UPSRConfig:
         if isinstance(deblur, DeblurConfig):
             dcfg = dataclasses.replace(deblur, **deblur_opts)
         else:
-            if deblur is not None:
+            if isinstance(deblur, Mapping):  # (its options, as deblur_* keywords)
+                deblur_opts = {**deblur, **deblur_opts}
+            elif isinstance(deblur, (bool, np.bool_)):
                 deblur_opts.setdefault("enabled", bool(deblur))
+            elif deblur is not None:
+                raise InputError(
+                    f"deblur must be a DeblurConfig, a mapping of its options or True/False, "
+                    f"not {_show(deblur)}"
+                )
             dnames = {f.name for f in dataclasses.fields(DeblurConfig)}
             bad = sorted(set(deblur_opts) - dnames)
             if bad:
                 raise InputError(f"unknown deblur option(s): {', '.join(bad)}")
             dcfg = DeblurConfig(**deblur_opts)
         return cls(scale=scale, n_frames=n_frames, deblur=dcfg, **options)
+
+
+def _check_flags(config: Any) -> None:
+    """Every field of ``config`` typed ``bool`` holds a bool (``enabled="no"`` was taken as
+    true)."""
+    for f in dataclasses.fields(config):
+        value = getattr(config, f.name)
+        _check(
+            f.type != "bool" or isinstance(value, (bool, np.bool_)),
+            f"{f.name} must be True or False, not {_show(value)}",
+        )
 
 
 def _is_int(value: Any) -> bool:

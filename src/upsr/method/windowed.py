@@ -664,7 +664,8 @@ def super_resolve(
         Frames per window N (1 ≤ N ≤ T), reference in the middle; with
         ``mode="recursive"`` the most frames the state summarises (any T).
     config : UPSRConfig, optional
-        Full configuration; overrides ``scale``, ``n_frames`` and ``options``.
+        Full configuration: ``scale`` (and ``n_frames`` when given) must be its own, and no
+        ``options`` beside it.
     progress : bool, optional
         Show a progress bar on stderr.
     workers : int, optional
@@ -684,6 +685,14 @@ def super_resolve(
     InputError
         Bad data (shape, dtype, ±inf, negative depth, no valid depth) or parameters.
     """
+    given = n_frames not in (9, config.n_frames) if config is not None else False
+    if config is not None and (options or scale != config.scale or given):
+        # (they were dropped silently: a config of r = 2 gave r = 2 for scale=4)
+        raise InputError(
+            f"config (r = {config.scale}, N = {config.n_frames}) and scale={scale}, "
+            f"n_frames={n_frames}{', ' + ', '.join(sorted(options)) if options else ''} "
+            f"disagree: give the options in the config"
+        )
     cfg = config if config is not None else UPSRConfig.from_options(scale, n_frames, **options)
     video = as_depth_video(frames, valid_range_mm=cfg.valid_range_mm)
     t_total, h, w = video.shape
