@@ -75,3 +75,20 @@ def test_disabled_or_empty_is_identity():
     _, z = _noisy_step()
     np.testing.assert_array_equal(deblur(z, DeblurConfig(enabled=False)), z)
     np.testing.assert_array_equal(deblur(np.zeros((5, 5), np.float32)), 0)
+
+
+def test_deblur_checks_its_image_and_takes_a_mapping_of_options():
+    """deblur(-z) returned negative depth and deblur(z, {"lam": 0.1}) an AttributeError."""
+    from upsr.errors import InputError
+
+    z = np.full((12, 14), 1500.0, np.float32)
+    z[4:8, 4:8] = 1000.0
+    with pytest.raises(InputError, match="negative"):
+        deblur(-z)
+    with pytest.raises(InputError, match="2-D depth frame"):
+        deblur(z[None])
+    with pytest.raises(InputError, match="lamda"):
+        deblur(z, {"lamda": 0.1})
+    with pytest.raises(InputError, match="DeblurConfig or a mapping"):
+        deblur(z, 0.1)
+    np.testing.assert_array_equal(deblur(z, {"lam": 0.1}), deblur(z, DeblurConfig(lam=0.1)))

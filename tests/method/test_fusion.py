@@ -193,3 +193,28 @@ def test_register_and_fuse_equals_registration_then_median(n, still_reference):
     measured = upsample_nearest((lowres > 0).any(axis=0), 4)
     np.testing.assert_array_equal(only[~measured], 0.0)
     np.testing.assert_array_equal(only[measured], fused[measured])
+
+
+def test_temporal_median_refuses_what_is_not_a_registered_stack():
+    """±inf and negative samples gave ±inf and negative depth; a wrong shape, ref or weights
+    gave plain ValueErrors or NumPy's broadcast error: one InputError each (a ValueError)."""
+    from upsr.errors import InputError
+
+    z = np.full((6, 8), 1500.0, np.float32)
+    z[2, 2] = 0.0
+    stack = np.stack([z, z + (z > 0), z - (z > 0)])
+    bad = (
+        ({"stack": np.where(stack > 0, np.inf, 0.0)}, "±inf"),
+        ({"stack": -stack}, "negative"),
+        ({"stack": z}, r"\(N, H, W\)"),
+        ({"stack": stack.astype(complex)}, "numeric"),
+        ({"stack": stack, "ref": 5}, "ref must be"),
+        ({"stack": stack, "weights": np.ones((2, 2))}, "weights must broadcast"),
+        ({"stack": stack, "guide": z[:3]}, "guide must be one frame"),
+    )
+    for kwargs, match in bad:
+        with pytest.raises(InputError, match=match):
+            temporal_median(**kwargs)
+    nan_outside = stack.copy()
+    nan_outside[2, :, :4] = np.nan  # (outside the frame: allowed)
+    assert temporal_median(nan_outside)[0, 0] == 1500.5  # (the median of the two in frame)

@@ -19,14 +19,18 @@ more than β_k per step, with the geometric schedule β_k = β₀·decay^k.
 
 from __future__ import annotations
 
+from collections.abc import Mapping
+
 import cv2
 import numba as nb
 import numpy as np
 import numpy.typing as npt
 
+from upsr.errors import InputError
 from upsr.method.config import DeblurConfig
 from upsr.method.noise import estimate_noise_mm, noise_at_depth
 from upsr.method.smoothing import smooth_surfaces
+from upsr.method.validation import as_depth_frame
 
 __all__ = [
     "btv_energy",
@@ -365,7 +369,34 @@ def deblur(
     Returns
     -------
     ndarray float32 (H, W), 0 exactly where z is 0.
+
+    Raises
+    ------
+    InputError
+        ``z`` not a depth image (:func:`~upsr.method.validation.as_depth_frame`: shape, dtype,
+        ±inf, negative depth); ``cfg`` neither a :class:`DeblurConfig` nor a mapping of its
+        options.
     """
+    if isinstance(cfg, Mapping):
+        try:
+            cfg = DeblurConfig(**cfg)
+        except TypeError as e:
+            raise InputError(f"cfg: {e}") from None
+    elif cfg is not None and not isinstance(cfg, DeblurConfig):
+        raise InputError(f"cfg must be a DeblurConfig or a mapping of its options, not {cfg!r}")
+    z = as_depth_frame(z, name="z")
+    return _deblur(z, cfg, scale=scale, noise_row_step=noise_row_step, noise_profile=noise_profile)
+
+
+def _deblur(
+    z: np.ndarray,
+    cfg: DeblurConfig | None = None,
+    *,
+    scale: int = 1,
+    noise_row_step: int = 1,
+    noise_profile: tuple[float, float] | None = None,
+) -> np.ndarray:
+    """:func:`deblur` of a checked float32 depth image (the finishing's call, every frame)."""
     cfg = cfg or DeblurConfig()
     z = np.ascontiguousarray(z, np.float32)
     mask = z > 0

@@ -14,7 +14,7 @@ import numpy as np
 
 from upsr.method.config import UPSRConfig
 from upsr.method.consistency import clear_stale_fills
-from upsr.method.deblurring import deblur
+from upsr.method.deblurring import _deblur
 from upsr.method.memory import level_to_reference
 from upsr.method.mixed import split_mixed_pixels
 from upsr.method.outliers import remove_speckles
@@ -97,7 +97,7 @@ def finish_fused(
     its first step from the noise of every k-th row, about :data:`NOISE_SAMPLE_PX` pixels,
     each pixel's step following the ``noise_profile`` where it grows with depth), then the
     removal of isolated outliers (:func:`upsr.method.outliers.remove_speckles`)."""
-    out = deblur(
+    out = _deblur(
         fused_mm,
         cfg.deblur,
         scale=cfg.scale,

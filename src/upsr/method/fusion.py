@@ -25,6 +25,7 @@ import numpy as np
 import numpy.typing as npt
 
 from upsr._numba import SAFE_FASTMATH
+from upsr.errors import InputError
 from upsr.method.edges import cell_ranges, edge_band, vote_surface, votes_may_move
 from upsr.method.registration import interpolation_tables, weight_table
 from upsr.method.sorting import (
@@ -528,21 +529,25 @@ def temporal_median(
     -------
     ndarray float32 (H, W): the fused depth, 0 where nothing is known.
     """
-    arr = np.ascontiguousarray(stack, dtype=np.float32)
-    if arr.ndim != 3:
-        raise ValueError(f"stack must be (N, H, W), got shape {arr.shape}")
+    arr = _registered_stack(stack)
     n = arr.shape[0]
-    ref = (n - 1) // 2 if ref is None else int(ref)
-    if not 0 <= ref < n:
-        raise ValueError(f"ref must be in [0, {n}), got {ref}")
-    if weights is None:
-        wts = np.ones(arr.shape, np.float32)
-    else:
-        wts = np.ascontiguousarray(np.broadcast_to(weights, arr.shape), dtype=np.float32)
-    if guide is None:
-        gd = np.zeros(arr.shape[1:], np.float32)
-    else:
-        gd = np.ascontiguousarray(guide, dtype=np.float32)
+    ref = (n - 1) // 2 if ref is None else ref
+    if isinstance(ref, bool) or not isinstance(ref, (int, np.integer)) or not 0 <= ref < n:
+        raise InputError(f"ref must be an integer in [0, {n}), got {ref!r}")
+    try:
+        wts = (
+            np.ones(arr.shape, np.float32)
+            if weights is None
+            else np.ascontiguousarray(np.broadcast_to(np.asarray(weights, np.float32), arr.shape))
+        )
+    except (ValueError, TypeError):
+        raise InputError(
+            f"weights must broadcast to the stack's shape {arr.shape}, got {np.shape(weights)}"
+        ) from None
+    gd = np.zeros(arr.shape[1:], np.float32) if guide is None else np.asarray(guide, np.float32)
+    if gd.shape != arr.shape[1:]:
+        raise InputError(f"guide must be one frame {arr.shape[1:]}, got shape {gd.shape}")
+    gd = np.ascontiguousarray(np.nan_to_num(gd, nan=0.0))
     out = np.empty(arr.shape[1:], np.float32)
     _median_kernel(
         arr,
@@ -556,6 +561,22 @@ def temporal_median(
         out,
     )
     return out
+
+
+def _registered_stack(stack: npt.ArrayLike) -> np.ndarray:
+    """``stack`` as float32 (N, H, W), checked: numeric, finite or NaN (outside the frame),
+    no negative depth (:class:`~upsr.errors.InputError` otherwise)."""
+    arr = np.asarray(stack)
+    if arr.dtype == object or not np.issubdtype(arr.dtype, np.number) or np.iscomplexobj(arr):
+        raise InputError(f"stack must be a numeric array of depth, got dtype {arr.dtype}")
+    arr = np.ascontiguousarray(arr, dtype=np.float32)
+    if arr.ndim != 3 or arr.size == 0:
+        raise InputError(f"stack must be a non-empty (N, H, W) array, got shape {arr.shape}")
+    if np.isinf(arr).any():
+        raise InputError("stack contains ±inf (use 0 for no return, NaN for outside the frame)")
+    if (arr < 0).any():
+        raise InputError(f"stack contains negative depth (min {float(np.nanmin(arr)):g} mm)")
+    return arr
 
 
 def register_and_fuse(
