@@ -173,8 +173,8 @@ def check_depth_range(
         # (the advice first: the one-line limit must not cut it)
         message = (
             f"{name}: wrong depth units?{_scale_hint(med, lo, hi, depth_scale, option)}: "
-            f"{100 * outside:.0f}% of the depth is outside the plausible {lo:g}–{hi:g} mm "
-            f"({sensor} sensor; median {med:.4g} mm, 1–99% {p01:.4g}–{p99:.4g} mm)"
+            f"{100 * outside:.0f}% of the depth outside {lo:g}–{hi:g} mm, plausible for a "
+            f"{sensor} sensor (median {med:.4g} mm)"
         )
         if action == "refuse":
             raise InputError(message)

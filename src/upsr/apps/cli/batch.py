@@ -77,7 +77,7 @@ def batch(
     quiet: opt.QuietOpt = False,
     **method: Any,
 ) -> int:
-    """Super-resolve many recordings (same options as 'upsr run'), resumably.
+    """Super-resolve many recordings (the windowed options of 'upsr run'), resumably.
 
     Outputs OUT/<name>.npy (or --format) and OUT/<name>.npy.intrinsics.json when the
     intrinsics are known. Existing outputs are skipped (rerun after an interruption to

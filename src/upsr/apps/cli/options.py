@@ -167,7 +167,9 @@ DepthScaleOpt = Annotated[
     float,
     typer.Option(
         "--depth-scale",
-        help="PNG/TIFF/EXR/PGM: raw units per metre (1000 = mm, TUM: 5000, metres: 1).",
+        "--input-depth-scale",
+        help="Input raw units per metre (1000 = mm, 1 = metres, 5000 = TUM) of PNG/TIFF/EXR/PGM "
+        "frames and .npy/.npz arrays.",
     ),
 ]
 #: ``--depth-scale`` of the commands that also write (``run``, ``batch``): the input's only.
