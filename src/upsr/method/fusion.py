@@ -268,8 +268,10 @@ def _register_fuse_kernel(
             y1 = rows[i, 1]
             gy = fy[i]
             fi = np.float64(i)
-            sy = side_of[i]  # the side of its low-res pixel's centre the row lies on
-            for q in range(m_on):
+            # the side of its low-res pixel's centre the row lies on (the alternatives of
+            # the row's pixels gathered again where it changes: 2 or 3 times for the r rows)
+            sy = side_of[i]
+            for q in range(m_on if i == li * scale or sy != side_of[i - 1] else 0):
                 lj = on_low[q]
                 sx = side_of[on[q]]
                 on_ax[q] = alt_lo[sy, sx, li, lj]
