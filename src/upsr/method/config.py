@@ -557,6 +557,24 @@ class UPSRConfig:
         return 0.75 * self.scale + 0.5
 
     @classmethod
+    def of_call(
+        cls, scale: int, n_frames: int, config: UPSRConfig | None, options: dict[str, Any]
+    ) -> UPSRConfig:
+        """The config of a call given ``scale``, ``n_frames`` (default 9), a ``config`` or
+        ``options``: ``config`` when given, whose ``scale`` (and ``n_frames`` when not the
+        default) must agree and beside which no options are allowed (they were dropped
+        silently); else :meth:`from_options`."""
+        if config is None:
+            return cls.from_options(scale, n_frames, **options)
+        if options or scale != config.scale or n_frames not in (9, config.n_frames):
+            raise InputError(
+                f"config (r = {config.scale}, N = {config.n_frames}) and scale={scale}, "
+                f"n_frames={n_frames}{', ' + ', '.join(sorted(options)) if options else ''} "
+                f"disagree: give the options in the config"
+            )
+        return config
+
+    @classmethod
     def from_options(cls, scale: int, n_frames: int = 9, **options: Any) -> UPSRConfig:
         """Build a config from flat keyword options.
 

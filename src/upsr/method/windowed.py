@@ -610,35 +610,28 @@ class UPSR:
         return outs
 
     def process(self, frames: Iterable[npt.ArrayLike]) -> Iterator[np.ndarray]:
-        """Super-resolve a stream of frames; yields one high-res frame per input frame, in
-        order. Without workers each comes as soon as its window is complete (see
-        :meth:`feed`); with workers, once a worker has finished it (the engine reads up to
-        2·``workers`` windows ahead). A video that fails (or is abandoned) resets the
-        engine: the next starts afresh."""
+        """Super-resolve a stream of frames; yields one output per frame, in order: without
+        workers as soon as its window is complete (:meth:`feed`), with workers once finished
+        (up to 2·``workers`` windows ahead). A failed (or abandoned) video resets the engine."""
         try:
-            yield from self._process(frames)
+            if self._pool is None:
+                for frame in frames:
+                    yield from self.feed(frame)
+            else:
+                n, ahead = self.config.n_frames, 2 * self.workers
+                for frame in frames:
+                    self._ingest(frame)
+                    horizon = self._count + n
+                    self._submit_ready(horizon, ahead)
+                    # in order, as the background finishes them; wait only with enough ahead
+                    while self._complete(horizon) and (
+                        self._next_submit - (k := self._next_out) >= ahead
+                        or (k in self._pending and self._pending[k].done())
+                    ):
+                        yield self._take(horizon)
         except BaseException:
             self.reset()
             raise
-
-    def _process(self, frames: Iterable[npt.ArrayLike]) -> Iterator[np.ndarray]:
-        if self._pool is None:
-            for frame in frames:
-                yield from self.feed(frame)
-            yield from self.flush()
-            return
-        n = self.config.n_frames
-        ahead = 2 * self.workers
-        for frame in frames:
-            self._ingest(frame)
-            horizon = self._count + n
-            self._submit_ready(horizon, ahead)
-            # in order, as the background finishes them; wait only with enough ahead
-            while self._complete(horizon) and (
-                self._next_submit - self._next_out >= ahead
-                or (self._next_out in self._pending and self._pending[self._next_out].done())
-            ):
-                yield self._take(horizon)
         yield from self.flush()
 
 
@@ -685,15 +678,7 @@ def super_resolve(
     InputError
         Bad data (shape, dtype, ±inf, negative depth, no valid depth) or parameters.
     """
-    given = n_frames not in (9, config.n_frames) if config is not None else False
-    if config is not None and (options or scale != config.scale or given):
-        # (they were dropped silently: a config of r = 2 gave r = 2 for scale=4)
-        raise InputError(
-            f"config (r = {config.scale}, N = {config.n_frames}) and scale={scale}, "
-            f"n_frames={n_frames}{', ' + ', '.join(sorted(options)) if options else ''} "
-            f"disagree: give the options in the config"
-        )
-    cfg = config if config is not None else UPSRConfig.from_options(scale, n_frames, **options)
+    cfg = UPSRConfig.of_call(scale, n_frames, config, options)
     video = as_depth_video(frames, valid_range_mm=cfg.valid_range_mm)
     t_total, h, w = video.shape
     if cfg.mode == "windowed" and cfg.n_frames > t_total:
