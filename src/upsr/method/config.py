@@ -113,6 +113,15 @@ class DeblurConfig:
     smooth_sigma_mm: float | None = 30.0
     smooth_sigma_px: float | None = None
 
+    @classmethod
+    def from_mapping(cls, options: Mapping[str, Any]) -> DeblurConfig:
+        """A config from a mapping of its fields; unknown names raise
+        :class:`~upsr.errors.InputError`."""
+        bad = sorted(map(str, set(options) - {f.name for f in dataclasses.fields(cls)}))
+        if bad:
+            raise InputError(f"unknown deblur option(s): {', '.join(bad)}")
+        return cls(**options)
+
     def __post_init__(self) -> None:
         _check_flags(self)
         _number("deblur lam", self.lam, 0, MAX_DEPTH_PARAM_MM)
@@ -602,11 +611,7 @@ class UPSRConfig:
                     f"deblur must be a DeblurConfig, a mapping of its options or True/False, "
                     f"not {_show(deblur)}"
                 )
-            dnames = {f.name for f in dataclasses.fields(DeblurConfig)}
-            bad = sorted(set(deblur_opts) - dnames)
-            if bad:
-                raise InputError(f"unknown deblur option(s): {', '.join(bad)}")
-            dcfg = DeblurConfig(**deblur_opts)
+            dcfg = DeblurConfig.from_mapping(deblur_opts)
         return cls(scale=scale, n_frames=n_frames, deblur=dcfg, **options)
 
 

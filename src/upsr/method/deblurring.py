@@ -378,10 +378,7 @@ def deblur(
         options.
     """
     if isinstance(cfg, Mapping):
-        try:
-            cfg = DeblurConfig(**cfg)
-        except TypeError as e:
-            raise InputError(f"cfg: {e}") from None
+        cfg = DeblurConfig.from_mapping(cfg)
     elif cfg is not None and not isinstance(cfg, DeblurConfig):
         raise InputError(f"cfg must be a DeblurConfig or a mapping of its options, not {cfg!r}")
     z = as_depth_frame(z, name="z")
