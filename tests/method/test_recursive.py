@@ -203,6 +203,14 @@ def test_a_cameras_empty_first_frames_change_nothing(workers):
     got = list(RecursiveUPSR(scale=2, workers=workers).process(np.concatenate([empty, video])))
     assert not got[0].any() and not got[1].any()
     np.testing.assert_array_equal(np.stack(got[2:]), np.stack(want))
+    # a quantised sensor (no spatial noise estimate: the temporal one, from the frame after
+    # the first with depth, not from frame 1 whatever it holds)
+    rng = np.random.default_rng(0)
+    xx = np.mgrid[:12, :16][1]
+    steps = np.round((1500 + 2.0 * xx + rng.normal(0, 4, (6, 12, 16))) / 10) * 10
+    want = list(RecursiveUPSR(scale=2, workers=workers).process(steps))
+    got = list(RecursiveUPSR(scale=2, workers=workers).process(np.concatenate([empty, steps])))
+    np.testing.assert_array_equal(np.stack(got[2:]), np.stack(want))
     engine = RecursiveUPSR(scale=2)
     engine.push(empty[0])
     with pytest.raises(InputError, match="shape"):

@@ -210,6 +210,7 @@ class RecursiveUPSR(TwoStagePipeline):
         self._shape: tuple[int, int] | None = None
         self._count = 0
         self._first: np.ndarray | None = None
+        self._start = 0  # the first frame with depth (the statistics' frame)
         self._prev_pre: np.ndarray | None = None
         self._prev_guide: np.ndarray | None = None
         self._prev_frame: np.ndarray | None = None
@@ -337,10 +338,12 @@ class RecursiveUPSR(TwoStagePipeline):
             # depth (from such a frame a room's surfaces were 80 % worse for the whole video)
             self._count, self._any_valid = t + 1, self._any_valid or bool((f > 0).any())
             return (None, f)
-        if self._front is None:
+        first_with_depth = self._front is None
+        if first_with_depth:
             self._fix_statistics(f)
+            self._start = t
         front = self._front
-        if cfg.remove_mixed == "auto" and t < cfg.n_frames:
+        if cfg.remove_mixed == "auto" and t - self._start < cfg.n_frames:
             # does the sensor mix? The first N frames pooled as they arrive (one: too few edges)
             self._mixes += footprint_counts(f, front.edge_mm)
             share = _share_of(*self._mixes)
@@ -348,7 +351,8 @@ class RecursiveUPSR(TwoStagePipeline):
             if self._remove_mixed:
                 self._share = None  # (no edge votes where mixed pixels are removed)
         remove_mixed = self._remove_mixed
-        if t == 1 and self._first is not None:
+        if not first_with_depth and self._first is not None:
+            # (the frame after the first with depth, whatever empty frames came before)
             if cfg.noise_mm is None:
                 self._temporal_mm = temporal_noise_mm(np.stack([self._first, f]), front.edge_mm)
             self._first = None
