@@ -125,6 +125,31 @@ def test_depth_range_mm_read_as_metres_is_told_mm() -> None:
     assert "mm (--input-depth-scale 1000)" not in r.message
 
 
+@pytest.mark.parametrize("suffix", [".npy", ".npz", "tif"])
+def test_metres_are_read_as_the_same_mm(tmp_path: Path, suffix: str) -> None:
+    """Metres (float64) times 1000 rounded once: 2.021 m is 2021 mm, as the same depth in mm
+    reads (the float32 product 2020.9999 was another input: outputs differed by up to 17 mm)."""
+    mm = np.array([[[2021, 1999, 3333, 0], [4097, 1013, 2179, 65535]]], np.uint16)
+    metres = mm / 1000.0
+    path = tmp_path / f"m{suffix}"
+    if suffix == ".npy":
+        np.save(path, metres)
+    elif suffix == ".npz":
+        np.savez(path, depth=metres)
+    else:
+        import tifffile
+
+        path.mkdir()
+        tifffile.imwrite(path / "000.tif", metres[0])
+    np.testing.assert_array_equal(uio.read_video(path, depth_scale=1), mm.astype(np.float32))
+    units = tmp_path / "units.npy"  # 0.1 mm units (10000 per metre)
+    raw = mm.astype(np.int64) * 10 + 3 * (mm > 0)
+    np.save(units, raw)
+    np.testing.assert_array_equal(
+        uio.read_video(units, depth_scale=10000), (raw * 0.1).astype(np.float32)
+    )
+
+
 def test_detect_tum_scale(tmp_path: Path) -> None:
     y, x = np.mgrid[0:6, 0:8]
     tum_raw = (5000 * (1.0 + 0.3 * x + 0.1 * y)).astype(np.uint16)  # 1–3.4 m at 5000/m

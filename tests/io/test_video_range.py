@@ -158,9 +158,9 @@ def test_npz_frames_before_the_range_are_not_converted(tmp_path: Path, monkeypat
     seen: list[str] = []
     real = npz.as_depth_frame
 
-    def counting(raw, name):  # type: ignore[no-untyped-def]
+    def counting(raw, name, **kwargs):  # type: ignore[no-untyped-def]
         seen.append(name)
-        return real(raw, name=name)
+        return real(raw, name=name, **kwargs)
 
     monkeypatch.setattr(npz, "as_depth_frame", counting)
     list(io.iter_frames(path, key="depth", start=4))

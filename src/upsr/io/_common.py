@@ -10,8 +10,6 @@ import tempfile
 from collections.abc import Iterator
 from pathlib import Path
 
-import numpy as np
-
 from upsr.errors import InputError
 from upsr.io._base import MAX_FRAME_PIXELS, check_frame_budget, natural_key, reading
 
@@ -20,7 +18,6 @@ __all__ = [
     "check_frame_size",
     "frame_files",
     "mixed_size",
-    "raw_to_mm",
 ]
 
 
@@ -66,14 +63,6 @@ def mixed_size(name: str, hw: tuple[int, int], first: str, first_hw: tuple[int, 
         f"{name}: frame size {hw[1]}x{hw[0]} differs from the first frame's "
         f"{first_hw[1]}x{first_hw[0]} ({first})"
     )
-
-
-def raw_to_mm(raw: np.ndarray, depth_scale: float) -> np.ndarray:
-    """float32 mm from raw values in units of 1/depth_scale metres (NaN kept)."""
-    out = raw.astype(np.float32, copy=True)
-    if depth_scale != 1000.0:
-        out *= np.float32(1000.0 / depth_scale)
-    return out
 
 
 def _flush_c_stdio() -> None:

@@ -30,7 +30,7 @@ import numpy as np
 from upsr.errors import InputError
 from upsr.io import png
 from upsr.io._base import VideoInfo, reading
-from upsr.io._common import check_frame_size, frame_files, mixed_size, raw_to_mm
+from upsr.io._common import check_frame_size, frame_files, mixed_size
 from upsr.io.registry import ReadOptions
 from upsr.method.validation import as_depth_frame
 
@@ -196,5 +196,7 @@ def frames(
     expect = _pgm_meta(files[0], fmt)[:2]
     for file in files[start:stop]:
         raw = _read_pgm(file, fmt, expect)
-        mm = nyu_disparity_to_mm(raw) if fmt == "nyu" else raw_to_mm(raw, opts.depth_scale)
-        yield as_depth_frame(mm, name=file.name)
+        if fmt == "nyu":
+            yield as_depth_frame(nyu_disparity_to_mm(raw), name=file.name)
+        else:
+            yield as_depth_frame(raw, name=file.name, mm_per_unit=1000.0 / opts.depth_scale)

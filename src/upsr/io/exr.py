@@ -26,7 +26,6 @@ from upsr.io._common import (
     check_frame_size,
     frame_files,
     mixed_size,
-    raw_to_mm,
 )
 from upsr.io.registry import ReadOptions, require
 from upsr.method.validation import as_depth_frame
@@ -164,7 +163,7 @@ def frames(
                 first_hw = (h, w)
             elif (h, w) != first_hw:
                 raise mixed_size(label, (h, w), files[0].name, first_hw)
-            yield as_depth_frame(raw_to_mm(raw, opts.depth_scale), name=label)
+            yield as_depth_frame(raw, name=label, mm_per_unit=1000.0 / opts.depth_scale)
         t0 += len(parts)
         del parts
 

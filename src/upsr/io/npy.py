@@ -122,13 +122,14 @@ def frames(
             offset = f.tell()
         t_n, h, w = shape
         last = t_n if stop is None else stop
+        unit = 1000.0 / opts.depth_scale if opts is not None else 1.0
         frame_bytes = h * w * dtype.itemsize
         if fortran:  # time varies fastest: read the whole array (within the budget)
             with reading(name):
                 data = read_exact(f, frame_bytes * t_n, name)
             video = np.frombuffer(data, dtype).reshape(shape, order="F")
             for t in range(start, last):
-                yield as_depth_frame(video[t], name=f"{path.name} frame {t}")
+                yield as_depth_frame(video[t], name=f"{path.name} frame {t}", mm_per_unit=unit)
             return
         with reading(name):
             f.seek(offset + frame_bytes * start)
@@ -136,7 +137,9 @@ def frames(
             with reading(name):
                 data = read_exact(f, frame_bytes, f"{name} frame {t}")
             yield as_depth_frame(
-                np.frombuffer(data, dtype).reshape(h, w), name=f"{path.name} frame {t}"
+                np.frombuffer(data, dtype).reshape(h, w),
+                name=f"{path.name} frame {t}",
+                mm_per_unit=unit,
             )
     finally:
         f.close()

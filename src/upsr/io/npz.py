@@ -113,13 +113,14 @@ def frames(
             shape, fortran, dtype = npy.read_npy_header(f, label)
         t_n, h, w = shape
         last = t_n if stop is None else stop
+        unit = 1000.0 / opts.depth_scale if opts is not None else 1.0
         frame_bytes = h * w * dtype.itemsize
         if fortran:  # time varies fastest: read the whole array (read_npy_header: within budget)
             with reading(name):
                 data = _read_exact(f, frame_bytes * t_n, label)
             video = np.frombuffer(data, dtype).reshape(shape, order="F")
             for t in range(start, last):
-                yield as_depth_frame(video[t], name=f"{label} frame {t}")
+                yield as_depth_frame(video[t], name=f"{label} frame {t}", mm_per_unit=unit)
             return
         with reading(name):
             _skip(f, frame_bytes * start, label)
@@ -127,7 +128,9 @@ def frames(
             with reading(name):
                 data = _read_exact(f, frame_bytes, label)
             yield as_depth_frame(
-                np.frombuffer(data, dtype).reshape(h, w), name=f"{label} frame {t}"
+                np.frombuffer(data, dtype).reshape(h, w),
+                name=f"{label} frame {t}",
+                mm_per_unit=unit,
             )
         if last == t_n:
             with reading(name):

@@ -228,12 +228,9 @@ def frames_of_files(
     files: list[Path], shape: tuple[int, int], depth_scale: float
 ) -> Iterator[np.ndarray]:
     """Frames (float32 mm) of PNG files of raw units of 1/``depth_scale`` metres."""
-    factor = np.float32(1000.0 / depth_scale)
     for file in files:
-        frame = as_depth_frame(read_frame(file, shape), name=file.name)
-        if depth_scale != 1000.0:
-            frame *= factor
-        yield frame
+        raw = read_frame(file, shape)
+        yield as_depth_frame(raw, name=file.name, mm_per_unit=1000.0 / depth_scale)
 
 
 def probe(path: Path, opts: ReadOptions | None = None, fmt: str = "png") -> VideoInfo:

@@ -54,7 +54,8 @@ class ReadOptions:
     key : str or None
         ``.npz``: the array; EXR: the channel (default: ``Z``, ``depth``, … or the only one).
     depth_scale : float
-        Raw units per metre of formats that store raw numbers (PNG, TIFF, EXR, plain PGM):
+        Raw units per metre of formats that store raw numbers (PNG, TIFF, EXR, plain PGM,
+        npy/npz arrays):
         mm = raw · 1000 / depth_scale. 1000 (the default): the files hold mm; 1: metres.
         Ignored by formats whose units are fixed (TUM, NYU, SUN RGB-D, ROS bags).
     topic : str or None

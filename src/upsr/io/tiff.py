@@ -20,7 +20,7 @@ import numpy as np
 
 from upsr.errors import InputError
 from upsr.io._base import VideoInfo, reading, sync_file
-from upsr.io._common import check_frame_size, frame_files, mixed_size, raw_to_mm
+from upsr.io._common import check_frame_size, frame_files, mixed_size
 from upsr.io.registry import ReadOptions, require
 from upsr.method.validation import as_depth_frame
 
@@ -139,7 +139,7 @@ def frames(
                     elif hw != first_hw:
                         raise mixed_size(label, hw, files[0].name, first_hw)
                     raw = page.asarray()
-                yield as_depth_frame(raw_to_mm(raw, opts.depth_scale), name=label)
+                yield as_depth_frame(raw, name=label, mm_per_unit=1000.0 / opts.depth_scale)
         t0 += n
 
 

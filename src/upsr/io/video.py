@@ -270,8 +270,6 @@ def iter_frames(
         frames = impl.frames(p, opts, f)
     else:
         frames = impl.frames(p, opts, f, start=first, stop=last)
-    if scale != 1000.0 and f in ARRAY_FORMATS:
-        frames = _rescaled(frames, np.float32(1000.0 / scale))
     # (a range without depth is part of a video that may have some elsewhere)
     return _require_valid(frames, str(p)) if whole else frames
 
@@ -280,12 +278,6 @@ def iter_frames(
 SCALED_FORMATS = ("png", "tiff", "exr", "pgm")
 #: Formats of arrays in mm, or in raw units of ``depth_scale`` per metre when it is given.
 ARRAY_FORMATS = ("npy", "npz")
-
-
-def _rescaled(frames: Iterator[np.ndarray], mm_per_unit: np.float32) -> Iterator[np.ndarray]:
-    with contextlib.closing(frames):
-        for frame in frames:
-            yield frame * mm_per_unit
 
 
 def _require_valid(frames: Iterator[np.ndarray], name: str) -> Iterator[np.ndarray]:

@@ -50,6 +50,7 @@ def as_depth_frame(
     *,
     name: str = "frame",
     valid_range_mm: tuple[float, float] | None = None,
+    mm_per_unit: float = 1.0,
 ) -> np.ndarray:
     """Return ``frame`` as a float32 (h, w) depth map in mm with invalid pixels set to 0.
 
@@ -62,6 +63,9 @@ def as_depth_frame(
     valid_range_mm : (float, float), optional
         (min, max): depths outside are no measurement (0), as a depth camera SDK's
         threshold filter makes them (``UPSRConfig.valid_range_mm``).
+    mm_per_unit : float
+        The frame's unit in mm (1 for mm; 1000 for metres): the product is taken in float64
+        and rounded once (2.021 m is 2021 mm, not the float32 product's 2020.9999).
 
     Raises
     ------
@@ -82,14 +86,18 @@ def as_depth_frame(
     if np.issubdtype(arr.dtype, np.floating) and np.isinf(arr).any():
         raise InputError(f"{name}: depth contains ±inf (use 0 or NaN for 'no measurement')")
     with np.errstate(over="ignore", invalid="ignore"):  # > float32 max: inf, refused below
-        out = arr.astype(np.float32, copy=True)
+        if mm_per_unit == 1.0:
+            out = arr.astype(np.float32, copy=True)
+        else:
+            out = np.empty(arr.shape, np.float32)
+            np.multiply(arr, float(mm_per_unit), out=out, dtype=np.float64, casting="unsafe")
     if np.issubdtype(arr.dtype, np.floating):
         np.nan_to_num(out, copy=False, nan=0.0, posinf=np.inf, neginf=-np.inf)
     if (out < 0).any():
         raise InputError(f"{name}: depth contains negative values (min {float(out.min()):g} mm)")
     top = float(out.max())
     if top > MAX_DEPTH_MM:
-        big = float(np.nanmax(arr)) if np.issubdtype(arr.dtype, np.floating) else top
+        big = float(np.nanmax(arr)) * mm_per_unit if np.issubdtype(arr.dtype, np.floating) else top
         raise InputError(
             f"{name}: depth {big:.3g} mm is beyond {MAX_DEPTH_MM:g} mm (1 km): wrong units "
             f"or corrupt data"
