@@ -87,6 +87,19 @@ def test_intrinsics_json_carries_stamps_names(tmp_path: Path) -> None:
     np.testing.assert_array_equal(uio.read_timestamps(tmp_path / "o.npy"), [5, 6])
 
 
+def test_frame_counters_are_not_times_and_the_sidecar_wins(tmp_path: Path) -> None:
+    """``000000.png`` (upsr's own folder names) counts frames: no times of 0, 1, 2 s; the
+    times upsr wrote beside such a folder are those read back (before: the names won)."""
+    counted = _png_folder(tmp_path / "counted", _video(), ["000000", "000001", "000002"])
+    assert uio.read_timestamps(counted) is None
+    cam = PinholeCamera(100.0, 101.0, 3.5, 2.5, 8, 6)
+    write_intrinsics(tmp_path / "counted.intrinsics.json", cam, timestamps_ns=[0, 33, 67])
+    np.testing.assert_array_equal(uio.read_timestamps(counted), [0, 33, 67])
+    tum = _png_folder(tmp_path / "tum", _video(), NAMES)
+    write_intrinsics(tmp_path / "tum.intrinsics.json", cam, timestamps_ns=[1, 2, 3])
+    np.testing.assert_array_equal(uio.read_timestamps(tum), [1, 2, 3])
+
+
 # ---------------------------------------------------------------------------------------------
 # units
 # ---------------------------------------------------------------------------------------------

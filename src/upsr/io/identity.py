@@ -13,9 +13,11 @@ Writers
 
 Where timestamps come from
     ROS bags: the depth messages' header stamps (RealSense: the SDK's frame times);
-    ``.npz``: its ``timestamps`` array (ns, int); folders: the frame names when they are all
-    numbers of seconds (TUM RGB-D ``1305031102.175304.png``); otherwise a
-    ``<path>.intrinsics.json`` beside the input holding ``timestamps_ns``.
+    ``.npz``: its ``timestamps`` array (ns, int); otherwise a ``<path>.intrinsics.json``
+    beside the input holding ``timestamps_ns`` (what upsr writes beside its outputs where the
+    intrinsics are known); otherwise, for folders, the frame names when they are all times in
+    seconds with a fraction (TUM RGB-D ``1305031102.175304.png``; plain numbers such as
+    ``000000.png`` count frames, they are not times).
 """
 
 from __future__ import annotations
@@ -41,7 +43,9 @@ __all__ = [
 ]
 
 _FOLDER_SUFFIX = {"png": ".png", "exr": ".exr"}
-_SECONDS = re.compile(r"^[0-9]+(\.[0-9]+)?$")
+#: A frame name that is a time in seconds (TUM RGB-D's ``1305031102.175304``): a decimal point
+#: and a fraction; a plain number (``000000``, upsr's own folder names) counts frames.
+_SECONDS = re.compile(r"^[0-9]+\.[0-9]+$")
 
 
 def _fmt(path: Path, fmt: str | None) -> str:
@@ -85,22 +89,30 @@ def read_timestamps(
         out = module("rosbag").timestamps(p, ReadOptions(topic=topic), f)
     elif f == "npz":
         out = _npz_timestamps(p)
-    elif p.is_dir():
+    if out is None:
+        out = _sidecar_timestamps(p)
+    if out is None and p.is_dir():
         names = read_frame_names(p, fmt=f) or []
         if names and all(_SECONDS.match(n) for n in names):
             out = np.asarray([_seconds_to_ns(n) for n in names], np.int64)
-    if out is None:
-        from upsr.io.video import intrinsics_path
-
-        side = intrinsics_path(p)
-        if side.is_file():
-            try:
-                d = json.loads(side.read_text(encoding="utf-8"))
-            except (OSError, ValueError):
-                d = {}
-            if isinstance(d, dict) and isinstance(d.get("timestamps_ns"), list):
-                out = np.asarray(d["timestamps_ns"], np.int64)
     return out
+
+
+def _sidecar_timestamps(path: Path) -> np.ndarray | None:
+    """The ``timestamps_ns`` of ``<path>.intrinsics.json`` (what upsr wrote beside an output
+    of a video that had them), or None."""
+    from upsr.io.video import intrinsics_path
+
+    side = intrinsics_path(path)
+    if not side.is_file():
+        return None
+    try:
+        d = json.loads(side.read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return None
+    if isinstance(d, dict) and isinstance(d.get("timestamps_ns"), list):
+        return np.asarray(d["timestamps_ns"], np.int64)
+    return None
 
 
 def _seconds_to_ns(text: str) -> int:
