@@ -67,8 +67,10 @@ class FrameSource:
         self._units_mm = realsense_units_mm
         self.recording = recording
         self.real_time = real_time if recording is not None else True
-        self.dropped = 0
         self.received = 0
+        self._replaced = 0  # received, then replaced in the queue by a newer frame
+        self._unseen = 0  # frames the SDK skipped (gaps in its frame numbers; a recording's
+        # frames it never gave)
         self._queue: queue.Queue[Any] = queue.Queue(maxsize=1)
         self._stop = threading.Event()
         self._error: BaseException | None = None
@@ -99,6 +101,9 @@ class FrameSource:
             text = _stream_text(self._stream)  # type: ignore[arg-type]
             raise InputError(f"{where}: no depth stream {text}{offered}") from e
         self.shape = (profile.height(), profile.width())
+        # a recording's depth frames: those it holds and the source did not give count as
+        # dropped (real-time playback skips frames before the first one read, too)
+        self._in_recording = _depth_frames(recording, self.shape) if recording else None
         intr = profile.get_intrinsics()
         self.intrinsics = (intr.fx, intr.fy, intr.ppx, intr.ppy)
 
@@ -197,6 +202,13 @@ class FrameSource:
             return ""
         return f" (offered: {', '.join(offered)})" if offered else ""
 
+    @property
+    def dropped(self) -> int:
+        """Frames not handed over: replaced in the queue by a newer one, skipped by the SDK
+        (gaps in its frame numbers) and, once a recording has ended, those of its depth
+        frames the SDK never gave (real-time playback skips frames before the first read)."""
+        return self._replaced + self._unseen
+
     def _item(self, depth: Any) -> tuple[Any, float, int]:
         """(depth in mm, arrival time, the SDK's timestamp in ns) of an SDK depth frame,
         counted as received."""
@@ -258,7 +270,7 @@ class FrameSource:
                     continue
                 number = depth.get_frame_number()
                 if last is not None and number > last + 1:
-                    self.dropped += number - last - 1  # the SDK dropped these
+                    self._unseen += number - last - 1  # the SDK dropped these
                 last = number
                 item = self._item(depth)
                 try:
@@ -266,7 +278,7 @@ class FrameSource:
                 except queue.Full:
                     try:  # the waiting frame is stale: the newest replaces it
                         self._queue.get_nowait()
-                        self.dropped += 1
+                        self._replaced += 1
                     except queue.Empty:
                         pass
                     self._queue.put_nowait(item)
@@ -294,6 +306,8 @@ class FrameSource:
             if item is _END:
                 if self._error is not None:
                     raise InputError(f"RealSense: {self._error}")
+                if self._in_recording is not None and not self._stop.is_set():
+                    self._unseen = max(self._unseen, self._in_recording - self.received)
                 return
             yield item
 
@@ -316,6 +330,18 @@ class FrameSource:
                 self._sensor.close()
         except RuntimeError:  # pragma: no cover
             pass
+
+
+def _depth_frames(recording: Path, shape: tuple[int, int]) -> int | None:
+    """The number of depth frames of ``shape`` (h, w) in a recording (upsr's own reader of
+    its depth topic), or None where it cannot tell."""
+    from upsr import io
+
+    try:
+        info = io.probe(recording)
+    except Exception:  # (the SDK plays what upsr may not read: no count)
+        return None
+    return info.n_frames if (info.height, info.width) == shape else None
 
 
 def _stream_text(stream: tuple[int, int, int]) -> str:
