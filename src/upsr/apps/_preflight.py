@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import os
 import sys
-from collections.abc import Iterator
+from collections.abc import Iterator, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -26,11 +26,13 @@ from upsr.errors import InputError
 __all__ = [
     "KERNEL_NOTE",
     "check_run_resources",
+    "check_scale_applies",
     "check_units",
     "engine_workers",
     "kernel_cache_warm",
     "kernel_note",
     "memory_limit",
+    "read_options",
 ]
 
 KERNEL_NOTE = "upsr: compiling kernels on first use (once, ~1–2 min)…"
@@ -199,3 +201,30 @@ def check_first_frame(
     units.check_output_capacity(
         output, n_frames, fmt=out_fmt, max_depth_mm=max_depth_mm, depth_scale=scales[1]
     )
+
+
+def check_scale_applies(inputs: Sequence[Path], in_fmt: str | None, given: bool) -> None:
+    """An input depth scale given on the command line, even 1000, is refused for an input
+    whose format fixes its units (ROS bags, ``nyu``, ``tum``, ``sun``): it would be ignored."""
+    if not given:
+        return
+    from upsr.io.video import ARRAY_FORMATS, SCALED_FORMATS, _input_format
+
+    for path in inputs:
+        f = _input_format(Path(path), in_fmt)
+        if f not in SCALED_FORMATS + ARRAY_FORMATS:
+            raise InputError(
+                f"{path}: --input-depth-scale does not apply to {f} input, whose units the "
+                f"format fixes"
+            )
+
+
+def read_options(
+    key: str | None, topic: str | None, in_fmt: str | None, depth_scale: float | None,
+    inputs: Sequence[Path],
+) -> dict[str, Any]:  # fmt: skip
+    """The keyword arguments of :func:`upsr.io.iter_frames` for the read options of
+    ``inputs``; a depth scale given (not None) is checked by :func:`check_scale_applies`."""
+    check_scale_applies(inputs, in_fmt, depth_scale is not None)
+    scale = 1000.0 if depth_scale is None else depth_scale
+    return {"key": key, "topic": topic, "fmt": in_fmt, "depth_scale": scale}

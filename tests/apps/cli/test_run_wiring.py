@@ -135,6 +135,13 @@ def test_tum_pngs_read_as_mm_are_refused_before_processing(capsys, here: Path, m
         assert rc == 0, err
         out = np.load("t.npy")
         assert abs(np.median(out[out > 0]) - np.median(video())) < 50
+    # a depth scale given for a format that fixes the units, even 1000 (mm), was ignored
+    for cmd in (["run", "depth", "-o", "u.npy", "-r", 1, *FAST], ["batch", "depth", "--out", "b",
+                "-r", 1, "-q"], ["view", "depth", "-o", "v.png"], ["export-ply", "depth", "-o",
+                "ply", "--intrinsics", "50,50,7.5,5.5"]):  # fmt: skip
+        rc, _, err = run_cli(capsys, *cmd, "--input-format", "tum", "--input-depth-scale", 1000)
+        _one_error(rc, err, "--input-depth-scale does not apply to tum input")
+    assert sorted(p.name for p in here.iterdir()) == ["depth", "t.npy"]
 
 
 def test_a_sun_rgbd_png_read_as_mm_is_refused_with_the_right_format(capsys, here: Path) -> None:
@@ -256,6 +263,14 @@ def test_kernel_note_on_a_cold_cache(capsys, here: Path, monkeypatch) -> None:
     monkeypatch.setitem(_preflight._STATE, "noted", False)
     rc, _, err = run_cli(capsys, "run", "in.npy", "-o", "b.npy", "-r", 1, "-n", 1, "-q")
     assert rc == 0 and _preflight.KERNEL_NOTE not in err
+
+
+def test_quiet_keeps_the_summary_line_only(capsys, here: Path) -> None:
+    np.save("in.npy", video())  # 5 frames: N = 5, a note without -q
+    rc, out, err = run_cli(capsys, "run", "in.npy", "-o", "a.npy", "-r", 2, "--no-deblur")
+    assert rc == 0 and "note: the video has 5 frame(s)" in err
+    rc, out, err = run_cli(capsys, "run", "in.npy", "-o", "b.npy", "-r", 2, "--no-deblur", "-q")
+    assert rc == 0 and err == "" and len(out.strip().splitlines()) == 1
 
 
 # --------------------------------------------------------------------------------------------

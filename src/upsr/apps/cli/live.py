@@ -286,7 +286,7 @@ def live(
         + (" (stopped by Ctrl-C)" if stats.get("stopped") else "")
     )
     hint = drop_hint(done, source.dropped, cfg.flow_preset)
-    if hint is not None:
+    if hint is not None and not quiet:
         typer.echo(hint, err=True)
 
 

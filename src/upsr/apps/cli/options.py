@@ -39,7 +39,6 @@ __all__ = [
     "config_from_options",
     "fmt",
     "method_config",
-    "read_options",
 ]
 
 DEFAULT_FRAMES = 9
@@ -139,13 +138,6 @@ def fmt(value: Enum | None) -> str | None:
     return None if value is None else str(value.value)
 
 
-def read_options(
-    key: str | None, topic: str | None, input_format: InFormat | None, depth_scale: float
-) -> dict[str, Any]:
-    """The keyword arguments of :func:`upsr.io.iter_frames` for the read options."""
-    return {"key": key, "topic": topic, "fmt": fmt(input_format), "depth_scale": depth_scale}
-
-
 # ---------------------------------------------------------------------------------------------
 # read options
 # ---------------------------------------------------------------------------------------------
@@ -164,12 +156,14 @@ InFormatOpt = Annotated[
     ),
 ]
 DepthScaleOpt = Annotated[
-    float,
+    float | None,
     typer.Option(
         "--depth-scale",
         "--input-depth-scale",
+        metavar="UNITS_PER_M",
+        show_default=False,
         help="Input raw units per metre (1000 = mm, 1 = metres, 5000 = TUM) of PNG/TIFF/EXR/PGM "
-        "frames and .npy/.npz arrays.",
+        "frames and .npy/.npz arrays [default: 1000]; bags and datasets fix theirs.",
     ),
 ]
 #: ``--depth-scale`` of the commands that also write (``run``, ``batch``): the input's only.

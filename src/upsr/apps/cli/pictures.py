@@ -17,6 +17,7 @@ from typing import TYPE_CHECKING, Annotated, Any
 
 import typer
 
+from upsr.apps._preflight import read_options
 from upsr.apps.cli.options import (
     DepthScaleOpt,
     InFormatOpt,
@@ -25,7 +26,7 @@ from upsr.apps.cli.options import (
     OverwriteOpt,
     QuietOpt,
     TopicOpt,
-    read_options,
+    fmt,
 )
 from upsr.errors import InputError
 
@@ -172,7 +173,7 @@ def compare(
     key: KeyOpt = None,
     topic: TopicOpt = None,
     input_format: InFormatOpt = None,
-    depth_scale: DepthScaleOpt = 1000.0,
+    depth_scale: DepthScaleOpt = None,
     overwrite: OverwriteOpt = False,
     quiet: QuietOpt = False,
 ) -> None:
@@ -196,7 +197,8 @@ def compare(
     if not FPS_RANGE[0] <= fps <= FPS_RANGE[1]:  # also NaN; a GIF's frame time is 1/fps
         raise InputError(f"--fps must be {FPS_RANGE[0]:g}..{FPS_RANGE[1]:g}, got {fps:g}")
     rng = _parse_range(depth_range, "--range")
-    read = read_options(key, topic, input_format, depth_scale)
+    given = [p for p in (lowres, upsr_path, truth) if p is not None]
+    read = read_options(key, topic, fmt(input_format), depth_scale, given)
     lo_info = io.probe(lowres, key=key, fmt=read["fmt"], topic=topic)
     r, n = _compare_scale(lowres, upsr_path, truth, lo_info, scale)
     lo_frames = io.iter_frames(lowres, **read)
@@ -258,7 +260,7 @@ def view(
     key: KeyOpt = None,
     topic: TopicOpt = None,
     input_format: InFormatOpt = None,
-    depth_scale: DepthScaleOpt = 1000.0,
+    depth_scale: DepthScaleOpt = None,
     overwrite: OverwriteOpt = False,
 ) -> None:
     """Render one frame as a lit 3-D surface seen from a rotated viewpoint (paper Fig. 3).
@@ -284,7 +286,7 @@ def view(
     for name, value in (("--yaw", yaw), ("--pitch", pitch), ("--edge-mm", edge_mm)):
         if not math.isfinite(value):
             raise InputError(f"{name} must be a finite number, got {value}")
-    read = read_options(key, topic, input_format, depth_scale)
+    read = read_options(key, topic, fmt(input_format), depth_scale, [input_path])
     info = io.probe(input_path, key=key, fmt=read["fmt"], topic=topic)
     k = frame_index(frame, info.n_frames, input_path)
     cam = input_camera(input_path, info, intrinsics, fmt=read["fmt"], topic=topic)
@@ -292,7 +294,7 @@ def view(
         cam = PinholeCamera.from_fov(info.width, info.height, 60.0)
     depth = _nth(io.iter_frames(input_path, **read), k)
     # (a metres file read as mm renders a scene 1000 times too small)
-    units.check_depth_range(depth, depth_scale=depth_scale, name=str(input_path),
+    units.check_depth_range(depth, depth_scale=read["depth_scale"], name=str(input_path),
                             option="--depth-scale")  # fmt: skip
     img = render_view(
         depth,

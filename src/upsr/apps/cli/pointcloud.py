@@ -8,6 +8,7 @@ from typing import TYPE_CHECKING, Annotated
 
 import typer
 
+from upsr.apps._preflight import read_options
 from upsr.apps.cli.options import (
     DepthScaleOpt,
     InFormatOpt,
@@ -16,7 +17,7 @@ from upsr.apps.cli.options import (
     OverwriteOpt,
     QuietOpt,
     TopicOpt,
-    read_options,
+    fmt,
 )
 from upsr.errors import InputError
 
@@ -70,7 +71,7 @@ def export_ply(
     key: KeyOpt = None,
     topic: TopicOpt = None,
     input_format: InFormatOpt = None,
-    depth_scale: DepthScaleOpt = 1000.0,
+    depth_scale: DepthScaleOpt = None,
     overwrite: OverwriteOpt = False,
     quiet: QuietOpt = False,
 ) -> None:
@@ -91,7 +92,7 @@ def export_ply(
     from upsr.viz.pointcloud_colors import color_for_depth
 
     require("plyfile", "writing PLY point clouds")
-    read = read_options(key, topic, input_format, depth_scale)
+    read = read_options(key, topic, fmt(input_format), depth_scale, [input_path])
     info = io.probe(input_path, key=key, fmt=read["fmt"], topic=topic)
     cam = input_camera(input_path, info, intrinsics, fmt=read["fmt"], topic=topic)
     if cam is None:
@@ -112,8 +113,10 @@ def export_ply(
         checked = False
         for t, depth in enumerate(io.iter_frames(input_path, **read)):
             if not checked and (depth > 0).any():  # (a metres file read as mm: 1000× small)
-                units.check_depth_range(depth, depth_scale=depth_scale, name=str(input_path),
-                                        option="--depth-scale")  # fmt: skip
+                units.check_depth_range(
+                    depth, depth_scale=read["depth_scale"], name=str(input_path),
+                    option="--depth-scale",
+                )  # fmt: skip
                 checked = True
             src = colours[t]
             if src is None and vmin is None:

@@ -163,6 +163,8 @@ def run(
     mem = pre.memory_limit(max_memory)
     s_in, s_out = units.resolve_depth_scales(depth_scale, input_depth_scale, output_depth_scale)
     in_fmt, out_fmt = fmt(input_format), fmt(output_format)
+    scale_given = depth_scale is not None or input_depth_scale is not None
+    pre.check_scale_applies([input_path], in_fmt, scale_given)
     info = io.probe(input_path, key=key, fmt=in_fmt, topic=topic)
     camera = input_camera(input_path, info, intrinsics, fmt=in_fmt, topic=topic)
     if camera_motion is CameraMotion.depth:
@@ -175,7 +177,7 @@ def run(
     workers_now = pre.engine_workers(workers)
     pre.check_run_resources(info.shape, cfg, workers=workers_now, out_fmt=resolved_out,
                             output=output, max_memory=mem)  # fmt: skip
-    if frames is None and cfg.n_frames < DEFAULT_FRAMES and not recursive:
+    if frames is None and cfg.n_frames < DEFAULT_FRAMES and not recursive and not quiet:
         typer.echo(f"upsr: note: the video has {info.n_frames} frame(s): N = {cfg.n_frames}",
                    err=True)  # fmt: skip
     names = identity.read_frame_names(input_path, fmt=in_fmt)
@@ -191,7 +193,7 @@ def run(
             in_fmt=io._input_format(input_path, in_fmt),
             out_fmt=resolved_out,
             units_options=(sensor.value, strict_units),
-            scale_given=depth_scale is not None or input_depth_scale is not None,
+            scale_given=scale_given,
             scales=(s_in, s_out),
         )
         engine = UPSR(cfg.scale, cfg.n_frames, config=cfg, workers=workers)
