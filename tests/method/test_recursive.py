@@ -168,6 +168,20 @@ def test_the_engine_made_directly_has_the_recursive_mode_and_its_defaults():
         RecursiveUPSR(config=upsr.UPSRConfig(scale=2))
 
 
+@pytest.mark.parametrize(
+    ("option", "value"),
+    [("refine", False), ("refine_preset", "fast"), ("check_registration", False),
+     ("splat_radius_px", 2.0), ("min_valid_fraction", 0.9), ("edge_weight_px", None),
+     ("edge_weight_floor", 0.9), ("min_trusted", 1)],
+)  # fmt: skip
+def test_options_of_the_windowed_mode_are_refused_not_ignored(option, value):
+    """Each changes nothing in the recursive mode (it has no window to register or splat):
+    given, it is refused with its name (a user's --no-refine did nothing)."""
+    with pytest.raises(InputError, match=f"{option}.*windowed mode"):
+        upsr.UPSR(scale=2, mode="recursive", **{option: value})
+    upsr.UPSR(scale=2, **{option: value})  # (the windowed mode's)
+
+
 def test_bad_mode_and_input():
     with pytest.raises(InputError, match="mode"):
         upsr.UPSRConfig(mode="causal")

@@ -155,6 +155,21 @@ RADIAL_RADIUS_FACTOR = 1
 # ---------------------------------------------------------------------------------------------
 # the engine
 # ---------------------------------------------------------------------------------------------
+#: The options of the windowed mode (its registration of a window and its fusion), with their
+#: command-line flags: the recursive mode refuses them rather than ignore them.
+WINDOWED_ONLY = {
+    "refine": "--no-refine",
+    "refine_preset": "--refine-preset",
+    "check_registration": "--no-registration-check",
+    "splat_radius_px": None,
+    "min_valid_fraction": None,
+    "edge_weight_px": None,
+    "edge_weight_floor": None,
+    "min_trusted": None,
+}
+_DEFAULTS = UPSRConfig()
+
+
 class RecursiveUPSR(TwoStagePipeline):
     """Recursive (causal) UP-SR: each pushed frame's high-res output comes back at once.
 
@@ -192,6 +207,13 @@ class RecursiveUPSR(TwoStagePipeline):
         if config.mode != "recursive":
             # (the mode picks defaults, the flow grid's among them: the engine and the mode agree)
             raise InputError(f"RecursiveUPSR is the recursive engine, not mode={config.mode!r}")
+        unused = [f"{name} ({flag})" if flag else name for name, flag in WINDOWED_ONLY.items()
+                  if getattr(config, name) != getattr(_DEFAULTS, name)]  # fmt: skip
+        if unused:
+            raise InputError(
+                f"{', '.join(unused)}: options of the windowed mode, which the recursive mode "
+                "does not use (one flow per frame, no window to register or splat): leave out"
+            )
         self.config = config
         self._custom_flow = flow_backend
         # a two-stage pipeline: one helper

@@ -265,6 +265,16 @@ def test_kernel_note_on_a_cold_cache(capsys, here: Path, monkeypatch) -> None:
     assert rc == 0 and _preflight.KERNEL_NOTE not in err
 
 
+def test_recursive_refuses_the_windowed_modes_flags(capsys, here: Path) -> None:
+    np.save("in.npy", video())
+    rc, _, err = run_cli(capsys, "run", "in.npy", "-o", "a.npy", "-r", 2, "--recursive",
+                         "--no-registration-check")  # fmt: skip
+    _one_error(rc, err, "check_registration (--no-registration-check): options of the windowed")
+    assert not Path("a.npy").exists()
+    rc, _, err = run_cli(capsys, "run", "in.npy", "-o", "a.npy", "-r", 2, "--recursive", "-n", 13)
+    assert rc == 0, err  # (N caps a pixel's state: any video length)
+
+
 def test_quiet_keeps_the_summary_line_only(capsys, here: Path) -> None:
     np.save("in.npy", video())  # 5 frames: N = 5, a note without -q
     rc, out, err = run_cli(capsys, "run", "in.npy", "-o", "a.npy", "-r", 2, "--no-deblur")

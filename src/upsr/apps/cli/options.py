@@ -286,7 +286,8 @@ FramesOpt = Annotated[
         "-n",
         show_default=False,
         help="Window length N: frames fused per output frame (1 <= N <= number of frames) "
-        "[default: 9, or all the frames of a shorter video].",
+        "[default: 9, or all the frames of a shorter video]; --recursive: the most frames a "
+        "pixel's state counts (any video length).",
     ),
 ]
 NoDeblurOpt = Annotated[
