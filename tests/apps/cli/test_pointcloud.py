@@ -65,3 +65,23 @@ def test_export_ply(tmp_path: Path) -> None:
         )
         == 0
     )
+
+
+def test_a_failed_export_leaves_nothing_and_keeps_the_earlier_one(tmp_path: Path) -> None:
+    """A frame refused part-way (a negative depth) left the files before it, and with
+    --overwrite mixed the new frames into an earlier export: all or nothing now."""
+    pytest.importorskip("plyfile")
+    v = scene()
+    bad = v.copy()
+    bad[2, 1, 1] = -3.0
+    np.save(tmp_path / "v.npy", v)
+    np.save(tmp_path / "bad.npy", bad)
+    cmd = ["-q", "--intrinsics", "20,20,7.5,5.5"]
+    assert main(["export-ply", str(tmp_path / "bad.npy"), "-o", str(tmp_path / "a"), *cmd]) == 2
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["bad.npy", "v.npy"]
+    out = tmp_path / "b"
+    assert main(["export-ply", str(tmp_path / "v.npy"), "-o", str(out), *cmd]) == 0
+    before = {p.name: p.read_bytes() for p in out.iterdir()}
+    assert main(["export-ply", str(tmp_path / "bad.npy"), "-o", str(out), *cmd, "--overwrite"]) == 2
+    assert {p.name: p.read_bytes() for p in out.iterdir()} == before
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["b", "bad.npy", "v.npy"]

@@ -2,9 +2,11 @@
 
 from __future__ import annotations
 
+import os
 import sys
+from collections.abc import Iterator
 from pathlib import Path
-from typing import TYPE_CHECKING, Annotated
+from typing import TYPE_CHECKING, Annotated, Any
 
 import typer
 
@@ -80,16 +82,11 @@ def export_ply(
     Binary PLY, points in metres in the camera frame (x right, y down, z forward); pixels
     without depth are skipped.
     """
-    import numpy as np
-    from tqdm import tqdm
-
+    from upsr._atomic import new_temp_dir, remove
     from upsr.apps._camera import input_camera
-    from upsr.io import units
     from upsr.io import video as io
     from upsr.io.paths import check_apart_from_inputs
-    from upsr.io.pointcloud import write_ply
     from upsr.io.registry import require
-    from upsr.viz.pointcloud_colors import color_for_depth
 
     require("plyfile", "writing PLY point clouds")
     read = read_options(key, topic, fmt(input_format), depth_scale, [input_path])
@@ -103,20 +100,54 @@ def export_ply(
     check_apart_from_inputs([input_path] + ([color] if color is not None else []), out)
     if out.exists() and not out.is_dir():
         raise InputError(f"--out {out} exists and is not a folder")
-    names = [out / f"frame_{t:06d}.ply" for t in range(info.n_frames)]
-    existing = [p for p in names if p.exists()]
+    names = [f"frame_{t:06d}.ply" for t in range(info.n_frames)]
+    existing = [out / n for n in names if (out / n).exists()]
     if existing and not overwrite:
         raise InputError(f"{existing[0]} already exists (use --overwrite to replace)")
+    out.parent.mkdir(parents=True, exist_ok=True)
+    tmp = new_temp_dir(out)  # every file first, then published: a failure leaves nothing
+    try:
+        points = _write_frames(io.iter_frames(input_path, **read), tmp, names, cam, colours,
+                               read["depth_scale"], (str(input_path), quiet))  # fmt: skip
+        _publish_files(tmp, out, names)
+    finally:
+        remove(tmp)
+    typer.echo(f"upsr: export-ply: {info.n_frames} PLY file(s), {points} points -> {out}")
+
+
+def _publish_files(tmp: Path, out: Path, names: list[str]) -> None:
+    """Move the complete folder ``tmp`` to ``out`` (a new folder), or its files into the
+    existing folder ``out`` (replacing those of an earlier export: --overwrite)."""
+    from upsr._atomic import publish
+
+    if not out.exists():
+        publish(tmp, out, replace=False)
+        return
+    for name in names:
+        os.replace(tmp / name, out / name)
+
+
+def _write_frames(
+    frames: Iterator[np.ndarray], folder: Path, names: list[str], cam: Any,
+    colours: list[Path | None], depth_scale: float, label: tuple[str, bool],
+) -> int:  # fmt: skip
+    """Write each frame's PLY file into ``folder``; the number of points."""
+    import numpy as np
+    from tqdm import tqdm
+
+    from upsr.io import units
+    from upsr.io.pointcloud import write_ply
+    from upsr.viz.pointcloud_colors import color_for_depth
+
+    name, quiet = label
     vmin = vmax = None
     points = 0
-    with tqdm(total=info.n_frames, desc="export-ply", file=sys.stderr, disable=quiet) as bar:
+    with tqdm(total=len(names), desc="export-ply", file=sys.stderr, disable=quiet) as bar:
         checked = False
-        for t, depth in enumerate(io.iter_frames(input_path, **read)):
+        for t, depth in enumerate(frames):
             if not checked and (depth > 0).any():  # (a metres file read as mm: 1000× small)
-                units.check_depth_range(
-                    depth, depth_scale=read["depth_scale"], name=str(input_path),
-                    option="--depth-scale",
-                )  # fmt: skip
+                units.check_depth_range(depth, depth_scale=depth_scale, name=name,
+                                        option="--depth-scale")  # fmt: skip
                 checked = True
             src = colours[t]
             if src is None and vmin is None:
@@ -126,10 +157,10 @@ def export_ply(
             col = color_for_depth(
                 depth, _read_colour(src) if src is not None else None, vmin_mm=vmin, vmax_mm=vmax
             )
-            write_ply(names[t], depth, cam, col)
+            write_ply(folder / names[t], depth, cam, col)
             points += int((depth > 0).sum())
             bar.update(1)
-    typer.echo(f"upsr: export-ply: {info.n_frames} PLY file(s), {points} points -> {out}")
+    return points
 
 
 def register(app: typer.Typer) -> None:
