@@ -27,6 +27,7 @@ __all__ = [
     "KERNEL_NOTE",
     "check_run_resources",
     "check_scale_applies",
+    "check_sidecar",
     "check_units",
     "engine_workers",
     "kernel_cache_warm",
@@ -228,3 +229,23 @@ def read_options(
     check_scale_applies(inputs, in_fmt, depth_scale is not None)
     scale = 1000.0 if depth_scale is None else depth_scale
     return {"key": key, "topic": topic, "fmt": in_fmt, "depth_scale": scale}
+
+
+def check_sidecar(path: Path, overwrite: bool, inputs: Sequence[Path | str | None]) -> None:
+    """``OUTPUT.intrinsics.json``, before any processing: a name the file system takes, not
+    one of the inputs (an ``--intrinsics`` file named so was written over), and an existing
+    one replaced only with ``--overwrite`` (it was replaced silently)."""
+    from upsr._atomic import NAME_MAX
+
+    if len(path.name.encode("utf-8", "surrogateescape")) > NAME_MAX:
+        raise InputError(
+            f"{path.name[:40]}…: the name of the intrinsics file beside the output is longer "
+            f"than {NAME_MAX} bytes: give the output a shorter name"
+        )
+    if not os.path.lexists(path):
+        return
+    for inp in inputs:
+        if inp is not None and os.path.exists(inp) and os.path.samefile(inp, path):
+            raise InputError(f"{path}: the output's intrinsics file would replace the input {inp}")
+    if not overwrite:
+        raise InputError(f"{path} already exists (use --overwrite to replace it)")

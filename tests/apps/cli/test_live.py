@@ -489,6 +489,20 @@ def test_the_preview_never_writes_over_the_recording_or_into_the_output(tmp_path
 
 
 @needs_sdk
+def test_an_existing_preview_or_intrinsics_file_needs_overwrite(tmp_path, capsys):
+    (tmp_path / "mine.png").write_text("my picture")
+    out = tmp_path / "o.npy"
+    rc, _, err = run_cli(capsys, "live", FIXTURE, "-o", out, "-r", "2", "--no-real-time",
+                         "--preview", tmp_path / "mine.png", "-q")  # fmt: skip
+    assert (
+        rc == 2 and "already exists" in err and (tmp_path / "mine.png").read_text() == "my picture"
+    )
+    (tmp_path / "o.npy.intrinsics.json").write_text("notes")
+    rc, _, err = run_cli(capsys, "live", FIXTURE, "-o", out, "-r", "2", "--no-real-time", "-q")
+    assert rc == 2 and "o.npy.intrinsics.json already exists" in err and not out.exists()
+
+
+@needs_sdk
 def test_live_stamps_its_output_with_the_sdks_times_as_run_does(tmp_path, capsys):
     """Each output frame carries its SDK frame's time (a .npz's `timestamps`, a ROS 2 bag's
     stamps): the recording's times, as `upsr run` reads and writes them."""

@@ -275,6 +275,31 @@ def test_recursive_refuses_the_windowed_modes_flags(capsys, here: Path) -> None:
     assert rc == 0, err  # (N caps a pixel's state: any video length)
 
 
+def test_the_intrinsics_file_beside_the_output_is_checked_before_processing(capsys, here: Path):
+    """It replaced an --intrinsics input named so, and an existing file without --overwrite;
+    a name too long for it failed after all the work."""
+    np.save("in.npy", video())
+    Path("o.npy.intrinsics.json").write_text('{"width": 16, "height": 12, "fx": 20, "fy": 20, '
+                                             '"cx": 7.5, "cy": 5.5}')  # fmt: skip
+    before = Path("o.npy.intrinsics.json").read_bytes()
+    for extra in ([], ["--overwrite"]):
+        rc, _, err = run_cli(capsys, "run", "in.npy", "-o", "o.npy", "-r", 2, *FAST,
+                             "--intrinsics", "o.npy.intrinsics.json", *extra)  # fmt: skip
+        _one_error(rc, err, "would replace the input o.npy.intrinsics.json")
+    assert Path("o.npy.intrinsics.json").read_bytes() == before and not Path("o.npy").exists()
+    Path("w.npy.intrinsics.json").write_text("my notes")
+    rc, _, err = run_cli(capsys, "run", "in.npy", "-o", "w.npy", "-r", 2, *FAST,
+                         "--intrinsics", "20,20,7.5,5.5")  # fmt: skip
+    _one_error(rc, err, "w.npy.intrinsics.json already exists")
+    long = "x" * 248 + ".npy"  # a legal name; its intrinsics file's is not
+    rc, _, err = run_cli(capsys, "run", "in.npy", "-o", long, "-r", 2, *FAST,
+                         "--intrinsics", "20,20,7.5,5.5")  # fmt: skip
+    _one_error(rc, err, "longer than 255 bytes")
+    assert sorted(p.name for p in here.iterdir()) == [
+        "in.npy", "o.npy.intrinsics.json", "w.npy.intrinsics.json"
+    ]  # fmt: skip
+
+
 def test_quiet_keeps_the_summary_line_only(capsys, here: Path) -> None:
     np.save("in.npy", video())  # 5 frames: N = 5, a note without -q
     rc, out, err = run_cli(capsys, "run", "in.npy", "-o", "a.npy", "-r", 2, "--no-deblur")

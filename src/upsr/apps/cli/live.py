@@ -28,6 +28,7 @@ import collections
 import contextlib
 import functools
 import math
+import os
 import queue
 import signal
 import sys
@@ -234,7 +235,8 @@ def live(
             f"{', --format exr' if resolved == 'exr' else ''})"
         )
     if preview is not None:
-        _check_preview(preview, recording, output)
+        _check_preview(preview, recording, output, overwrite)
+    pre.check_sidecar(io.intrinsics_path(output), overwrite, [recording])
     mem = pre.memory_limit(max_memory)
     wanted = None if stream is None else parse_stream(stream)
     source = FrameSource(recording, real_time=not no_real_time, stream=wanted)
@@ -476,9 +478,9 @@ _CLOSE = object()
 WRITE_QUEUE = 4
 
 
-def _check_preview(preview: Path, recording: Path | None, output: Path) -> None:
+def _check_preview(preview: Path, recording: Path | None, output: Path, overwrite: bool) -> None:
     """The preview is a ``.png`` file apart from the recording and the output (a preview
-    named as the recording replaced it with a picture)."""
+    named as the recording replaced it with a picture), new unless ``--overwrite``."""
     from upsr.io.paths import check_apart_from_inputs
 
     if Path(preview).suffix.lower() != ".png" or Path(preview).is_dir():
@@ -488,6 +490,8 @@ def _check_preview(preview: Path, recording: Path | None, output: Path) -> None:
     out, where = Path(output).resolve(), Path(preview).resolve()
     if where == out or out in where.parents:  # (a picture among the output's frames)
         raise InputError(f"--preview {preview} would write into the output {output}")
+    if os.path.lexists(preview) and not overwrite:
+        raise InputError(f"--preview {preview} already exists (use --overwrite to replace it)")
 
 
 def _status(done: int, elapsed: float, latency_ms: float, dropped: int) -> None:

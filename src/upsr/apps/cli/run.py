@@ -200,6 +200,8 @@ def run(
         pre.kernel_note(quiet)
         out_cam = None if camera is None else camera.scaled(cfg.scale)
         sidecar = intrinsics_sidecar(camera, cfg.scale, stamps, names)
+        if sidecar is not None:
+            pre.check_sidecar(io.intrinsics_path(output), overwrite, [input_path, intrinsics])
         start = time.perf_counter()
         _write_video(
             engine.process(itertools.chain(read, source)),
