@@ -170,6 +170,28 @@ def test_console_script_success_and_errors(tmp_path: Path) -> None:
     assert sorted(x.name for x in tmp_path.iterdir()) == ["bad.npy", "in.npy", "o.npz"]
 
 
+@pytest.mark.parametrize("code", ["ENOSPC", "EROFS", "ENAMETOOLONG"])
+def test_a_full_or_read_only_disk_is_one_line_not_an_internal_error(
+    capsys: pytest.CaptureFixture[str], tmp_path: Path, monkeypatch: pytest.MonkeyPatch, code: str
+) -> None:
+    import errno
+    import os
+
+    np.save(tmp_path / "in.npy", video())
+    where = str(tmp_path / ".o.npy.~abc-1-2.part")  # (one of upsr's temporaries)
+
+    def full(self: object, frames: object) -> Iterator[np.ndarray]:
+        raise OSError(getattr(errno, code), os.strerror(getattr(errno, code)), where)
+        yield
+
+    monkeypatch.setattr(pipeline.UPSR, "process", full)
+    rc, _out, err = run_cli(
+        capsys, "run", tmp_path / "in.npy", "-o", tmp_path / "o.npy", "-r", 2, "-n", 3, "-q"
+    )
+    assert rc == 2 and "internal error" not in err and len(err.strip().splitlines()) == 1
+    assert f"upsr: error: {tmp_path}: {os.strerror(getattr(errno, code))}" in err
+
+
 _SLOW_RUN = """
 import signal, sys, time
 import numpy as np
@@ -179,6 +201,7 @@ from upsr.method import windowed
 # the test sends SIGINT: give the child Python's own handler whatever the parent inherited
 signal.signal(signal.SIGINT, signal.default_int_handler)
 signal.signal(signal.SIGTERM, signal.SIG_DFL)
+signal.signal(signal.SIGHUP, signal.SIG_DFL)
 
 def slow(self, frames):
     for f in frames:
@@ -191,7 +214,9 @@ sys.exit(cli.main(sys.argv[1:]))
 """
 
 
-@pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM], ids=["SIGINT", "SIGTERM"])
+@pytest.mark.parametrize(
+    "sig", [signal.SIGINT, signal.SIGTERM, signal.SIGHUP], ids=["SIGINT", "SIGTERM", "SIGHUP"]
+)
 def test_signal_leaves_no_output(tmp_path: Path, sig: int) -> None:
     np.save(tmp_path / "in.npy", np.ones((40, H, W), np.float32))
     proc = subprocess.Popen(
@@ -225,7 +250,7 @@ def test_signal_leaves_no_output(tmp_path: Path, sig: int) -> None:
         _, err = proc.communicate(timeout=60)
     finally:
         proc.kill()
-    assert proc.returncode == (130 if sig == signal.SIGINT else 143), err
+    assert proc.returncode == 128 + sig, err  # (a closed terminal's SIGHUP too: 129)
     assert ("interrupted" if sig == signal.SIGINT else "terminated") in err
     assert "Traceback" not in err
     assert listing(tmp_path) == ["in.npy"]

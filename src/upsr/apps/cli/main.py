@@ -17,6 +17,7 @@ left behind.
 from __future__ import annotations
 
 import contextlib
+import errno
 import logging
 import signal
 import sys
@@ -24,6 +25,7 @@ import threading
 import traceback
 import warnings
 from collections.abc import Iterator
+from pathlib import Path
 from typing import Annotated, Any
 
 import typer
@@ -51,7 +53,7 @@ __all__ = ["app", "main"]
 
 class _State:
     debug = False
-    terminated = False
+    terminated: int | None = None  # the signal (SIGTERM, SIGHUP) that ended the run
 
 
 app = typer.Typer(
@@ -115,6 +117,12 @@ _USER_ERRORS = (
     NotADirectoryError,
     FileExistsError,
 )
+#: OSErrors of the place written to, not of upsr: a full or read-only disk, a quota, a name
+#: too long (exit 2, one line, as a bad input: "internal error" said the opposite).
+_WHERE_ERRNOS = frozenset(
+    getattr(errno, n) for n in ("ENOSPC", "EROFS", "EDQUOT", "ENAMETOOLONG", "EFBIG")
+    if hasattr(errno, n)
+)  # fmt: skip
 
 
 def _one_line(text: object) -> str:
@@ -128,38 +136,39 @@ def _print_error(message: str) -> None:
 
 @contextlib.contextmanager
 def _cli_environment() -> Iterator[None]:
-    """Warnings as one ``upsr: warning:`` line; SIGTERM unwinds like Ctrl-C (cleanup runs);
-    SIGINT's handler as it was on return (``upsr live`` changes it after a first Ctrl-C)."""
+    """Warnings as one ``upsr: warning:`` line; SIGTERM and SIGHUP (a closed terminal, a
+    dropped ssh session) unwind like Ctrl-C (cleanup runs); SIGINT's handler as it was on
+    return (``upsr live`` changes it after a first Ctrl-C)."""
 
     def show(
         message: Any, category: Any, filename: Any, lineno: Any, file: Any = None, line: Any = None
     ) -> None:
         print(one_line(f"upsr: warning: {message}"), file=sys.stderr, flush=True)
 
-    def on_sigterm(signum: int, frame: Any) -> None:
-        _State.terminated = True
+    def on_signal(signum: int, frame: Any) -> None:
+        _State.terminated = signum
         raise KeyboardInterrupt
 
-    old_term = old_int = None
+    ending = [s for s in (signal.SIGTERM, getattr(signal, "SIGHUP", None)) if s is not None]
+    old: dict[int, Any] = {}
     main_thread = threading.current_thread() is threading.main_thread()
     with warnings.catch_warnings():
         warnings.showwarning = show
         if main_thread:
-            old_term = signal.signal(signal.SIGTERM, on_sigterm)
-            old_int = signal.getsignal(signal.SIGINT)
+            old = {s: signal.signal(s, on_signal) for s in ending}
+            old[signal.SIGINT] = signal.getsignal(signal.SIGINT)
         try:
             yield
         finally:
-            if main_thread:
-                signal.signal(signal.SIGTERM, old_term)
-                signal.signal(signal.SIGINT, old_int)
+            for s, handler in old.items():
+                signal.signal(s, handler)
 
 
 def main(argv: list[str] | None = None) -> int:
     """Run the command line with ``argv`` (default ``sys.argv[1:]``); return the exit status."""
     args = list(sys.argv[1:] if argv is None else argv)
     _State.debug = "--debug" in args
-    _State.terminated = False
+    _State.terminated = None
     command = typer.main.get_command(app)
     try:
         with _cli_environment():
@@ -176,17 +185,15 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     except (typer.Abort, KeyboardInterrupt):
         return _interrupted()
-    except _USER_ERRORS as e:
-        if _State.debug:
-            traceback.print_exc()
-        if isinstance(e, OSError) and e.strerror and e.filename:
-            _print_error(f"{e.filename}: {e.strerror}")
-        else:
-            _print_error(str(e))
-        return 2
     except Exception as e:
         if _State.debug:
             traceback.print_exc()
+        if isinstance(e, _USER_ERRORS) or (isinstance(e, OSError) and e.errno in _WHERE_ERRNOS):
+            if isinstance(e, OSError) and e.strerror and e.filename:
+                _print_error(f"{_shown(str(e.filename))}: {e.strerror}")
+            else:
+                _print_error(str(e))
+            return 2
         print(
             f"upsr: internal error: {type(e).__name__}: {_one_line(e)} "
             f"(rerun with --debug for a traceback)",
@@ -199,10 +206,18 @@ def main(argv: list[str] | None = None) -> int:
     return rv if isinstance(rv, int) else 0
 
 
+def _shown(filename: str) -> str:
+    """A path for an error: the folder of one of upsr's temporaries (``.NAME.~…``), which the
+    user never named."""
+    path = Path(filename)
+    return str(path.parent) if path.name.startswith(".") and ".~" in path.name else filename
+
+
 def _interrupted() -> int:
-    if _State.terminated:
-        print("upsr: terminated (SIGTERM), no output written", file=sys.stderr)
-        return 143
+    if _State.terminated is not None:
+        name = signal.Signals(_State.terminated).name
+        print(f"upsr: terminated ({name}), no output written", file=sys.stderr)
+        return 128 + _State.terminated
     print("upsr: interrupted, no output written", file=sys.stderr)
     return 130
 
