@@ -121,6 +121,28 @@ def test_special_files_refused_by_type(tmp_path: Path, kind: str) -> None:
     assert "refusing to read" in r.stdout
 
 
+@pytest.mark.parametrize("suffix", [".png", ".tif", ".exr"])
+@pytest.mark.parametrize("kind", ["broken link", "fifo", "device"])
+def test_a_folder_frame_that_is_no_regular_file_is_refused(
+    tmp_path: Path, suffix: str, kind: str
+) -> None:
+    """Frames 0, 1, 2 where 1 is a broken link, a pipe or a link to a device: it was skipped
+    (2 frames, the second a frame late) without a word."""
+    folder = tmp_path / "frames"
+    folder.mkdir()
+    odd = folder / f"1{suffix}"
+    if kind == "broken link":
+        odd.symlink_to(folder / "gone")
+    elif kind == "fifo":
+        os.mkfifo(odd)
+    else:
+        odd.symlink_to("/dev/zero")
+    fmt = {".png": None, ".tif": "tiff", ".exr": "exr"}[suffix]
+    with pytest.raises(InputError, match=f"1{suffix}: a frame of this folder is") as e:
+        io.probe(folder, fmt=fmt)
+    assert_one_line(e)
+
+
 def test_npy_truncated_while_read_no_sigbus(tmp_path: Path) -> None:
     p = tmp_path / "v.npy"
     np.save(p, np.full((20, 64, 64), 500.0, np.float32))

@@ -29,21 +29,31 @@ def frame_files(path: Path, suffixes: tuple[str, ...], what: str) -> list[Path]:
     Raises
     ------
     InputError
-        A folder without such files.
+        A folder without such files, or with one that is a broken link, a pipe, a device or
+        a folder (it was skipped: the video lost a frame in its middle).
     """
     if not path.is_dir():
         return [path]
     with reading(str(path)):
         entries = list(os.scandir(path))
-    files = [
-        Path(e.path)
+    named = [
+        e
         for e in entries
-        if not e.name.startswith(".")
-        and os.path.splitext(e.name)[1].lower() in suffixes
-        and e.is_file()
+        if not e.name.startswith(".") and os.path.splitext(e.name)[1].lower() in suffixes
     ]
+    for e in named:  # (a frame skipped would shift every later one in time)
+        if not e.is_file():
+            what_it_is = "a broken link" if not os.path.exists(e.path) else "not a regular file"
+            raise InputError(f"{e.path}: a frame of this folder is {what_it_is}")
+    files = [Path(e.path) for e in named]
     if not files:
-        raise InputError(f"{path}: no {what} frames in this folder")
+        subdirs = sorted(e.name for e in entries if e.is_dir() and not e.name.startswith("."))
+        hint = (
+            f": give a subfolder ({', '.join(subdirs[:5])}), or all to upsr batch {path}/*"
+            if subdirs
+            else ""
+        )
+        raise InputError(f"{path}: no {what} frames in this folder{hint}")
     files.sort(key=lambda p: natural_key(p.name))
     return files
 

@@ -11,7 +11,6 @@ in Python before OpenCV decodes it, so a corrupt file gives one clear error. Wri
 from __future__ import annotations
 
 import contextlib
-import os
 import struct
 import warnings
 import zlib
@@ -22,12 +21,12 @@ from typing import Any, BinaryIO
 import numpy as np
 
 from upsr.errors import InputError
+from upsr.io import _common
 from upsr.io._base import (
     MAX_FRAME_PIXELS,
     VideoInfo,
     check_frame_budget,
     check_input_type,
-    natural_key,
     reading,
     sync_file,
 )
@@ -70,26 +69,9 @@ _PNG_BYTES_PER_PX = 12
 
 
 def frame_files(path: Path) -> list[Path]:
-    """A ``.png`` file as a one-frame list, or the PNG files of a folder in natural order."""
-    if path.is_file():
-        return [path]
-    with reading(str(path)):
-        entries = list(os.scandir(path))
-    files = [
-        Path(e.path)
-        for e in entries
-        if e.name.lower().endswith(".png") and not e.name.startswith(".") and e.is_file()
-    ]
-    if not files:
-        subdirs = sorted(e.name for e in entries if e.is_dir() and not e.name.startswith("."))
-        hint = (
-            f": give a subfolder ({', '.join(subdirs[:5])}), or all to upsr batch {path}/*"
-            if subdirs
-            else ""
-        )
-        raise InputError(f"{path}: no PNG frames in this folder{hint}")
-    files.sort(key=lambda p: natural_key(p.name))
-    return files
+    """A ``.png`` file as a one-frame list, or the PNG files of a folder in natural order
+    (:func:`upsr.io._common.frame_files`)."""
+    return _common.frame_files(path, (".png",), "PNG")
 
 
 def _png_header(file: Path) -> tuple[int, int, int]:
