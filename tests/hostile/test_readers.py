@@ -143,6 +143,21 @@ def test_a_folder_frame_that_is_no_regular_file_is_refused(
     assert_one_line(e)
 
 
+def test_a_truncated_multi_page_tiff_is_refused(tmp_path: Path, capfd) -> None:
+    """Cut in half, a 6-page TIFF read as a 1-frame video (tifffile logged the lost pages on
+    stderr and read what it found)."""
+    tifffile = pytest.importorskip("tifffile")
+    whole = tmp_path / "whole.tif"
+    tifffile.imwrite(whole, np.full((6, 40, 48), 1500, np.uint16))
+    cut = tmp_path / "cut.tif"
+    cut.write_bytes(whole.read_bytes()[: whole.stat().st_size // 2])
+    with pytest.raises(InputError, match=r"cut\.tif: corrupt or truncated TIFF") as e:
+        io.probe(cut)
+    assert_one_line(e)
+    assert capfd.readouterr().err == ""
+    assert io.probe(whole).n_frames == 6
+
+
 def test_npy_truncated_while_read_no_sigbus(tmp_path: Path) -> None:
     p = tmp_path / "v.npy"
     np.save(p, np.full((20, 64, 64), 500.0, np.float32))

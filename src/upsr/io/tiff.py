@@ -12,6 +12,7 @@ from __future__ import annotations
 import contextlib
 import logging
 import os
+import re
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any, BinaryIO
@@ -36,16 +37,39 @@ def _tifffile() -> Any:
     return tf
 
 
+class _Complaints(logging.Handler):
+    """What tifffile logs while a file is read (it logs a truncated file's lost pages, then
+    reads the pages it found: a 6-page file cut in half was a 1-frame video)."""
+
+    def __init__(self) -> None:
+        super().__init__(logging.WARNING)
+        self.messages: list[str] = []
+
+    def emit(self, record: logging.LogRecord) -> None:
+        self.messages.append(re.sub(r"^<[^>]*>\s*", "", record.getMessage()))
+
+
 @contextlib.contextmanager
 def _open(file: Path) -> Iterator[Any]:
+    """The TiffFile of ``file``; what tifffile logs meanwhile is an InputError at the end."""
     tf = _tifffile()
     name = str(file)
-    with reading(name):
-        tif = tf.TiffFile(file)
+    log = logging.getLogger("tifffile")
+    complaints = _Complaints()
+    log.addHandler(complaints)
+    propagate, log.propagate = log.propagate, False  # (not printed on stderr as it was)
     try:
-        yield tif
+        with reading(name):
+            tif = tf.TiffFile(file)
+        try:
+            yield tif
+        finally:
+            tif.close()
+        if complaints.messages:
+            raise InputError(f"{name}: corrupt or truncated TIFF ({complaints.messages[0]})")
     finally:
-        tif.close()
+        log.removeHandler(complaints)
+        log.propagate = propagate
 
 
 def _check_page(page: Any, name: str) -> tuple[int, int, np.dtype]:
