@@ -111,6 +111,11 @@ def test_resolve_depth_scales() -> None:
         uio.resolve_depth_scales(depth_scale=1, input_depth_scale=1000)
     with pytest.raises(InputError):
         uio.resolve_depth_scales(output_depth_scale=0)
+    # km to nm: beyond, a float32 TIFF/EXR output was all inf (1e40) or all 0 (1e-50)
+    assert uio.resolve_depth_scales(input_depth_scale=1e-3, output_depth_scale=1e9) == (1e-3, 1e9)
+    for bad in (1e40, 1e-50, float("nan"), float("inf")):
+        with pytest.raises(InputError, match=r"0\.001\.\.1e\+09 raw units per metre"):
+            uio.resolve_depth_scales(output_depth_scale=bad)
 
 
 def test_depth_range_metres_read_as_mm() -> None:

@@ -10,7 +10,6 @@ constructor signature of :class:`FrameSink`. :mod:`upsr.io.video` dispatches to 
 from __future__ import annotations
 
 import contextlib
-import math
 import os
 import re
 import stat
@@ -265,15 +264,23 @@ def check_fmt(fmt: str) -> str:
     return f
 
 
+#: Raw units per metre a depth scale may be: km (0.001) to nm (1e9). Beyond, a float32 TIFF
+#: or EXR output was all inf (1e40) or all 0 (1e-50), and an input all "no depth".
+DEPTH_SCALE_RANGE = (1e-3, 1e9)
+
+
 def check_depth_scale(depth_scale: float) -> float:
-    """``depth_scale`` (raw units per metre) as a finite float > 0, else InputError."""
+    """``depth_scale`` (raw units per metre) as a float within :data:`DEPTH_SCALE_RANGE`,
+    else InputError."""
     try:
         s = float(depth_scale)
     except (TypeError, ValueError):
         raise InputError(f"depth_scale must be a number, got {depth_scale!r}") from None
-    if not (math.isfinite(s) and s > 0):
+    lo, hi = DEPTH_SCALE_RANGE
+    if not lo <= s <= hi:  # (NaN too)
         raise InputError(
-            f"depth_scale must be a finite number > 0 (raw units per metre), got {depth_scale!r}"
+            f"depth_scale must be {lo:g}..{hi:g} raw units per metre (1000 = mm, 1 = metres), "
+            f"got {depth_scale!r}"
         )
     return s
 
