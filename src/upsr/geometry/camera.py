@@ -22,6 +22,12 @@ from upsr.errors import InputError
 __all__ = ["PinholeCamera"]
 
 
+#: Bounds of intrinsics (px): absurd but finite values gave point clouds at ±inf, and a
+#: focal length of 1e308 an inf once scaled by r (after the whole video was processed).
+MIN_FOCAL_PX = 1e-3
+MAX_INTRINSIC_PX = 1e9
+
+
 @dataclass(frozen=True)
 class PinholeCamera:
     """Ideal pinhole camera (no distortion).
@@ -48,8 +54,13 @@ class PinholeCamera:
             val = getattr(self, name)
             if not math.isfinite(float(val)):
                 raise InputError(f"camera {name} must be finite, got {val!r}")
-        if self.fx <= 0 or self.fy <= 0:
-            raise InputError(f"focal lengths must be > 0 px, got fx={self.fx}, fy={self.fy}")
+            if abs(float(val)) > MAX_INTRINSIC_PX:  # (1e308: inf once scaled by r)
+                raise InputError(f"camera {name} = {val:g} px is beyond {MAX_INTRINSIC_PX:g} px")
+        if self.fx < MIN_FOCAL_PX or self.fy < MIN_FOCAL_PX:  # (1e-300: points at ±inf)
+            raise InputError(
+                f"focal lengths must be at least {MIN_FOCAL_PX:g} px, got fx={self.fx:g}, "
+                f"fy={self.fy:g}"
+            )
         for name in ("width", "height"):
             val = getattr(self, name)
             if isinstance(val, bool) or not isinstance(val, (int, np.integer)) or val < 1:
