@@ -89,6 +89,35 @@ def test_spurious_motion_is_suppressed_but_real_motion_and_invalid_pixels_are_ke
     assert (kept[40:50, 78:82, 0] == 4.0).all()  # at the blob's moving edge
 
 
+def test_the_flow_of_holes_is_judged_by_their_pattern_when_asked():
+    """A hole of both frames on a static noisy plane: a flow pointing from it onto the plane
+    (which would carry the plane into it) is zeroed with ``holes``, left alone without; the
+    hole a moving blob leaves keeps its flow, as do pixels without depth far from any."""
+    from upsr.method.motion import suppress_spurious_motion
+
+    rng = np.random.default_rng(2)
+    a = np.full((64, 64), 2000.0, np.float32) + rng.normal(0, 3, (64, 64)).astype(np.float32)
+    a[30:34, 30:34] = 0.0  # a hole of every frame
+    a[:, :6] = 0.0  # nothing there, ever
+    flow = np.zeros((64, 64, 2), np.float32)
+    flow[26:38, 26:38, 0] = 2.5  # from the hole onto the plane
+    kw = {"window_px": 5, "noise_mm": 3.0, "edge_mm": 100.0, "edge_window_px": 9}
+    left = suppress_spurious_motion(a, a.copy(), flow, **kw)
+    judged = suppress_spurious_motion(a, a.copy(), flow, holes=True, **kw)
+    assert (left[30:34, 30:34, 0] == 2.5).all() and not judged[30:34, 30:34].any()
+    np.testing.assert_array_equal(judged[:, :6], flow[:, :6])  # no evidence either way
+    # a blob moved 4 px right: the pixels it left (no depth now, depth before) keep the flow
+    # that finds it where it was
+    prev = np.zeros((64, 64), np.float32)
+    prev[20:40, 20:40] = 1500.0
+    now = np.zeros((64, 64), np.float32)
+    now[20:40, 24:44] = 1500.0
+    back = np.zeros((64, 64, 2), np.float32)
+    back[..., 0] = -4.0  # now -> prev
+    kept = suppress_spurious_motion(now, prev, back, holes=True, **kw)
+    np.testing.assert_array_equal(kept[20:40, 20:24], back[20:40, 20:24])
+
+
 def test_spurious_motion_on_8bit_images_equals_their_float_values():
     from upsr.method.motion import suppress_spurious_motion
 

@@ -240,13 +240,14 @@ class MotionFrontEnd:
         second_u8: np.ndarray,
         *,
         noise_factor: float = 1.0,
+        holes: bool = False,
     ) -> np.ndarray:
         """Flow (s·h, s·w, 2) from one frame to the next (eq. 17), given their prefiltered
         frames and guides, without the motion the depth does not support (judged against
-        ``second_mm``, with :meth:`supported_flow`'s ``noise_factor``)."""
+        ``second_mm``, with :meth:`supported_flow`'s ``noise_factor`` and ``holes``)."""
         flow = self.flow_backend(first_u8, second_u8)
         return self.supported_flow(
-            first_mm, second_mm, flow, units_per_mm=1.0, noise_factor=noise_factor
+            first_mm, second_mm, flow, units_per_mm=1.0, noise_factor=noise_factor, holes=holes
         )
 
     def flow_pair(
@@ -281,6 +282,7 @@ class MotionFrontEnd:
         flow: np.ndarray,
         units_per_mm: float,
         noise_factor: float = 1.0,
+        holes: bool = False,
     ) -> np.ndarray:
         """:func:`~upsr.method.motion.suppress_spurious_motion` on images in
         mm × ``units_per_mm`` (1 for prefiltered depth, 254/(far − near) for guides), the zero
@@ -299,4 +301,5 @@ class MotionFrontEnd:
             noise_mm=self.noise_mm * units_per_mm * noise_factor,  # type: ignore[operator]
             edge_mm=self.edge_mm * units_per_mm,
             edge_window_px=4 * s + 1,
+            holes=holes,
         )

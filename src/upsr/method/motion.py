@@ -270,6 +270,7 @@ def suppress_spurious_motion(
     noise_mm: float = 0.0,
     edge_mm: float | None = None,
     edge_window_px: int | None = None,
+    holes: bool = False,
 ) -> np.ndarray:
     """Set the flow to zero where "no motion" explains the depth as well as the flow does.
 
@@ -301,6 +302,13 @@ def suppress_spurious_motion(
         and the flow that chains pixels near an edge from frame to frame must stay intact.
     edge_window_px : int or None
         Side of the window of that edge test (px); default ``window_px``.
+    holes : bool
+        Also judge the flow of the pixels without depth in ``first`` (otherwise left alone),
+        by the holes' pattern: zeroed where, over the window, the flow brings more pixels
+        whose depth or lack of it disagrees with ``first`` (``second`` moved has depth where
+        ``first`` has none and ``second`` unmoved none, or the other way round) than no motion
+        does. A hole that every frame has keeps its place (the flow of a noisy static surface
+        had carried its rim into it, 2 px on the output grid), a moving part's hole its flow.
 
     Returns
     -------
@@ -311,9 +319,10 @@ def suppress_spurious_motion(
     first = np.ascontiguousarray(first_mm, dtype)
     second = np.ascontiguousarray(second_mm, dtype)
     warped = remap_by_flow(second, flow, cv2.INTER_NEAREST, cv2.BORDER_REPLICATE)
-    # both squared residuals in one 2-channel image, box-filtered in one call
-    squared = np.empty((*first.shape, 2), np.float32)
-    _squared_residuals(first, second, warped, squared)
+    # both squared residuals in one 2-channel image (and the holes' mismatches: 4 channels),
+    # box-filtered in one call
+    squared = np.empty((*first.shape, 4 if holes else 2), np.float32)
+    (_residuals_and_holes if holes else _squared_residuals)(first, second, warped, squared)
     residuals = cv2.boxFilter(squared, -1, (window_px, window_px))
     if edge_mm is not None:
         side = max(edge_window_px or window_px, 1)
@@ -333,6 +342,7 @@ def suppress_spurious_motion(
         float(noise_mm) ** 2,
         edge,
         out,
+        holes,
     )
     return out
 
@@ -359,10 +369,40 @@ def _squared_residuals(first, second, warped, out):  # pragma: no cover - numba
 
 
 @nb.njit(cache=True, nogil=True)
+def _residuals_and_holes(first, second, warped, out):  # pragma: no cover - numba
+    """:func:`_squared_residuals` in channels 0, 1; channel 2 (3): 1 where the depth or lack
+    of it of ``warped`` (``second``) disagrees with ``first``'s, and for a pixel without
+    depth in ``first`` only where ``second`` (``warped``) agrees with it (a hole that both
+    fill, a dropout, tells nothing of the motion)."""
+    h, w = first.shape
+    for i in range(h):
+        fr = first[i]
+        sr = second[i]
+        wr = warped[i]
+        orow = out[i]
+        for j in range(w):
+            a = fr[j]
+            b = sr[j]
+            c = wr[j]
+            va = a > 0
+            vb = b > 0
+            vc = c > 0
+            ok = va & vb & vc
+            d1 = np.float32(a) - np.float32(c)
+            d2 = np.float32(a) - np.float32(b)
+            orow[j, 0] = d1 * d1 if ok else np.float32(0.0)
+            orow[j, 1] = d2 * d2 if ok else np.float32(0.0)
+            orow[j, 2] = np.float32((va & ~vc) | (~va & vc & ~vb))
+            orow[j, 3] = np.float32((va & ~vb) | (~va & vb & ~vc))
+
+
+@nb.njit(cache=True, nogil=True)
 def _zero_unsupported(
-    first, flow, residuals, span, tolerance, noise_sq, edge_mm, out
+    first, flow, residuals, span, tolerance, noise_sq, edge_mm, out, holes
 ):  # pragma: no cover - numba
-    """out = flow, zero where the zero motion fits as well (and no edge is near)."""
+    """out = flow, zero where the zero motion fits as well (and no edge is near); with
+    ``holes``, zero at a pixel without depth where the flow's hole mismatches (channel 2)
+    outnumber the zero motion's (channel 3)."""
     h, w = first.shape
     for i in range(h):
         fr = first[i]
@@ -371,9 +411,13 @@ def _zero_unsupported(
         flr = flow[i]
         orow = out[i]
         for j in range(w):  # branch-free (SIMD)
-            # pixels without depth carry no evidence either way: their flow (which chaining
-            # reads when a moving surface's pixel lands just outside it) is left alone
-            zero = (fr[j] > 0) & (rr[j, 1] <= tolerance * rr[j, 0] + noise_sq) & (sr[j] <= edge_mm)
+            # pixels without depth carry no evidence of their depth: their flow (which
+            # chaining reads when a moving surface's pixel lands just outside it) is left
+            # alone, unless the holes' pattern is asked (``holes``)
+            if fr[j] > 0:
+                zero = (rr[j, 1] <= tolerance * rr[j, 0] + noise_sq) & (sr[j] <= edge_mm)
+            else:
+                zero = holes and rr[j, 2] > rr[j, 3] + np.float32(1e-6)
             orow[j, 0] = np.float32(0.0) if zero else flr[j, 0]
             orow[j, 1] = np.float32(0.0) if zero else flr[j, 1]
 

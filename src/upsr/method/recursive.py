@@ -298,7 +298,11 @@ class RecursiveUPSR(TwoStagePipeline):
             if self._depth is None
             else (resample_nearest(self._depth, pre.shape), STATE_NOISE_FACTOR)
         )
-        return front.consecutive_flow(pre, second, guide, self._prev_guide, noise_factor=factor)
+        # (the flow of its holes judged by their pattern: the state's rim did not leak into a
+        # hole that every frame has; recursive notes)
+        return front.consecutive_flow(
+            pre, second, guide, self._prev_guide, noise_factor=factor, holes=True
+        )
 
     def _by_camera(self, flow: np.ndarray, pre: np.ndarray, frame: np.ndarray) -> np.ndarray:
         """``camera_motion="depth"``: the flow from ``frame`` to the previous frame replaced by
