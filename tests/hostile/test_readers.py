@@ -158,6 +158,24 @@ def test_a_truncated_multi_page_tiff_is_refused(tmp_path: Path, capfd) -> None:
     assert io.probe(whole).n_frames == 6
 
 
+def test_a_truncated_bag_message_names_the_bag_and_the_message(tmp_path: Path) -> None:
+    import shutil
+    import sqlite3
+
+    bag = tmp_path / "cut.db3"
+    shutil.copy(Path(__file__).parents[1] / "io" / "data" / "realsense" / "rs259_1mm.db3", bag)
+    with sqlite3.connect(bag) as db:
+        db.execute(
+            "update messages set data = substr(data, 1, length(data) / 2) where topic_id in "
+            "(select id from topics where name like '%Depth%image/data%')"
+        )
+    with pytest.raises(
+        InputError, match=r"cut\.db3 /device_0/.*Depth.* message 0: message trunc"
+    ) as e:
+        list(io.iter_frames(bag))
+    assert_one_line(e)
+
+
 def test_npy_truncated_while_read_no_sigbus(tmp_path: Path) -> None:
     p = tmp_path / "v.npy"
     np.save(p, np.full((20, 64, 64), 500.0, np.float32))

@@ -104,19 +104,29 @@ def _is2(reader: Any) -> bool:
     return bool(getattr(reader, "is2", getattr(reader, "is_ros2", False)))
 
 
-def _parse(reader: Any, conn: Any, raw: bytes) -> Any:
-    """An Image / CompressedImage parsed tolerantly; other types through rosbags."""
-    if conn.msgtype == _IMAGE:
-        return parse_image(raw, cdr=_is2(reader))
-    if conn.msgtype == _COMPRESSED:
-        return parse_compressed(raw, cdr=_is2(reader))
-    return reader.deserialize(raw, conn.msgtype)
+def _parse(reader: Any, conn: Any, raw: bytes, label: str) -> Any:
+    """An Image / CompressedImage parsed tolerantly; other types through rosbags (a corrupt
+    message's error names ``label``: the bag, the topic and the message)."""
+    try:
+        if conn.msgtype == _IMAGE:
+            return parse_image(raw, cdr=_is2(reader))
+        if conn.msgtype == _COMPRESSED:
+            return parse_compressed(raw, cdr=_is2(reader))
+        return reader.deserialize(raw, conn.msgtype)
+    except InputError as e:
+        raise InputError(f"{label}: {e}") from None
 
 
 def _first(reader: Any, conn: Any) -> Any:
     for c, _, raw in reader.messages(connections=[conn]):
-        return _parse(reader, c, raw)
+        return _parse(reader, c, raw, f"{_bag_name(reader)} {conn.topic} message 0")
     return None
+
+
+def _bag_name(reader: Any) -> str:
+    """The bag's path as its reader knows it (for error messages)."""
+    paths = getattr(reader, "paths", None) or [getattr(reader, "path", "bag")]
+    return str(paths[0])
 
 
 def _is_depth(topic: str, msg: Any) -> bool:
@@ -350,7 +360,7 @@ def frames(
                 if item is None:
                     break
                 c, _, raw = item
-                frame = _decode(_parse(reader, c, raw), units, label)
+                frame = _decode(_parse(reader, c, raw, label), units, label)
             if shape is None:
                 shape = frame.shape
             elif frame.shape != shape:
@@ -376,7 +386,7 @@ def timestamps(path: Path, opts: ReadOptions, fmt: str = "rosbag") -> np.ndarray
         conns = [c for c in reader.connections if c.topic == conn.topic]
         header, received = [], []
         for c, t, raw in reader.messages(connections=conns):
-            header.append(_parse(reader, c, raw).stamp_ns)
+            header.append(_parse(reader, c, raw, f"{name} {conn.topic}").stamp_ns)
             received.append(t)
         meta = _realsense_meta_stamps(reader, conn.topic)
     if meta is not None and len(meta) == len(header):
