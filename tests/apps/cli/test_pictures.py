@@ -136,3 +136,15 @@ def test_view_and_export_ply_warn_of_a_file_in_metres_read_as_mm(tmp_path: Path,
         assert rc == 0 and "look like metres (--depth-scale 1)" in err, err
         rc, _, err = run_cli(capsys, *command, "--depth-scale", "1", "--overwrite")
         assert rc == 0 and "warning" not in err, err
+
+
+@pytest.mark.parametrize("suffix", ["png", "gif"])
+def test_compare_refuses_frames_without_depth(tmp_path: Path, capsys, suffix: str) -> None:
+    """An all-zero (or NaN) video gave a black picture with exit 0, where run, view and
+    export-ply refuse it."""
+    np.save(tmp_path / "z.npy", np.zeros((3, 6, 8), np.float32))
+    out = tmp_path / f"c.{suffix}"
+    rc, _, err = run_cli(capsys, "compare", tmp_path / "z.npy", tmp_path / "z.npy", "-r", 1,
+                         "-o", out, "-q")  # fmt: skip
+    assert rc == 2 and "no valid depth in the frame(s) compared" in err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["z.npy"]

@@ -210,6 +210,7 @@ def compare(
         tqdm(total=len(ks), desc="compare", file=sys.stderr, disable=quiet, leave=False) as bar,
     ):
         scales: tuple[tuple[float, float], float | None] | None = None
+        depth_shown = False
         for t in range(n):
             lo_f = next(lo_frames)
             up_f = next(up_frames)
@@ -218,6 +219,7 @@ def compare(
                 if t > ks[-1]:
                     break
                 continue
+            depth_shown = depth_shown or bool((lo_f > 0).any() or (up_f > 0).any())
             if scales is None:  # fixed on the first frame shown
                 scales = _colour_scales(lo_f, up_f, tr_f, rng, error_max)
             (vmin, vmax), err_max = scales
@@ -233,6 +235,10 @@ def compare(
             )
             writer.write(img)
             bar.update(1)
+        if not depth_shown:  # (a black picture; run, view and export-ply refuse such input)
+            raise InputError(
+                f"{lowres}, {upsr_path}: no valid depth in the frame(s) compared (all 0 or NaN)"
+            )
     typer.echo(f"upsr: compare: {len(ks)} frame(s) -> {output}")
 
 
