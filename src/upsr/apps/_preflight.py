@@ -15,7 +15,9 @@
 
 from __future__ import annotations
 
+import contextlib
 import os
+import shutil
 import sys
 from collections.abc import Iterator, Sequence
 from pathlib import Path
@@ -34,6 +36,7 @@ __all__ = [
     "kernel_note",
     "memory_limit",
     "read_options",
+    "removed_on_failure",
 ]
 
 KERNEL_NOTE = "upsr: compiling kernels on first use (once, ~1–2 min)…"
@@ -249,3 +252,17 @@ def check_sidecar(path: Path, overwrite: bool, inputs: Sequence[Path | str | Non
             raise InputError(f"{path}: the output's intrinsics file would replace the input {inp}")
     if not overwrite:
         raise InputError(f"{path} already exists (use --overwrite to replace it)")
+
+
+@contextlib.contextmanager
+def removed_on_failure(folder: Path) -> Iterator[None]:
+    """An output folder the command creates is removed again if the command fails (``upsr
+    experiment`` on a bad ``--data``, ``upsr demo`` on a full disk left it behind, empty or
+    with part of its files); a folder that existed is left as it is."""
+    existed = os.path.lexists(folder)
+    try:
+        yield
+    except BaseException:
+        if not existed:
+            shutil.rmtree(folder, ignore_errors=True)
+        raise

@@ -64,3 +64,10 @@ def test_missing_meshes_are_a_user_error(
     )
     assert rc == 2
     assert "missing Samba mesh" in capsys.readouterr().err
+    assert not (tmp_path / "o").exists()  # (the folder this run made is removed again)
+    (tmp_path / "mine").mkdir()
+    (tmp_path / "mine" / "notes.txt").write_text("kept")
+    rc = cli.main(
+        ["experiment", "noise", "--quick", "--data", str(data), "-o", str(tmp_path / "mine")]
+    )
+    assert rc == 2 and (tmp_path / "mine" / "notes.txt").read_text() == "kept"

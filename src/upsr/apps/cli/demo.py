@@ -21,7 +21,13 @@ __all__ = ["analyze", "demo", "register"]
 
 def demo(
     out: Annotated[
-        Path, typer.Option("--out", "-o", help="Folder for the demo's videos, figures and metrics.")
+        Path,
+        typer.Option(
+            "--out",
+            "-o",
+            help="Folder for the demo's videos, figures and metrics (created if needed; those "
+            "files are replaced).",
+        ),
     ] = Path("results/demo"),
     seed: Annotated[
         int, typer.Option("--seed", help="Random seed of the synthetic scene and noise.")
@@ -30,8 +36,10 @@ def demo(
 ) -> None:
     """Run the built-in demo: a synthetic moving scene, UP-SR vs baselines, metrics table."""
     from upsr.apps import demo as demo_module
+    from upsr.apps._preflight import removed_on_failure
 
-    result = demo_module.run_demo(out, seed=seed, progress=not quiet)
+    with removed_on_failure(out):
+        result = demo_module.run_demo(out, seed=seed, progress=not quiet)
     typer.echo(demo_module.format_metrics_table(result))
     files = result.get("files") if isinstance(result, dict) else None
     if isinstance(files, dict) and files:
@@ -66,11 +74,13 @@ def analyze(
     Exact variance of the median of N Laplace samples, the Cramér–Rao bound and a
     Monte-Carlo estimate, vs N = 1..max-frames (at --sigma) and vs sigma = 0..100 mm (N = 9).
     """
+    from upsr.apps._preflight import removed_on_failure
     from upsr.research import analysis
 
-    result = analysis.run_analysis(
-        out, sigma=sigma, max_frames=max_frames, trials=trials, seed=seed
-    )
+    with removed_on_failure(out):
+        result = analysis.run_analysis(
+            out, sigma=sigma, max_frames=max_frames, trials=trials, seed=seed
+        )
     typer.echo(analysis.format_analysis_table(result))
     typer.echo(f"upsr: analysis written to {', '.join(result['files'].values())}")
 

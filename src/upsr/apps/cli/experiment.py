@@ -9,6 +9,8 @@ into ``--out/<name>/`` and writes ``--out/REPORT.md``.
 
 from __future__ import annotations
 
+import functools
+from collections.abc import Callable
 from enum import Enum
 from pathlib import Path
 from typing import Annotated, Any
@@ -59,13 +61,30 @@ def _logger(quiet: bool, name: str) -> Any:
     return null_logger if quiet else stderr_logger(f"upsr experiment {name}")
 
 
+def _command(name: str) -> Callable[[Callable[..., None]], Callable[..., None]]:
+    """``app.command(name)``, its output folder removed again if it fails and this run
+    created it (a bad --data left an empty one)."""
+
+    def register(fn: Callable[..., None]) -> Callable[..., None]:
+        @functools.wraps(fn)
+        def run(**kwargs: Any) -> None:
+            from upsr.apps._preflight import removed_on_failure
+
+            with removed_on_failure(kwargs["out"]):
+                fn(**kwargs)
+
+        return app.command(name)(run)
+
+    return register
+
+
 def _finish(result: Any) -> None:
     typer.echo(result.summary)
     typer.echo("")
     typer.echo(f"upsr: {result.name} written to {', '.join(str(p) for p in result.files.values())}")
 
 
-@app.command("motion-accuracy")
+@_command("motion-accuracy")
 def motion_accuracy(
     out: OutOpt = Path("results/motion-accuracy"),
     data: DataOpt = _DATA,
@@ -78,7 +97,7 @@ def motion_accuracy(
     _finish(run_motion_accuracy(out, data, quick=quick, log=_logger(quiet, "motion-accuracy")))
 
 
-@app.command("cumulative")
+@_command("cumulative")
 def cumulative(
     out: OutOpt = Path("results/cumulative"),
     data: DataOpt = _DATA,
@@ -110,7 +129,7 @@ def cumulative(
     )
 
 
-@app.command("noise")
+@_command("noise")
 def noise(
     out: OutOpt = Path("results/noise"),
     data: DataOpt = _DATA,
@@ -124,7 +143,7 @@ def noise(
     _finish(run_noise(out, data, quick=quick, seed=seed, log=_logger(quiet, "noise")))
 
 
-@app.command("factors")
+@_command("factors")
 def factors(
     out: OutOpt = Path("results/factors"),
     data: DataOpt = _DATA,
@@ -138,7 +157,7 @@ def factors(
     _finish(run_factors(out, data, quick=quick, seed=seed, log=_logger(quiet, "factors")))
 
 
-@app.command("all")
+@_command("all")
 def all_experiments(
     out: OutOpt = Path("results"),
     data: DataOpt = _DATA,
