@@ -21,6 +21,7 @@ import deblur_eval
 import flow_grid_eval
 import live_eval
 import load_eval
+import memory_eval
 import realistic_eval
 import samba_eval
 import speed_eval
@@ -37,6 +38,8 @@ def main() -> int:
     out = Path(args.out)
     print("== speed ==", flush=True)
     speed_eval.main(["--data", args.data, "--out", str(out / "speed")])
+    print("\n== peak memory against the estimate the commands check ==", flush=True)
+    memory_eval.main(["--out", str(out / "memory")])
     print("\n== speed beside another busy process (the kernels' OpenMP wait policy) ==", flush=True)
     load_eval.main(["--out", str(out / "load")])
     print("\n== upsr live on SDK recordings played in real time ==", flush=True)

@@ -32,16 +32,23 @@ def test_huge_scale_refused_before_allocating(r: int, tmp_path: Path) -> None:
 
 
 def test_model_numbers() -> None:
-    # the calibration rows of the module docstring, within 10 % (before the safety factor)
+    """The estimate covers every peak of the module docstring (tracemalloc rows, workers 0;
+    resident peaks over the process of benchmarks/memory_eval.py, workers 2), within 4×: at
+    r = 16 it was 4× too low, and a run that passed the check could be killed half-way."""
     for shape, r, n, k, mb in [
         ((12, 64, 56), 2, 9, 0, 9.7),
         ((12, 128, 112), 4, 9, 0, 48.3),
         ((12, 128, 112), 4, 5, 0, 26.0),
         ((14, 240, 320), 2, 9, 0, 208.5),
+        ((9, 240, 320), 4, 9, 2, 467),
+        ((9, 480, 640), 2, 9, 2, 1356),
+        ((5, 240, 320), 8, 5, 2, 785),
+        ((1, 480, 640), 8, 1, 2, 1046),
+        ((3, 480, 640), 8, 3, 2, 2662),
+        ((1, 480, 640), 16, 1, 2, 4010),
     ]:
-        est = resources.peak_memory_bytes(shape, r, n, k) / resources._SAFETY
-        est -= resources._BASE_BYTES
-        assert abs(est / 2**20 - mb) / mb < 0.1, (shape, r, est / 2**20)
+        est = resources.peak_memory_bytes(shape, r, n, k) / 2**20
+        assert mb <= est <= 4 * mb + 64, (shape, r, n, est, mb)  # (+ its fixed 40 MB)
     assert resources.output_bytes((10, 100, 200), 2, "npy") == 10 * 200 * 400 * 4 + 4096
     assert resources.output_bytes((10, 100, 200), 2, "png") < resources.output_bytes(
         (10, 100, 200), 2, "npy"

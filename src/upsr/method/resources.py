@@ -30,12 +30,17 @@ h×w, T                  r   N   s        peak (MB)
 240×320, 14, workers 2  4   9   2        329.4 (model: 338)
 ======================  ==  ==  =======  ==========================
 
-The peak is proportional to N (48.3 → 26.0 MB for N = 9 → 5) and fits
-``N · (6.5·O + 35·F + 150·L)`` bytes within 3 % on all the rows; workers add about 15 % each
-(62.0 / 48.3 with 2). The estimate is that times ``(1 + 0.15·workers)``, plus 32 MB of fixed
-buffers, times a safety factor of 1.25 for what tracemalloc does not see (OpenCV's DIS
-buffers, allocator slack). The process itself (Python, numpy, OpenCV, numba: ~350 MB
-resident) is not counted. -r 150 on 64×56 frames, N = 9: ~5.7 GB; -r 1000: ~250 GB.
+The peak of those rows fits ``N · (6.5·O + 35·F + 150·L)`` bytes within 3 %; workers add
+about 15 % each (62.0 / 48.3 with 2). At large r the output grid costs more than that: the
+resident peak over the process itself (``benchmarks/memory_eval.py``, 7 Dec 2026: dense
+frames, T = N, default workers) was 1046 MB at 640×480, r = 8, N = 1 (the rows' model: 376
+MB), 2662 at N = 3 (1048), 785 at 320×240, r = 8, N = 5 (460), 4010 at 640×480, r = 16, N = 1
+(970): about 48 bytes per output pixel whatever N (deblurring, finishing and speckle buffers
+of one frame) and 20–54 more per further window frame. The estimate is
+``32 MB + 48·O + (N − 1)·40·O + N · (35·F + 150·L)`` bytes, times ``(1 + 0.15·workers)``,
+times a safety factor of 1.25 (allocator slack; 1.1–3× the peaks measured, the most at
+small r). The process itself (Python, numpy, OpenCV, numba: 200–350 MB resident) is not
+counted. -r 150 on 64×56 frames, N = 9: ~5.7 GB; -r 1000: ~250 GB.
 
 ``available_memory_bytes``: the least of MemAvailable (``/proc/meminfo``), RLIMIT_AS minus
 the address space already used (``ulimit -v``; the whole virtual size counts there) and the
@@ -69,9 +74,11 @@ __all__ = [
 _BYTES_PER_PX = {"npy": 4, "npz": 4, "tiff": 4, "exr": 4, "png": 2}
 #: Per-frame overhead of each output format (headers, one file per frame).
 _FRAME_OVERHEAD = {"npy": 0, "npz": 64, "tiff": 512, "exr": 2048, "png": 4096}
-#: Peak model (see the module docstring): bytes per window frame and output, flow-grid and
-#: input pixel.
-_PER_OUTPUT_PX = 6.5
+#: Peak model (see the module docstring): bytes per output pixel of one frame's buffers, per
+#: output pixel of each further window frame, and per window frame and flow-grid and input
+#: pixel.
+_PER_OUTPUT_PX_ONCE = 48.0
+_PER_OUTPUT_PX = 40.0
 _PER_FLOW_PX = 35.0
 _PER_INPUT_PX = 150.0
 #: Extra share of the peak per worker thread.
@@ -187,7 +194,12 @@ def peak_memory_bytes(
     else:
         s = max(1, min(r, int(flow_scale)))
     lo = h * w
-    per_window = n * (_PER_OUTPUT_PX * r * r * lo + _PER_FLOW_PX * s * s * lo + _PER_INPUT_PX * lo)
+    out_px = r * r * lo
+    per_window = (
+        _PER_OUTPUT_PX_ONCE * out_px
+        + (n - 1) * _PER_OUTPUT_PX * out_px
+        + n * (_PER_FLOW_PX * s * s * lo + _PER_INPUT_PX * lo)
+    )
     return int(_SAFETY * (_BASE_BYTES + per_window * (1 + _PER_WORKER * k)))
 
 
