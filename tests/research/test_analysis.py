@@ -312,6 +312,7 @@ def test_cli_analyze_writes_files(tmp_path: Path, capsys: pytest.CaptureFixture[
         ["--sigma", "0"],
         ["--sigma", "-5"],
         ["--sigma", "nan"],
+        ["--sigma", "1e200"],  # (overflowed into an empty plot)
         ["--max-frames", "0"],
         ["--max-frames", "1001"],
         ["--trials", "0"],

@@ -91,6 +91,7 @@ from scipy import special
 
 from upsr._atomic import write_text_atomic
 from upsr.errors import InputError
+from upsr.method.validation import MAX_DEPTH_MM
 
 __all__ = [
     "bias_sq",
@@ -610,8 +611,8 @@ def _check_analysis(
         s = float(sigma)
     except (TypeError, ValueError):
         raise InputError(f"sigma must be a number of mm > 0, got {sigma!r}") from None
-    if not (math.isfinite(s) and s > 0):
-        raise InputError(f"sigma must be a finite number of mm > 0, got {sigma!r}")
+    if not (0 < s <= MAX_DEPTH_MM):  # (NaN too; 1e200 overflowed into an empty plot)
+        raise InputError(f"sigma must be a number of mm in (0, {MAX_DEPTH_MM:g}], got {sigma!r}")
     n_max = _check_int(max_frames, "max_frames", 1)
     if n_max > MAX_FRAMES_ANALYSIS:
         raise InputError(f"max_frames must be <= {MAX_FRAMES_ANALYSIS}, got {n_max}")
