@@ -101,6 +101,28 @@ def test_batch_reuses_finished_chunks(videos, tmp_path: Path, monkeypatch) -> No
     check_batch_output(tmp_path, {"a": ref["a"]})
 
 
+def test_chunks_of_an_input_rewritten_with_its_old_size_and_mtime_are_not_reused(
+    tmp_path: Path,
+) -> None:
+    """The same size and the old mtime restored (cp -p, rsync -t, a coarse file system): its
+    chunks were reused, the resumed output mixing old and new frames."""
+    import os
+
+    import numpy as np
+
+    from upsr.apps._batch_plan import _fingerprint
+
+    p = tmp_path / "a.npy"
+    np.save(p, np.full((4, 6, 8), 1500.0, np.float32))
+    before = _fingerprint(p, {"n": 3})
+    st = os.stat(p)
+    np.save(p, np.full((4, 6, 8), 1200.0, np.float32))
+    os.utime(p, ns=(st.st_atime_ns, st.st_mtime_ns))
+    assert os.stat(p).st_size == st.st_size and os.stat(p).st_mtime_ns == st.st_mtime_ns
+    assert _fingerprint(p, {"n": 3}) != before
+    assert _fingerprint(p, {"n": 3}) == _fingerprint(p, {"n": 3})
+
+
 def test_chunks_read_only_their_frames_and_finish_only_their_outputs(
     videos, tmp_path: Path, monkeypatch
 ) -> None:
