@@ -166,8 +166,19 @@ def _write_record(rec: Recording, options: dict[str, Any], state: str) -> None:
 
     path = _record_path(rec)
     path.parent.mkdir(parents=True, exist_ok=True)
-    text = json.dumps({"state": state, "input": str(rec.input), "options": options})
+    text = json.dumps(
+        {"state": state, "input": str(rec.input), "source": input_identity(rec.input),
+         "options": options}
+    )  # fmt: skip
     write_text_atomic(path, text)
+
+
+def input_identity(path: Path) -> list[Any]:
+    """The input's files as a record keeps them (name, size, modification and change times):
+    an output is skipped only for the input it was made from, unchanged."""
+    p = Path(path)
+    files = [p] if p.is_file() else sorted(q for q in p.iterdir() if q.is_file())
+    return [[q.name, (s := q.stat()).st_size, s.st_mtime_ns, s.st_ctime_ns] for q in files]
 
 
 def _drop_record(rec: Recording) -> None:

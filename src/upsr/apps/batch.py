@@ -43,6 +43,7 @@ from upsr.apps._batch_state import (
     _options_record,
     _read_record,
     _write_record,
+    input_identity,
 )
 from upsr.apps._chunks import (
     _OUT_SUFFIX,
@@ -522,6 +523,17 @@ class _BatchRun:
             return "skip"
         if record.get("state") != "done":
             return ""
+        made_from = record.get("input")
+        if made_from is not None and Path(made_from).resolve() != Path(rec.input).resolve():
+            return (
+                f"output {rec.output.name} was made from another recording ({made_from}): "
+                f"use --overwrite to replace it, or another --out"
+            )
+        if "source" in record and record["source"] != input_identity(rec.input):
+            return (
+                f"output {rec.output.name} was made before {rec.input.name} changed: use "
+                f"--overwrite to recompute it"
+            )
         if record["options"] == self.options:
             return "skip"
         diff = _differences(record["options"], self.options)

@@ -193,3 +193,29 @@ def test_batch_takes_a_recording_whose_last_chunk_has_no_depth(tmp_path: Path, c
     capsys.readouterr()
     assert main(["batch", str(tmp_path / "empty.npy"), "--out", str(tmp_path / "o2"), *common]) == 2
     assert "no valid depth" in capsys.readouterr().err
+
+
+def test_an_output_is_skipped_only_for_its_own_unchanged_input(tmp_path: Path, capsys) -> None:
+    """day2/cam.npy was 'skipped (output exists)' beside day1/cam.npy's output, and an input
+    changed after its output was made was skipped too: both refused now, one line each."""
+    import os
+
+    for day, t in (("day1", 6), ("day2", 5)):
+        (tmp_path / day).mkdir()
+        np.save(tmp_path / day / "cam.npy", np.full((t, 12, 16), 1500.0, np.float32))
+    out = tmp_path / "res"
+    base = ["--out", str(out), "-r", "2", "-n", "3", "-w", "1", "-q"]
+    assert main(["batch", str(tmp_path / "day1" / "cam.npy"), *base]) == 0
+    assert main(["batch", str(tmp_path / "day1" / "cam.npy"), *base]) == 0
+    assert "0 done, 1 skipped" in capsys.readouterr().out
+    assert main(["batch", str(tmp_path / "day2" / "cam.npy"), *base]) == 2
+    assert "was made from another recording" in capsys.readouterr().err
+    assert np.load(out / "cam.npy").shape == (6, 24, 32)
+    src = tmp_path / "day1" / "cam.npy"
+    st = os.stat(src)
+    np.save(src, np.full((6, 12, 16), 1200.0, np.float32))
+    os.utime(src, ns=(st.st_atime_ns, st.st_mtime_ns))
+    assert main(["batch", str(src), *base]) == 2
+    assert "was made before cam.npy changed" in capsys.readouterr().err
+    assert main(["batch", str(src), *base, "--overwrite"]) == 0
+    assert np.load(out / "cam.npy").max() < 1300
