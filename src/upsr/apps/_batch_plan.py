@@ -58,10 +58,13 @@ def prepare_recording(
     ``units``, and ``camera_motion``: "depth" registers by the camera's motion with the
     recording's intrinsics, refused where it has none)."""
     from upsr.apps._camera import camera_motion_config, input_camera
-    from upsr.apps._preflight import check_first_frame, check_run_resources
+    from upsr.apps._preflight import check_first_frame, check_run_resources, check_scale_applies
     from upsr.io import identity
     from upsr.io import video as io
 
+    lim = limits or {}
+    sensor, strict, scale_given, out_scale = lim.get("units", ("default", False, False, 1000.0))
+    check_scale_applies([rec.input], read["fmt"], scale_given)  # (this recording's failure)
     info = io.probe(rec.input, key=read["key"], fmt=read["fmt"], topic=read["topic"])
     if shrink_frames and cfg.n_frames > info.n_frames:
         cfg = dataclasses.replace(cfg, n_frames=info.n_frames)
@@ -72,7 +75,6 @@ def prepare_recording(
             f"{info.n_frames} or less"
         )
     rec.n_frames = info.n_frames
-    lim = limits or {}
     check_run_resources(
         info.shape,
         cfg,
@@ -98,7 +100,6 @@ def prepare_recording(
     from upsr.method.statistics import pinned_config
 
     # the units of its first frame and the output's capacity, before any of its work
-    sensor, strict, scale_given, out_scale = lim.get("units", ("default", False, False, 1000.0))
     check_first_frame(
         rec.input,
         next((f for f in first if (f > 0).any()), first[0]),

@@ -219,3 +219,20 @@ def test_an_output_is_skipped_only_for_its_own_unchanged_input(tmp_path: Path, c
     assert "was made before cam.npy changed" in capsys.readouterr().err
     assert main(["batch", str(src), *base, "--overwrite"]) == 0
     assert np.load(out / "cam.npy").max() < 1300
+
+
+def test_a_depth_scale_that_does_not_fit_one_recording_fails_that_one_only(
+    tmp_path: Path, capsys
+) -> None:
+    """--input-depth-scale 1 for a folder of metres and a RealSense bag: the bag fails (its
+    units are fixed), the other is done (the whole batch stopped before any work)."""
+    bag = Path(__file__).parents[2] / "io" / "data" / "realsense" / "rs259_1mm.db3"
+    np.save(tmp_path / "m.npy", np.full((4, 12, 16), 1.5, np.float32))
+    out = tmp_path / "res"
+    args = ["batch", str(bag), str(tmp_path / "m.npy"), "--out", str(out), "-r", "2", "-n", "3",
+            "-w", "1", "-q", "--input-depth-scale", "1"]  # fmt: skip
+    assert main(args) == 2
+    cap = capsys.readouterr()
+    assert "1 done, 0 skipped (output exists), 1 failed" in cap.out
+    assert "--input-depth-scale does not apply to rosbag input" in cap.err
+    assert np.median(np.load(out / "m.npy")) == pytest.approx(1500.0, abs=1.0)

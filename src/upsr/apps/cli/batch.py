@@ -86,14 +86,13 @@ def batch(
     others go on; exit status 2 (bad input) or 1 (internal error) if any failed.
     """
     cfg = opt.method_config(locals())  # first: locals() are the options
-    from upsr.apps._preflight import check_scale_applies, memory_limit
+    from upsr.apps._preflight import memory_limit
     from upsr.apps.batch import run_batch
     from upsr.io.units import resolve_depth_scales
 
     mem = memory_limit(max_memory)
     s_in, s_out = resolve_depth_scales(depth_scale, input_depth_scale, output_depth_scale)
     scale_given = depth_scale is not None or input_depth_scale is not None
-    check_scale_applies(inputs, opt.fmt(input_format), scale_given)
     start = time.perf_counter()
     result = run_batch(
         inputs,
