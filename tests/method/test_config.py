@@ -140,3 +140,19 @@ def test_super_resolve_refuses_arguments_that_disagree_with_its_config():
     for kwargs in ({"scale": 4}, {"scale": 2, "n_frames": 5}, {"scale": 2, "mode": "recursive"}):
         with pytest.raises(InputError, match="give the options in the config"):
             upsr.super_resolve(video, config=cfg, **kwargs)
+
+
+@pytest.mark.parametrize("mode", ["windowed", "recursive"])
+def test_the_engines_refuse_arguments_that_disagree_with_their_config(mode):
+    """UPSR(scale=3, n_frames=5, config=<r = 2>, deblur_iterations=50) ran with r = 2, N = 9
+    and 15 iterations without a word; super_resolve refused the same call."""
+    cfg = UPSRConfig(scale=2, mode=mode)
+    for kwargs in ({"scale": 3}, {"n_frames": 5}, {"deblur_iterations": 50}, {"flow": "farneback"}):
+        with pytest.raises(InputError, match="give the options in the config"):
+            upsr.UPSR(config=cfg, **kwargs)
+    assert upsr.UPSR(config=cfg).config == cfg
+    assert upsr.UPSR(2, config=cfg).config == cfg
+    assert upsr.UPSR(config=UPSRConfig(scale=4, mode=mode)).config.scale == 4
+    assert upsr.UPSR().config.scale == 2 and upsr.UPSR().config.n_frames == 9
+    with pytest.raises(InputError, match="scale r must be"):
+        upsr.UPSR(0)

@@ -567,15 +567,19 @@ class UPSRConfig:
 
     @classmethod
     def of_call(
-        cls, scale: int, n_frames: int, config: UPSRConfig | None, options: dict[str, Any]
+        cls, scale: int | None, n_frames: int | None, config: UPSRConfig | None, options: dict
     ) -> UPSRConfig:
-        """The config of a call given ``scale``, ``n_frames`` (default 9), a ``config`` or
-        ``options``: ``config`` when given, whose ``scale`` (and ``n_frames`` when not the
-        default) must agree and beside which no options are allowed (they were dropped
-        silently); else :meth:`from_options`."""
+        """The config of a call given ``scale`` (None: 2), ``n_frames`` (None: 9), a ``config``
+        or ``options``: ``config`` when given, ``scale`` and ``n_frames`` agreeing where given
+        (9: the default), no options beside it (they were dropped); else :meth:`from_options`."""
+        given = (2 if scale is None else scale, 9 if n_frames is None else n_frames)
         if config is None:
-            return cls.from_options(scale, n_frames, **options)
-        if options or scale != config.scale or n_frames not in (9, config.n_frames):
+            return cls.from_options(*given, **options)
+        if (
+            options
+            or scale not in (None, config.scale)
+            or n_frames not in (None, 9, config.n_frames)
+        ):
             raise InputError(
                 f"config (r = {config.scale}, N = {config.n_frames}) and scale={scale}, "
                 f"n_frames={n_frames}{', ' + ', '.join(sorted(options)) if options else ''} "

@@ -194,8 +194,8 @@ class RecursiveUPSR(TwoStagePipeline):
 
     def __init__(
         self,
-        scale: int = 2,
-        n_frames: int = 9,
+        scale: int | None = None,
+        n_frames: int | None = None,
         *,
         config: UPSRConfig | None = None,
         flow_backend: FlowBackend | None = None,
@@ -203,7 +203,10 @@ class RecursiveUPSR(TwoStagePipeline):
         **options: Any,
     ) -> None:
         if config is None:
-            config = UPSRConfig.from_options(scale, n_frames, **{"mode": "recursive", **options})
+            options = {"mode": "recursive", **options}
+        elif options.get("mode") == config.mode:
+            options = {k: v for k, v in options.items() if k != "mode"}  # (UPSR's own choice)
+        config = UPSRConfig.of_call(scale, n_frames, config, options)
         if config.mode != "recursive":
             # (the mode picks defaults, the flow grid's among them: the engine and the mode agree)
             raise InputError(f"RecursiveUPSR is the recursive engine, not mode={config.mode!r}")

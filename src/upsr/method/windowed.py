@@ -105,12 +105,13 @@ class UPSR:
 
     Parameters
     ----------
-    scale : int
-        SR factor r.
-    n_frames : int
-        Window length N.
+    scale : int, optional
+        SR factor r (default 2).
+    n_frames : int, optional
+        Window length N (default 9).
     config : UPSRConfig, optional
-        Full configuration (overrides ``scale``, ``n_frames`` and ``options``).
+        Full configuration: ``scale`` and ``n_frames`` given beside it must agree with it, and
+        ``options`` are refused (:meth:`UPSRConfig.of_call`; they were ignored).
     flow_backend : FlowBackend, optional
         A flow estimator to use instead of ``config.flow``.
     workers : int, optional
@@ -150,17 +151,15 @@ class UPSR:
 
     def __init__(
         self,
-        scale: int = 2,
-        n_frames: int = 9,
+        scale: int | None = None,
+        n_frames: int | None = None,
         *,
         config: UPSRConfig | None = None,
         flow_backend: FlowBackend | None = None,
         workers: int | None = None,
         **options: Any,
     ) -> None:
-        self.config = (
-            config if config is not None else UPSRConfig.from_options(scale, n_frames, **options)
-        )
+        self.config = UPSRConfig.of_call(scale, n_frames, config, options)
         if self.config.mode != "windowed":
             raise InputError(f"UPSR is the windowed engine, not mode={self.config.mode!r}")
         workers = resolve_workers(workers, WINDOWED_WORKERS)
