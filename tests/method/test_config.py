@@ -156,3 +156,12 @@ def test_the_engines_refuse_arguments_that_disagree_with_their_config(mode):
     assert upsr.UPSR().config.scale == 2 and upsr.UPSR().config.n_frames == 9
     with pytest.raises(InputError, match="scale r must be"):
         upsr.UPSR(0)
+
+
+def test_sequence_fields_are_normalised_to_tuples():
+    """depth_range_mm / trust_noise_profile given as lists were kept as lists: the config was
+    unhashable and unequal to the same one given tuples (valid_range_mm was normalised)."""
+    a = UPSRConfig(scale=2, depth_range_mm=[500, 3000], trust_noise_profile=[2, 1.5])
+    b = UPSRConfig(scale=2, depth_range_mm=(500.0, 3000.0), trust_noise_profile=(2.0, 1.5))
+    assert a == b and hash(a) == hash(b)
+    assert a.depth_range_mm == (500.0, 3000.0) and a.trust_noise_profile == (2.0, 1.5)

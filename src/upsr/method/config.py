@@ -450,15 +450,10 @@ class UPSRConfig:
             near = _number("depth_range_mm near", near, 0, MAX_DEPTH_PARAM_MM)
             far = _number("depth_range_mm far", far, 0, MAX_DEPTH_PARAM_MM)
             _check(near < far, "depth_range_mm must be (near, far) with 0 <= near < far")
+            object.__setattr__(self, "depth_range_mm", (near, far))  # (a list: unhashable)
         _number("noise_mm", self.noise_mm, 0, MAX_DEPTH_PARAM_MM, none=True)
-        _number(
-            "zero_motion_tolerance",
-            self.zero_motion_tolerance,
-            0,
-            MAX_TOLERANCE,
-            lo_open=True,
-            none=True,
-        )
+        _number("zero_motion_tolerance", self.zero_motion_tolerance, 0, MAX_TOLERANCE,
+                lo_open=True, none=True)  # fmt: skip
         _number("min_valid_fraction", self.min_valid_fraction, 0, 1, hi_open=True)
         _number("speckle_px", self.speckle_px, 0, MAX_SPECKLE_PX, integer=True, none=True)
         _number("edge_mm", self.edge_mm, 0, MAX_DEPTH_PARAM_MM, lo_open=True)
@@ -484,8 +479,9 @@ class UPSRConfig:
                 sigma_1m, power = self.trust_noise_profile  # type: ignore[misc]
             except (TypeError, ValueError):
                 raise InputError(message) from None
-            _number("trust_noise_profile sigma_1m_mm", sigma_1m, 0, MAX_DEPTH_PARAM_MM)
-            _number("trust_noise_profile power", power, 0, MAX_NOISE_POWER)
+            profile = (_number("trust_noise_profile sigma_1m_mm", sigma_1m, 0, MAX_DEPTH_PARAM_MM),
+                       _number("trust_noise_profile power", power, 0, MAX_NOISE_POWER))  # fmt: skip
+            object.__setattr__(self, "trust_noise_profile", profile)
         _number("min_trusted", self.min_trusted, 1, MAX_N_FRAMES, integer=True, none=True)
         _number("radial_radius_px", self.radial_radius_px, 1, MAX_BTV_RADIUS_PX, integer=True)
         _check(

@@ -276,7 +276,7 @@ ScaleOpt = Annotated[
         "--scale",
         "-r",
         show_default=False,
-        help="Super-resolution factor r (integer >= 1): output frames are (r*h) x (r*w).",
+        help="Super-resolution factor r (integer, 1 <= r <= 16): output frames are (r*h) x (r*w).",
     ),
 ]
 FramesOpt = Annotated[
@@ -285,9 +285,9 @@ FramesOpt = Annotated[
         "--frames",
         "-n",
         show_default=False,
-        help="Window length N: frames fused per output frame (1 <= N <= number of frames) "
-        "[default: 9, or all the frames of a shorter video]; --recursive: the most frames a "
-        "pixel's state counts (any video length).",
+        help="Window length N: frames fused per output frame (1 <= N <= 256 and the number of "
+        "frames) [default: 9, or all the frames of a shorter video]; in the recursive mode the "
+        "most frames a pixel's state counts (any video length).",
     ),
 ]
 NoDeblurOpt = Annotated[
