@@ -37,6 +37,13 @@ def test_bad_videos_rejected(bad):
         as_depth_video(bad)
 
 
+def test_a_generator_of_frames_is_a_video():
+    """super_resolve((f for f in video)) said "object arrays are not depth data"."""
+    frames = [np.full((2, 3), 1000.0 + t) for t in range(3)]
+    np.testing.assert_array_equal(as_depth_video(f for f in frames), np.stack(frames))
+    np.testing.assert_array_equal(as_depth_video(iter(frames)), np.stack(frames))
+
+
 def test_one_empty_frame_is_fine():
     v = np.ones((3, 4, 4))
     v[1] = 0

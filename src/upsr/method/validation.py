@@ -6,6 +6,8 @@ measurement". Everything else must be a finite, non-negative number.
 
 from __future__ import annotations
 
+from collections.abc import Iterator
+
 import numpy as np
 import numpy.typing as npt
 
@@ -122,7 +124,8 @@ def as_depth_video(
     name: str = "input",
     valid_range_mm: tuple[float, float] | None = None,
 ) -> np.ndarray:
-    """Return ``frames`` as a float32 (T, h, w) depth video in mm, invalid pixels set to 0.
+    """Return ``frames`` (an array, a sequence or an iterator of frames) as a float32
+    (T, h, w) depth video in mm, invalid pixels set to 0.
 
     A single (h, w) frame is not accepted: a video is 3-D. Individual empty (all-invalid)
     frames are allowed, a video with no valid depth at all is not.
@@ -133,6 +136,8 @@ def as_depth_video(
         Wrong shape or dtype, NaN-free ±inf, negative depths, no valid depth anywhere (within
         ``valid_range_mm``, see :func:`as_depth_frame`).
     """
+    if isinstance(frames, Iterator):  # a generator of frames: np.asarray makes an object array
+        frames = list(frames)
     arr = np.asarray(frames)
     if arr.dtype == object:
         raise InputError(f"{name}: object arrays are not depth data")
