@@ -342,6 +342,11 @@ def test_missing_and_unreadable_inputs(tmp_path: Path) -> None:
         InputError, match=r"give a subfolder \(depth\), or all to upsr batch .*/\*$"
     ):
         io.probe(tmp_path / "tum")
+    (tmp_path / "recs").mkdir()  # a folder of recordings: it said "no PNG frames" only
+    for name in ("a.npy", "b.npy"):
+        np.save(tmp_path / "recs" / name, np.ones((2, 3, 4), np.float32))
+    with pytest.raises(InputError, match=r"holds recordings \(a\.npy, b\.npy\).*recs/\*\.npy$"):
+        io.probe(tmp_path / "recs")
     (tmp_path / "d.npy").mkdir()  # a folder is a folder of PNG frames, whatever its name
     with pytest.raises(InputError, match="no PNG frames"):
         io.probe(tmp_path / "d.npy")

@@ -427,12 +427,15 @@ def _run_locked(
 def _recordings(
     inputs: Sequence[str | os.PathLike[str]], out: Path, suffix: str
 ) -> list[Recording]:
-    """One :class:`Recording` per input, each with its own output name in ``out``."""
+    """One :class:`Recording` per input, each with its own output name in ``out`` (an input
+    given twice, e.g. by overlapping globs, once)."""
     recs: list[Recording] = []
     by_output: dict[Path, Path] = {}
     for inp in inputs:
         p = Path(os.path.abspath(inp))
         dest = out / (output_name(p) + suffix)
+        if dest in by_output and by_output[dest].resolve() == p.resolve():
+            continue
         if dest in by_output:
             raise InputError(
                 f"{by_output[dest]} and {p} would both be written to {dest}: "

@@ -21,6 +21,10 @@ __all__ = [
 ]
 
 
+#: Suffixes of files that each hold a whole recording (a folder of them is no video).
+_RECORDINGS = (".npy", ".npz", ".bag", ".db3", ".mcap")
+
+
 def frame_files(path: Path, suffixes: tuple[str, ...], what: str) -> list[Path]:
     """A single file as a one-frame list, or the files of a folder with one of ``suffixes``.
 
@@ -48,11 +52,16 @@ def frame_files(path: Path, suffixes: tuple[str, ...], what: str) -> list[Path]:
     files = [Path(e.path) for e in named]
     if not files:
         subdirs = sorted(e.name for e in entries if e.is_dir() and not e.name.startswith("."))
-        hint = (
-            f": give a subfolder ({', '.join(subdirs[:5])}), or all to upsr batch {path}/*"
-            if subdirs
-            else ""
-        )
+        videos = sorted(e.name for e in entries if e.is_file() and not e.name.startswith(".")
+                        and os.path.splitext(e.name)[1].lower() in _RECORDINGS)  # fmt: skip
+        hint = ""
+        if videos:
+            kinds = sorted({os.path.splitext(v)[1].lower() for v in videos})
+            glob = f"*{kinds[0]}" if len(kinds) == 1 else "*"
+            hint = f": it holds recordings ({', '.join(videos[:3])}): give one, or all to upsr "
+            hint += f"batch {path}/{glob}"
+        elif subdirs:
+            hint = f": give a subfolder ({', '.join(subdirs[:5])}), or all to upsr batch {path}/*"
         raise InputError(f"{path}: no {what} frames in this folder{hint}")
     files.sort(key=lambda p: natural_key(p.name))
     return files

@@ -75,7 +75,16 @@ def test_batch_failures_and_resume(videos, tmp_path: Path, capsys) -> None:
     # default N shrinks to a short recording, as in `upsr run`
     assert main(["batch", str(short), "--out", str(out), "-r", "1", "-q", "-w", "1"]) == 0
     assert np.load(out / "short.npy").shape == (3, 20, 24)
-    assert main(["batch", str(d / "b.npy"), str(d / "b.npy"), "--out", str(out), "-r", "2"]) == 2
+    # the same file twice (overlapping globs): once (it was refused: "give the recordings
+    # different names"); two files of one name still are
+    twice = tmp_path / "twice"
+    assert main(["batch", str(d / "b.npy"), str(d / "b.npy"), "--out", str(twice), "-r", "2",
+                 "-q", "-w", "1"]) == 0  # fmt: skip
+    assert sorted(p.name for p in twice.iterdir()) == [".upsr-batch", "b.npy"]
+    (tmp_path / "other").mkdir()
+    np.save(tmp_path / "other" / "b.npy", np.load(d / "b.npy"))
+    args = ["batch", str(d / "b.npy"), str(tmp_path / "other" / "b.npy"), "--out", str(twice)]
+    assert main([*args, "-r", "2"]) == 2
 
 
 def test_batch_checks_each_recordings_units_and_output_before_its_work(
