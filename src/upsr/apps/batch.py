@@ -537,9 +537,13 @@ class _BatchRun:
                 f"output {rec.output.name} was made before {rec.input.name} changed: use "
                 f"--overwrite to recompute it"
             )
-        if record["options"] == self.options:
+        # (whether N shrinks to a short recording is no option of its own: -n 9 given or not,
+        # a recording of 9 frames or more gets N = 9, a shorter one is refused with -n 9)
+        made, now = ({k: v for k, v in o.items() if k != "shrink_frames"}
+                     for o in (record["options"], self.options))  # fmt: skip
+        if made == now:
             return "skip"
-        diff = _differences(record["options"], self.options)
+        diff = _differences(made, now)
         shown = "; ".join(diff[:2]) + ("; ..." if len(diff) > 2 else "")
         if len(shown) > 90:
             shown = shown[:87] + "..."

@@ -245,3 +245,15 @@ def test_a_depth_scale_that_does_not_fit_one_recording_fails_that_one_only(
     assert "1 done, 0 skipped (output exists), 1 failed" in cap.out
     assert "--input-depth-scale does not apply to rosbag input" in cap.err
     assert np.median(np.load(out / "m.npy")) == pytest.approx(1500.0, abs=1.0)
+
+
+def test_an_explicit_default_n_reuses_the_output(tmp_path: Path, capsys) -> None:
+    """-n 9 on a 12-frame recording after a run without -n (N = 9 either way) was refused as
+    made 'with other options (shrink_frames: True -> False)'."""
+    np.save(tmp_path / "long.npy", np.full((12, 12, 16), 1500.0, np.float32))
+    base = ["batch", str(tmp_path / "long.npy"), "--out", str(tmp_path / "res"), "-r", "2",
+            "-w", "1", "-q"]  # fmt: skip
+    assert main(base) == 0
+    assert main([*base, "-n", "9"]) == 0
+    assert "0 done, 1 skipped" in capsys.readouterr().out
+    assert main([*base, "-n", "5"]) == 2  # (another N: refused without --overwrite)
