@@ -257,3 +257,17 @@ def test_an_explicit_default_n_reuses_the_output(tmp_path: Path, capsys) -> None
     assert main([*base, "-n", "9"]) == 0
     assert "0 done, 1 skipped" in capsys.readouterr().out
     assert main([*base, "-n", "5"]) == 2  # (another N: refused without --overwrite)
+
+
+def test_a_failure_line_keeps_its_advice(tmp_path: Path, capsys, monkeypatch) -> None:
+    """Two absolute paths pushed the line past 200 characters and its middle (the advice)
+    was cut out; paths under the current folder are relative now."""
+    monkeypatch.chdir(tmp_path)
+    deep = tmp_path / "in"
+    deep.mkdir(parents=True)
+    np.save(deep / "metres.npy", np.full((4, 12, 16), 2.09, np.float32))
+    args = ["batch", str(deep / "metres.npy"), "--out", str(deep / "res"), "-r", "2", "-w", "1",
+            "-q", "--strict-units"]  # fmt: skip
+    assert main(args) == 2
+    err = capsys.readouterr().err.strip()
+    assert "outside 50–100000 mm" in err and "…" not in err and str(tmp_path) not in err

@@ -5,6 +5,7 @@ The command line only; the engine is :func:`upsr.apps.batch.run_batch`.
 
 from __future__ import annotations
 
+import os
 import sys
 import time
 from pathlib import Path
@@ -124,11 +125,14 @@ def batch(
         f"upsr batch: {counts['done']} done, {counts['skipped']} skipped (output exists), "
         f"{len(failed)} failed in {time.perf_counter() - start:.1f} s -> {out}"
     )
+    here = os.getcwd().rstrip(os.sep) + os.sep
     for rec in failed:
         msg = " ".join(rec.error.split())
         if str(rec.input) not in msg:
             msg = f"{rec.input}: {msg}"
-        print(one_line(f"upsr: error: {msg}"), file=sys.stderr)
+        # (paths under the current folder as relative ones: the line keeps its advice, which
+        # the 200-character limit cut out of its middle after two absolute paths)
+        print(one_line(f"upsr: error: {msg.replace(here, '')}"), file=sys.stderr)
     return result.exit_code
 
 
