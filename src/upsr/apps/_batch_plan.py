@@ -29,17 +29,15 @@ __all__ = ["prepare_recording"]
 
 
 def _fingerprint(inp: Path, spec: dict[str, Any]) -> str:
-    """What a chunk was made from: the input's files (name, size, modification and change
-    times, inode: a file rewritten with the same size and its old mtime restored, as
-    ``cp -p``, ``rsync -t`` or a coarse file system leave it, has a new change time; its
-    chunks were reused, mixing old and new frames) and the options ``spec``."""
-    st = []
+    """What a chunk was made from: the input (its files' names, sizes, modification and
+    change times, :func:`~upsr.apps._batch_state.input_identity`: a file rewritten with the
+    same size and its old mtime restored, as ``cp -p``, ``rsync -t`` or a coarse file system
+    leave it, has a new change time; its chunks were reused, mixing old and new frames) and
+    the options ``spec``."""
+    from upsr.apps._batch_state import input_identity
+
     p = Path(inp)
-    files = [p] if p.is_file() else sorted(q for q in p.iterdir() if q.is_file())
-    for q in files:
-        s = q.stat()
-        st.append((q.name, s.st_size, s.st_mtime_ns, s.st_ctime_ns, s.st_ino))
-    blob = json.dumps([str(p.resolve()), st, spec], sort_keys=True, default=str)
+    blob = json.dumps([str(p.resolve()), input_identity(p), spec], sort_keys=True, default=str)
     return hashlib.sha1(blob.encode()).hexdigest()[:12]
 
 
