@@ -37,6 +37,7 @@ import numpy as np
 from upsr._atomic import remove_stale_in
 from upsr.apps._batch_plan import prepare_recording
 from upsr.apps._batch_state import (
+    WORK_DIR,
     _batch_folder,
     _check_out_vs_inputs,
     _differences,
@@ -436,6 +437,10 @@ def _recordings(
         dest = out / (output_name(p) + suffix)
         if dest in by_output and by_output[dest].resolve() == p.resolve():
             continue
+        if dest.name == WORK_DIR:
+            raise InputError(
+                f"{p}: its output {dest.name} would be the batch's own state: rename it"
+            )
         if dest in by_output:
             raise InputError(
                 f"{by_output[dest]} and {p} would both be written to {dest}: "

@@ -271,3 +271,14 @@ def test_a_failure_line_keeps_its_advice(tmp_path: Path, capsys, monkeypatch) ->
     assert main(args) == 2
     err = capsys.readouterr().err.strip()
     assert "outside 50–100000 mm" in err and "…" not in err and str(tmp_path) not in err
+
+
+def test_a_recording_named_as_the_batch_state_is_refused_before_any_work(
+    tmp_path: Path, capsys
+) -> None:
+    np.save(tmp_path / ".upsr-batch.npy", np.full((4, 12, 16), 1500.0, np.float32))
+    args = ["batch", str(tmp_path / ".upsr-batch.npy"), "--out", str(tmp_path / "res"), "-r",
+            "2", "-f", "png", "-q"]  # fmt: skip
+    assert main(args) == 2
+    assert "would be the batch's own state" in capsys.readouterr().err
+    assert not (tmp_path / "res").exists()
