@@ -152,6 +152,14 @@ def test_frames_a_real_time_playback_skips_before_the_first_count_as_dropped(tmp
     assert done + dropped == len(_frames()) and np.load(out).shape[0] == done
 
 
+def test_the_summary_gives_the_median_latency():
+    from upsr.apps.cli.live import latency_text
+
+    assert latency_text([116.0, 80.0]) == "latency 98 ms median, 116 ms max"  # (it said 116)
+    assert latency_text([5.0, 1.0, 3.0]) == "latency 3 ms median, 5 ms max"
+    assert latency_text([]) == "latency 0 ms median, 0 ms max"
+
+
 def test_a_stream_that_drops_frames_is_told_what_keeps_up():
     from upsr.apps.cli.live import DROP_HINT_SHARE, drop_hint
 

@@ -18,7 +18,8 @@ thread, then the frame is finished on a helper thread while the next one arrives
 intrinsics scaled by r) on a writer thread of its own. A status line on stderr shows the frames
 processed, the rate, the latency (time from the frame's arrival to its output) and the dropped
 frames, the summary the median and largest latency; ``--preview`` rewrites a side-by-side PNG
-(input | output, :func:`upsr.viz.pictures.comparison_frame`) every ``--preview-every`` frames.
+(low-res | bicubic | UP-SR, :func:`upsr.viz.pictures.comparison_frame`) every
+``--preview-every`` frames.
 Ctrl-C ends the stream as the end of a recording does.
 """
 
@@ -31,6 +32,7 @@ import math
 import os
 import queue
 import signal
+import statistics
 import sys
 import threading
 import time
@@ -96,7 +98,8 @@ PreviewOpt = Annotated[
     typer.Option(
         "--preview",
         metavar="PATH.png",
-        help="Side-by-side PNG (input | output), rewritten while the video runs.",
+        help="Side-by-side PNG (low-res | bicubic | UP-SR, frames numbered from 0), rewritten "
+        "while the video runs.",
     ),
 ]
 PreviewEveryOpt = Annotated[
@@ -278,11 +281,10 @@ def live(
     closing = end - start - elapsed
     done = stats["done"]
     rate = done / elapsed if elapsed > 0 else float("inf")
-    lat = sorted(stats["latency_ms"])
     typer.echo(
         f"upsr live: {done} frames {w}x{h} -> {w * r}x{h * r} (r={r}, recursive) in "
-        f"{elapsed:.1f} s ({rate:.1f} frames/s, latency {lat[len(lat) // 2]:.0f} ms median, "
-        f"{lat[-1]:.0f} ms max, {source.dropped} dropped"
+        f"{elapsed:.1f} s ({rate:.1f} frames/s, {latency_text(stats['latency_ms'])}, "
+        f"{source.dropped} dropped"
         + (f"; output closed in {closing:.1f} s more" if closing >= 0.5 else "")
         + f") -> {output}"
         + (" (stopped by Ctrl-C)" if stats.get("stopped") else "")
@@ -352,7 +354,7 @@ def _stream(
         done, now = stats["done"], time.perf_counter()
         stats["last_output"] = now
         if preview is not None and (done == 1 or done % preview_every == 0):
-            _write_preview(preview, frame, out, r, done)
+            _write_preview(preview, frame, out, r, done - 1)  # (frame numbers from 0)
         if not quiet and now - stats["last_status"] > 0.25:
             _status(done, now - start, stats["latency_ms"][done - 1], source.dropped)
             stats["last_status"] = now
@@ -501,6 +503,13 @@ def _status(done: int, elapsed: float, latency_ms: float, dropped: int) -> None:
         f"{dropped} dropped "
     )
     sys.stderr.flush()
+
+
+def latency_text(latencies_ms: list[float]) -> str:
+    """``latency M ms median, X ms max`` of the frames' latencies (the median of an even
+    count the mean of the middle two: of two frames it was the larger)."""
+    lat = latencies_ms or [0.0]
+    return f"latency {statistics.median(lat):.0f} ms median, {max(lat):.0f} ms max"
 
 
 def _write_preview(path: Path, frame: Any, out: Any, scale: int, k: int) -> None:

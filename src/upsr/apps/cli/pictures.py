@@ -163,7 +163,8 @@ def compare(
         typer.Option(
             "--range",
             metavar="MIN,MAX",
-            help="Depth colour scale in mm [default: 1-99th percentile of the first frame].",
+            help="Depth colour scale in mm [default: 1-99th percentile of the first frame shown "
+            "(PNG: the --frame one; GIF/MP4: frame 0), of --truth if given, else of UP-SR].",
         ),
     ] = None,
     error_max: Annotated[
@@ -254,8 +255,14 @@ def view(
         int, typer.Option("--frame", "-k", help="Frame to show (negative: from the end).")
     ] = 0,
     intrinsics: IntrinsicsOpt = None,
-    yaw: Annotated[float, typer.Option("--yaw", help="View rotation left/right (deg).")] = 35.0,
-    pitch: Annotated[float, typer.Option("--pitch", help="View rotation up/down (deg).")] = 20.0,
+    yaw: Annotated[
+        float,
+        typer.Option("--yaw", help="Viewpoint turned about the scene (deg; > 0: from the left)."),
+    ] = 35.0,
+    pitch: Annotated[
+        float,
+        typer.Option("--pitch", help="Viewpoint turned about the scene (deg; > 0: from below)."),
+    ] = 20.0,
     shading: Annotated[
         Shading, typer.Option("--shading", case_sensitive=False, help="Grey or depth colours.")
     ] = Shading.gray,
@@ -272,7 +279,9 @@ def view(
     """Render one frame as a lit 3-D surface seen from a rotated viewpoint (paper Fig. 3).
 
     Without intrinsics (--intrinsics, or carried by the file) a 60-degree horizontal field of
-    view is assumed (the shape is then only approximate).
+    view is assumed (the shape is then only approximate). The viewpoint turns about the
+    median 3-D point with the camera's own field of view: parts of the frame far from it may
+    fall outside the picture (--yaw 0 --pitch 0 shows the whole frame).
     """
     from upsr.apps._camera import input_camera
     from upsr.geometry.camera import PinholeCamera
