@@ -204,7 +204,7 @@ def test_second_batch_on_one_out_is_refused(recs, tmp_path: Path, capsys) -> Non
         assert not (out / "a.npy").exists()
     finally:
         holder.kill()
-        holder.wait()
+        holder.communicate()  # (closes its pipe)
     # the lock is gone with its holder
     rc = run_cli(capsys, "batch", d / "a.npy", "--out", out, "-r", 2, "-n", 3, "-q", "-w", 1)[0]
     assert rc == 0

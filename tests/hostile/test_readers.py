@@ -98,7 +98,9 @@ def test_fortran_npy_small_read_frame_by_frame(tmp_path: Path) -> None:
 
 
 @pytest.mark.parametrize("kind", ["fifo", "socket", "chardev"])
-def test_special_files_refused_by_type(tmp_path: Path, kind: str) -> None:
+def test_special_files_refused_by_type(
+    tmp_path: Path, kind: str, request: pytest.FixtureRequest
+) -> None:
     if kind == "fifo":
         p = tmp_path / "in.npz"
         os.mkfifo(p)
@@ -106,6 +108,7 @@ def test_special_files_refused_by_type(tmp_path: Path, kind: str) -> None:
         p = tmp_path / "s.npy"
         s = socket.socket(socket.AF_UNIX)
         s.bind(str(p))
+        request.addfinalizer(s.close)
     else:
         p = tmp_path / "zero.npz"
         p.symlink_to("/dev/zero")
