@@ -199,4 +199,4 @@ def frames(
         if fmt == "nyu":
             yield as_depth_frame(nyu_disparity_to_mm(raw), name=file.name)
         else:
-            yield as_depth_frame(raw, name=file.name, mm_per_unit=1000.0 / opts.depth_scale)
+            yield as_depth_frame(raw, name=file.name, mm_per_unit=opts.mm_per_unit)

@@ -163,7 +163,7 @@ def frames(
                 first_hw = (h, w)
             elif (h, w) != first_hw:
                 raise mixed_size(label, (h, w), files[0].name, first_hw)
-            yield as_depth_frame(raw, name=label, mm_per_unit=1000.0 / opts.depth_scale)
+            yield as_depth_frame(raw, name=label, mm_per_unit=opts.mm_per_unit)
         t0 += len(parts)
         del parts
 

@@ -113,7 +113,7 @@ def frames(
             shape, fortran, dtype = npy.read_npy_header(f, label)
         t_n, h, w = shape
         last = t_n if stop is None else stop
-        unit = 1000.0 / opts.depth_scale if opts is not None else 1.0
+        unit = opts.mm_per_unit if opts is not None else 1.0
         frame_bytes = h * w * dtype.itemsize
         if fortran:  # time varies fastest: read the whole array (read_npy_header: within budget)
             with reading(name):

@@ -66,6 +66,11 @@ class ReadOptions:
     depth_scale: float = 1000.0
     topic: str | None = None
 
+    @property
+    def mm_per_unit(self) -> float:
+        """The raw unit in mm, 1000 / ``depth_scale`` (the readers' ``as_depth_frame``)."""
+        return 1000.0 / self.depth_scale
+
 
 @dataclass(frozen=True)
 class Format:

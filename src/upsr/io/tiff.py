@@ -163,7 +163,7 @@ def frames(
                     elif hw != first_hw:
                         raise mixed_size(label, hw, files[0].name, first_hw)
                     raw = page.asarray()
-                yield as_depth_frame(raw, name=label, mm_per_unit=1000.0 / opts.depth_scale)
+                yield as_depth_frame(raw, name=label, mm_per_unit=opts.mm_per_unit)
         t0 += n
 
 

@@ -38,9 +38,10 @@ MB), 2662 at N = 3 (1048), 785 at 320×240, r = 8, N = 5 (460), 4010 at 640×480
 (970): about 48 bytes per output pixel whatever N (deblurring, finishing and speckle buffers
 of one frame) and 20–54 more per further window frame. The estimate is
 ``32 MB + 48·O + (N − 1)·40·O + N · (35·F + 150·L)`` bytes, times ``(1 + 0.15·workers)``,
-times a safety factor of 1.25 (allocator slack; 1.1–3× the peaks measured, the most at
-small r). The process itself (Python, numpy, OpenCV, numba: 200–350 MB resident) is not
-counted. -r 150 on 64×56 frames, N = 9: ~5.7 GB; -r 1000: ~250 GB.
+times a safety factor of 1.25 (allocator slack): 1.45–2.4× the resident peaks of
+``benchmarks/memory_eval.py``, 2–6× the tracemalloc rows above (the most at the smallest
+sizes, where the fixed 32 MB dominate). The process itself (Python, numpy, OpenCV, numba:
+200–350 MB resident) is not counted. -r 150 on 64×56 frames, N = 9: ~5.7 GB; -r 1000: ~250 GB.
 
 ``available_memory_bytes``: the least of MemAvailable (``/proc/meminfo``), RLIMIT_AS minus
 the address space already used (``ulimit -v``; the whole virtual size counts there) and the
