@@ -1,5 +1,7 @@
 """The recursive (causal) engine: latency 0, bounded memory, the trust rules of the fusion."""
 
+import time
+
 import numpy as np
 import pytest
 
@@ -154,6 +156,32 @@ def test_a_bad_frame_in_push_async_raises_here_and_the_frame_in_flight_still_fin
         engine.push_async(np.full((8, 9), 1000.0))
     assert first.result().shape == (16, 16)
     assert engine.flush() == [] and engine.frames_seen == 0
+
+
+def test_reset_waits_for_the_frame_still_finishing(monkeypatch):
+    """reset() while a frame finishes on the helper: that frame's output is still right (its
+    finishing read the engine's statistics after reset had cleared them: AttributeError)."""
+    from upsr.method._parallel import window_pool
+
+    if window_pool(1) is None:
+        pytest.skip("numba's threading layer cannot be shared by threads")
+    rng = np.random.default_rng(0)
+    video = (1500.0 + rng.normal(0, 5, (5, 20, 24))).astype(np.float32)
+    want = list(RecursiveUPSR(scale=2, n_frames=3, workers=0).process(video))
+    engine = RecursiveUPSR(scale=2, n_frames=3, workers=1)
+    finish = engine._finish
+
+    def slow_finish(*args):
+        time.sleep(0.2)  # still finishing when reset() comes
+        return finish(*args)
+
+    monkeypatch.setattr(engine, "_finish", slow_finish)
+    for frame in video[:-1]:
+        engine.push_async(frame)
+    last = engine.push_async(video[-1])
+    engine.reset()
+    np.testing.assert_array_equal(last.result(), want[-1])
+    assert engine.frames_seen == 0 and engine.state is None
 
 
 def test_the_engine_made_directly_has_the_recursive_mode_and_its_defaults():

@@ -41,6 +41,7 @@ class TwoStagePipeline:
 
     workers: int
     _count: int
+    _pending: Future | None = None  # (before the first reset)
 
     def _update(self, frame: npt.ArrayLike) -> tuple[Any, ...]:  # pragma: no cover
         raise NotImplementedError
@@ -55,8 +56,9 @@ class TwoStagePipeline:
         raise NotImplementedError
 
     def _reset_pipeline(self) -> None:
-        """No frame in flight; the stages to be measured anew."""
-        self._pending: Future | None = None
+        """No frame in flight (one still finishing is waited for: it reads the engine's
+        state); the stages to be measured anew."""
+        self._settle()
         # seconds of the update and of the finishing, frames measured; pipelined or not
         self._stage_seconds = [0.0, 0.0, 0]
         self._pipelined: bool | None = None

@@ -228,7 +228,8 @@ class RecursiveUPSR(TwoStagePipeline):
         self.reset()
 
     def reset(self) -> None:
-        """Forget the state (start a new video)."""
+        """Forget the state (start a new video), once a frame still finishing is done."""
+        self._reset_pipeline()
         cfg = self.config
         self._flow = self._custom_flow or make_flow_backend(cfg.flow, cfg.flow_preset)
         self._front: MotionFrontEnd | None = None
@@ -252,7 +253,6 @@ class RecursiveUPSR(TwoStagePipeline):
         self._mixes = np.zeros(2)  # footprint_counts of the frames so far (remove_mixed="auto")
         self._any_valid = False  # (before the statistics; a video may end in empty frames)
         self._heavy = False  # heavy-tailed noise (from the first frame)
-        self._reset_pipeline()
 
     @property
     def frames_seen(self) -> int:
