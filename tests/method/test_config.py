@@ -137,7 +137,14 @@ def test_super_resolve_refuses_arguments_that_disagree_with_its_config():
     video = np.full((3, 6, 6), 1500.0, np.float32)
     cfg = UPSRConfig(scale=2, n_frames=3)
     assert upsr.super_resolve(video, 2, config=cfg).shape == (3, 12, 12)
-    for kwargs in ({"scale": 4}, {"scale": 2, "n_frames": 5}, {"scale": 2, "mode": "recursive"}):
+    assert upsr.super_resolve(video, 2, 3, config=cfg).shape == (3, 12, 12)
+    # (n_frames=9, the default, beside a config of N = 3 ran with N = 3 without a word)
+    for kwargs in (
+        {"scale": 4},
+        {"scale": 2, "n_frames": 5},
+        {"scale": 2, "n_frames": 9},
+        {"scale": 2, "mode": "recursive"},
+    ):
         with pytest.raises(InputError, match="give the options in the config"):
             upsr.super_resolve(video, config=cfg, **kwargs)
 

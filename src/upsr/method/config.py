@@ -51,7 +51,6 @@ MAX_NOISE_POWER = 4.0
 _PROFILE_NAMES = ("auto", "constant")
 
 BlurModel = Literal["none", "box", "gaussian"]
-FlowBackendName = Literal["dis", "farneback"]
 
 
 @dataclass(frozen=True)
@@ -566,16 +565,12 @@ class UPSRConfig:
         cls, scale: int | None, n_frames: int | None, config: UPSRConfig | None, options: dict
     ) -> UPSRConfig:
         """The config of a call given ``scale`` (None: 2), ``n_frames`` (None: 9), a ``config``
-        or ``options``: ``config`` when given, ``scale`` and ``n_frames`` agreeing where given
-        (9: the default), no options beside it (they were dropped); else :meth:`from_options`."""
+        or ``options``: ``config`` when given, ``scale`` and ``n_frames`` agreeing where given,
+        no options beside it (they were dropped); else :meth:`from_options`."""
         given = (2 if scale is None else scale, 9 if n_frames is None else n_frames)
         if config is None:
             return cls.from_options(*given, **options)
-        if (
-            options
-            or scale not in (None, config.scale)
-            or n_frames not in (None, 9, config.n_frames)
-        ):
+        if options or scale not in (None, config.scale) or n_frames not in (None, config.n_frames):
             raise InputError(
                 f"config (r = {config.scale}, N = {config.n_frames}) and scale={scale}, "
                 f"n_frames={n_frames}{', ' + ', '.join(sorted(options)) if options else ''} "

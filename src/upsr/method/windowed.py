@@ -293,13 +293,13 @@ class UPSR:
         with self._timed("registration"):
             maps, poses = self._register(t, idx, ref)
         with self._timed("fusion"):
-            measured = np.stack([self._lowres[k] for k in idx])
-            lowres = measured
+            measured = self._lowres[t]  # the reference as measured
             stats = self._stats
             assert stats is not None  # fixed with the N-th frame, before any window
-            if stats.remove_mixed:
-                # mixed (flying) input pixels abstain: the other frames fill them
-                lowres = np.stack([self._cleaned(k)[0] for k in idx])
+            # mixed (flying) input pixels abstain: the other frames fill them
+            lowres = np.stack(
+                [self._cleaned(k)[0] if stats.remove_mixed else self._lowres[k] for k in idx]
+            )
             noise = stats.trust_noise_mm  # (cfg.trust_noise_mm where given)
             reach_noise = stats.reach_noise_mm  # a sample's noise (at most the trust's σ)
             anchor = tolerance = caps = None
@@ -383,7 +383,7 @@ class UPSR:
             )
             # stale hole fills, steep blocks' level, the reference's unfilled removed pixels
             fused = settle_fused(
-                fused, lowres[ref], measured[ref], anchor, caps, cfg,
+                fused, lowres[ref], measured, anchor, caps, cfg,
                 edge_mm=self._front.edge_mm, keep_mean=stats.remove_mixed,
                 thin=self._cleaned(t)[1] if stats.remove_mixed else None,
             )  # fmt: skip
@@ -400,7 +400,7 @@ class UPSR:
                 cfg,
                 edge_mm=self._front.edge_mm,  # type: ignore[union-attr]
                 noise_mm=reach_noise,
-                measured=measured[ref],
+                measured=measured,
             )
 
     def _unfollowed(
@@ -637,7 +637,7 @@ class UPSR:
 def super_resolve(
     frames: npt.ArrayLike,
     scale: int,
-    n_frames: int = 9,
+    n_frames: int | None = None,
     *,
     config: UPSRConfig | None = None,
     progress: bool | None = None,
@@ -652,8 +652,8 @@ def super_resolve(
         Depth in mm, float or integer; 0 or NaN = no measurement.
     scale : int
         SR factor r ≥ 1.
-    n_frames : int
-        Frames per window N (1 ≤ N ≤ T), reference in the middle; with
+    n_frames : int, optional
+        Frames per window N (1 ≤ N ≤ T, default 9), reference in the middle; with
         ``mode="recursive"`` the most frames the state summarises (any T).
     config : UPSRConfig, optional
         Full configuration: ``scale`` (and ``n_frames`` when given) must be its own, and no
