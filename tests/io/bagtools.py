@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import struct
 from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
@@ -143,3 +144,82 @@ def realsense_bag(path: Path, frames: Sequence[np.ndarray], units_m: float = 0.0
         ],
     )
     return path
+
+
+# compressedDepth messages as compressed_depth_image_transport writes them
+def rvl_encode(values: np.ndarray) -> bytes:
+    """uint16 values → RVL bytes (the encoder of compressed_depth_image_transport)."""
+    v = np.asarray(values, np.uint16).reshape(-1).tolist()
+    nibbles: list[int] = []
+
+    def vle(value: int) -> None:
+        while True:
+            nib = value & 0x7
+            value >>= 3
+            if value:
+                nib |= 0x8
+            nibbles.append(nib)
+            if not value:
+                return
+
+    i, n, previous = 0, len(v), 0
+    while i < n:
+        j = i
+        while j < n and v[j] == 0:
+            j += 1
+        vle(j - i)
+        i = j
+        while j < n and v[j] != 0:
+            j += 1
+        vle(j - i)
+        for x in v[i:j]:
+            delta = x - previous
+            vle(((delta << 1) ^ (delta >> 31)) & 0xFFFFFFFF)
+            previous = x
+        i = j
+    nibbles += [0] * (-len(nibbles) % 8)
+    words = [
+        sum(nibbles[w + k] << (4 * (7 - k)) for k in range(8)) for w in range(0, len(nibbles), 8)
+    ]
+    return np.asarray(words, "<u4").tobytes()
+
+
+def _imencode_png(img: np.ndarray) -> bytes:
+    import cv2
+
+    ok, buf = cv2.imencode(".png", img)
+    if not ok:  # pragma: no cover
+        raise RuntimeError("PNG encoding failed")
+    return buf.tobytes()
+
+
+def encode_compressed_depth(
+    depth: np.ndarray,
+    encoding: str = "16UC1",
+    codec: str = "png",
+    depth_max_m: float = 10.0,
+    depth_quantization: float = 100.0,
+) -> tuple[str, bytes]:
+    """(format, data) of a compressedDepth message, as compressed_depth_image_transport writes.
+
+    16UC1: ``depth`` is uint16 (mm). 32FC1: ``depth`` is float metres, quantised as inverse
+    depth with depthQuantA = depth_quantization · (depth_quantization + 1), depthQuantB =
+    1 − depthQuantA / depth_max_m.
+    """
+    if encoding.upper() == "32FC1":
+        qa = depth_quantization * (depth_quantization + 1.0)
+        qb = 1.0 - qa / depth_max_m
+        d = np.asarray(depth, np.float64)
+        good = np.isfinite(d) & (d > 0) & (d < depth_max_m)
+        raw = np.zeros(d.shape, np.uint16)
+        raw[good] = np.clip(qa / d[good] + qb, 0, 65535).astype(np.uint16)
+    else:
+        qa = qb = 0.0
+        raw = np.asarray(depth, np.uint16)
+    header = struct.pack("<iff", 0, qa, qb)
+    if codec == "rvl":
+        h, w = raw.shape
+        body = struct.pack("<II", w, h) + rvl_encode(raw)
+    else:
+        body = _imencode_png(raw)
+    return f"{encoding}; compressedDepth {codec}", header + body

@@ -18,14 +18,9 @@ import pytest
 import upsr.io as uio
 from upsr.errors import InputError
 from upsr.geometry.camera import PinholeCamera
-from upsr.io._rosmsg import (
-    CompressedMsg,
-    decode_compressed_depth,
-    encode_compressed_depth,
-    parse_image,
-    rvl_decode,
-    rvl_encode,
-)
+from upsr.io._rosmsg import CompressedMsg, decode_compressed_depth, parse_image, rvl_decode
+
+from .bagtools import encode_compressed_depth, rvl_encode
 
 pytest.importorskip("rosbags")
 

@@ -181,11 +181,6 @@ def input_identity(path: Path) -> list[Any]:
     return [[q.name, (s := q.stat()).st_size, s.st_mtime_ns, s.st_ctime_ns] for q in files]
 
 
-def _drop_record(rec: Recording) -> None:
-    with contextlib.suppress(OSError):
-        _record_path(rec).unlink()
-
-
 def _differences(old: dict[str, Any], new: dict[str, Any], prefix: str = "") -> list[str]:
     """``key: old -> new`` for the leaves of two option records that differ."""
     out = []

@@ -30,11 +30,9 @@ __all__ = [
     "CompressedMsg",
     "ImageMsg",
     "decode_compressed_depth",
-    "encode_compressed_depth",
     "parse_compressed",
     "parse_image",
     "rvl_decode",
-    "rvl_encode",
 ]
 
 
@@ -192,43 +190,6 @@ def rvl_decode(data: bytes, n_pixels: int) -> np.ndarray:
     return out
 
 
-def rvl_encode(values: np.ndarray) -> bytes:
-    """uint16 values → RVL bytes (the encoder of compressed_depth_image_transport)."""
-    v = np.asarray(values, np.uint16).reshape(-1).tolist()
-    nibbles: list[int] = []
-
-    def vle(value: int) -> None:
-        while True:
-            nib = value & 0x7
-            value >>= 3
-            if value:
-                nib |= 0x8
-            nibbles.append(nib)
-            if not value:
-                return
-
-    i, n, previous = 0, len(v), 0
-    while i < n:
-        j = i
-        while j < n and v[j] == 0:
-            j += 1
-        vle(j - i)
-        i = j
-        while j < n and v[j] != 0:
-            j += 1
-        vle(j - i)
-        for x in v[i:j]:
-            delta = x - previous
-            vle(((delta << 1) ^ (delta >> 31)) & 0xFFFFFFFF)
-            previous = x
-        i = j
-    nibbles += [0] * (-len(nibbles) % 8)
-    words = [
-        sum(nibbles[w + k] << (4 * (7 - k)) for k in range(8)) for w in range(0, len(nibbles), 8)
-    ]
-    return np.asarray(words, "<u4").tobytes()
-
-
 # ---------------------------------------------------------------------------------------------
 # compressedDepth / compressed
 # ---------------------------------------------------------------------------------------------
@@ -249,15 +210,6 @@ def _imdecode(data: bytes, name: str) -> np.ndarray:
     if img is None:
         raise InputError(f"{name}: the compressed image cannot be decoded")
     return img
-
-
-def _imencode_png(img: np.ndarray) -> bytes:
-    import cv2
-
-    ok, buf = cv2.imencode(".png", img)
-    if not ok:  # pragma: no cover
-        raise InputError("PNG encoding failed")
-    return buf.tobytes()
 
 
 def is_compressed_depth(fmt: str) -> bool:
@@ -306,35 +258,3 @@ def decode_compressed_depth(msg: CompressedMsg, name: str = "image") -> np.ndarr
             f"{1 if img.ndim == 2 else img.shape[2]} channel(s), not 16-bit depth"
         )
     return img.astype(np.float32)
-
-
-def encode_compressed_depth(
-    depth: np.ndarray,
-    encoding: str = "16UC1",
-    codec: str = "png",
-    depth_max_m: float = 10.0,
-    depth_quantization: float = 100.0,
-) -> tuple[str, bytes]:
-    """(format, data) of a compressedDepth message, as compressed_depth_image_transport writes.
-
-    16UC1: ``depth`` is uint16 (mm). 32FC1: ``depth`` is float metres, quantised as inverse
-    depth with depthQuantA = depth_quantization · (depth_quantization + 1), depthQuantB =
-    1 − depthQuantA / depth_max_m.
-    """
-    if encoding.upper() == "32FC1":
-        qa = depth_quantization * (depth_quantization + 1.0)
-        qb = 1.0 - qa / depth_max_m
-        d = np.asarray(depth, np.float64)
-        good = np.isfinite(d) & (d > 0) & (d < depth_max_m)
-        raw = np.zeros(d.shape, np.uint16)
-        raw[good] = np.clip(qa / d[good] + qb, 0, 65535).astype(np.uint16)
-    else:
-        qa = qb = 0.0
-        raw = np.asarray(depth, np.uint16)
-    header = struct.pack("<iff", 0, qa, qb)
-    if codec == "rvl":
-        h, w = raw.shape
-        body = struct.pack("<II", w, h) + rvl_encode(raw)
-    else:
-        body = _imencode_png(raw)
-    return f"{encoding}; compressedDepth {codec}", header + body

@@ -145,8 +145,7 @@ def registered_samples(lowres: npt.ArrayLike, maps: npt.ArrayLike, scale: int) -
     ndarray float32 (N, h, w): frame k's sample (mm; 0: no depth) at reference pixel (i, j);
     NaN where the motion leaves frame k.
     """
-    lr = np.ascontiguousarray(lowres, np.float32)
-    lr = np.where(np.isnan(lr), np.float32(0.0), lr)
+    lr = nan_as_zero(np.ascontiguousarray(lowres, np.float32))
     mp = np.ascontiguousarray(maps, np.float32)
     n, h, w = lr.shape
     if mp.ndim != 4 or mp.shape[0] != n or mp.shape[3] != 2:

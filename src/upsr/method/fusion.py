@@ -37,18 +37,15 @@ from upsr.method.sorting import (
 )
 from upsr.method.splat import splat_nearest, splat_points
 from upsr.method.trust import fusion_inputs
+from upsr.method.validation import nan_as_zero
 
 __all__ = [
-    "OUTSIDE",
     "register_and_fuse",
     "sorting_network",
     "splat_nearest",
     "splat_points",
     "temporal_median",
 ]
-
-#: Marker of a registered sample that fell outside its frame (abstains in the fusion).
-OUTSIDE = np.float32(np.nan)
 
 
 @nb.njit(cache=True, nogil=True, inline="always")
@@ -591,7 +588,6 @@ def register_and_fuse(
     offsets: npt.ArrayLike | None = None,
     min_trusted: int = 1,
     estimator: str = "median",
-    alternatives: tuple[npt.ArrayLike, ...] | None = None,
     untrusted: npt.ArrayLike | None = None,
     hole_floors: bool = False,
     edge_votes: bool = False,
@@ -643,8 +639,6 @@ def register_and_fuse(
     estimator : {"median", "mean"}
         Estimate of the samples of the winning surface: their median (eq. 28, ML for Laplace
         noise) or their mean (ML for Gaussian noise; between quantisation steps).
-    alternatives : tuple of 4 array_like (3, 3, h, w), optional
-        :func:`upsr.method.alternatives.surface_alternatives` (default: from anchor and tolerance).
     untrusted : array_like bool (N, h, w), optional
         Frame k misregistered around reference pixel (i, j) (:mod:`upsr.method.consistency`):
         its samples there abstain like samples outside the frame. ``None``: none.
@@ -664,8 +658,7 @@ def register_and_fuse(
     -------
     ndarray float32 (r·h, r·w): fused depth (mm), 0 where nothing is known.
     """
-    lr = np.ascontiguousarray(lowres, np.float32)
-    lr = np.where(np.isnan(lr), np.float32(0.0), lr)
+    lr = nan_as_zero(np.ascontiguousarray(lowres, np.float32))
     mp = np.ascontiguousarray(maps, np.float32)
     n, h, w = lr.shape
     ref = (n - 1) // 2 if ref is None else int(ref)
@@ -681,10 +674,11 @@ def register_and_fuse(
     votes = (*weight_table(scale, weight_sigma_px), float(weight_floor))
     rules = (np.ascontiguousarray(gd), float(guide_bonus), ref, float(min_valid_fraction))
     rules += (float(edge_mm), measured, _network(n))
-    still = ref if not mp[ref].any() else -1  # the reference's map is zero: a shortcut
-    trust = (anchor, tolerance, offsets, alternatives, untrusted, lr, edge_mm)
+    trust = (anchor, tolerance, offsets, untrusted, lr, edge_mm)
     trust += (ref if hole_floors else None, mixes_mm, followed, border_strips)
     anc, tol, offs, alts, bad, nearest, mixes, mtol = fusion_inputs(*trust)
+    # the reference's map is zero and none of its samples abstains: a shortcut
+    still = ref if not (mp[ref].any() or bad[ref].any()) else -1
     band = edge_band(lr[ref], edge_mm) if edge_votes else np.zeros((h, w), np.bool_)
     cell_lo, cell_hi = cell_ranges(lr) if band.any() else (np.zeros((n, 1, 1), np.float32),) * 2
     out = np.empty((hh, ww), np.float32)

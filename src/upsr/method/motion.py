@@ -85,7 +85,7 @@ def bilateral_prefilter_nearest(
     of a (2·radius + 1)² window. OpenCV's conventions are kept: a circular window of radius
     ⌈2·sigma_px⌉, reflected borders (BORDER_REFLECT_101) and its interpolated table of range
     weights, so the result equals ``bilateral_prefilter(upsample_nearest(depth, factor), ...)``
-    up to float rounding (< 0.01 mm; tests/test_motion.py). Frames smaller than the window,
+    up to float rounding (< 0.01 mm; tests/method/test_motion.py). Frames smaller than the window,
     and ``factor`` = 1, go to OpenCV.
 
     Parameters

@@ -143,14 +143,9 @@ from upsr.method.validation import as_depth_frame, no_valid_depth
 from upsr.method.windowed import STAGES
 
 __all__ = [
-    "RADIAL_RADIUS_FACTOR",
     "RecursiveUPSR",
     "recursive_update",
 ]
-
-#: The radial offsets of the state use ``RADIAL_RADIUS_FACTOR × radial_radius_px``.
-RADIAL_RADIUS_FACTOR = 1
-
 
 # ---------------------------------------------------------------------------------------------
 # the engine
@@ -177,8 +172,9 @@ class RecursiveUPSR(TwoStagePipeline):
     output (latency 0 frames), :meth:`feed` a list of it, :meth:`flush` nothing more (it
     resets), :meth:`process` yields one output per input, :attr:`timings` the seconds per
     stage; :meth:`push_async` and :meth:`wait` finish frames on a second thread
-    (:class:`~upsr.method.pipeline.TwoStagePipeline`). Memory: the state (two r·h × r·w
-    float32 images) and the previous frame's prefiltered and 8-bit guide images, whatever N.
+    (:class:`~upsr.method.pipeline.TwoStagePipeline`). Memory: the state (the depth and the
+    count, r·h × r·w float32 each, and with the edge votes the surface shares, a third) and
+    the previous frame's prefiltered and 8-bit guide images and offset signs, whatever N.
     ``n_frames`` caps the state's count (how many frames it summarises); see the module for
     the update rule.
 
@@ -438,9 +434,7 @@ class RecursiveUPSR(TwoStagePipeline):
                 # (measured on the realistic scenes: 2× or 1.5× the windowed radius helps the
                 # room seen by a walking camera but costs a quantised sensor's walls and the
                 # approaching camera's edges; recursive notes)
-                radial_radius_px=(
-                    RADIAL_RADIUS_FACTOR * cfg.radial_radius_px if cfg.radial_compensation else None
-                ),
+                radial_radius_px=cfg.radial_radius_px if cfg.radial_compensation else None,
                 noise_profile=self._profile,
                 # (the holes of the frame as measured: its removed mixed pixels are not holes)
                 holes=np.where(f > 0, np.float32(0.0), hole_backgrounds(meas)),

@@ -29,7 +29,6 @@ from upsr._numba import SAFE_FASTMATH
 from upsr.method._parallel import both
 
 __all__ = [
-    "add_flows",
     "advance_positions",
     "compose_flows",
     "cumulative_flows",
@@ -87,12 +86,6 @@ def compose_flows(
     """
     sampled = remap_by_flow(second, first, cv2.INTER_LINEAR, cv2.BORDER_REPLICATE)
     return np.add(first, sampled, out=out)
-
-
-def add_flows(first: np.ndarray, second: np.ndarray) -> np.ndarray:
-    """The naive chaining ``first + second`` (both read at the same pixel) — wrong for
-    non-rigid motion; kept as the baseline that :func:`compose_flows` is tested against."""
-    return first + second
 
 
 def warp_nearest(image: npt.ArrayLike, flow: np.ndarray, fill: float = np.nan) -> np.ndarray:

@@ -36,6 +36,7 @@ from upsr.method.consistency import hole_backgrounds, maps_at_centres, registere
 from upsr.method.mixed import ABSTAIN
 from upsr.method.noise import _sigma_at
 from upsr.method.sorting import _small_median, _twice_beyond, median_beyond
+from upsr.method.validation import nan_as_zero
 
 __all__ = [
     "OFFSET_SIGNIFICANCE",
@@ -306,8 +307,7 @@ def radial_offsets(
     ndarray float32 (N, h, w): the offset (mm) to subtract from frame k's samples that land on
     reference pixel (i, j); 0 for the reference.
     """
-    lr = np.ascontiguousarray(lowres, np.float32)
-    lr = np.where(np.isnan(lr), np.float32(0.0), lr)
+    lr = nan_as_zero(np.ascontiguousarray(lowres, np.float32))
     n, h, w = lr.shape
     if registered is None:
         registered = registered_samples(lr, maps, scale)
@@ -492,7 +492,6 @@ def fusion_inputs(
     anchor: npt.ArrayLike | None,
     tolerance: npt.ArrayLike | None,
     offsets: npt.ArrayLike | None,
-    alternatives: tuple[npt.ArrayLike, ...] | None,
     untrusted: npt.ArrayLike | None,
     lr: np.ndarray,
     edge_mm: float,
@@ -502,7 +501,7 @@ def fusion_inputs(
     border_strips: bool = False,
 ) -> tuple:
     """The trust arrays of :func:`upsr.method.fusion.register_and_fuse` as its kernel reads
-    them: anchor, tolerance, offsets, the four alternatives (default: from the anchor, the
+    them: anchor, tolerance, offsets, the four surface alternatives (from the anchor, the
     removed mixed pixels ``mixes_mm``, the thin parts the motion ``followed`` and
     ``border_strips``), the misregistered samples, the nearest depth a sample may have at
     each reference pixel (``holes_of``: the reference's index, or None for no limit), and the
@@ -514,10 +513,9 @@ def fusion_inputs(
         nearest = np.where(bg > 0, bg - np.float32(edge_mm), nearest).astype(np.float32)
     anc, tol, offs = trust_arrays(anchor, tolerance, offsets, (n, h, w))
     mixes = mix_depths(mixes_mm, (h, w))
-    if alternatives is None:
-        alternatives = surface_alternatives(
-            anc, tol, edge_mm, mixes, followed, border_strips=border_strips
-        )
+    alternatives = surface_alternatives(
+        anc, tol, edge_mm, mixes, followed, border_strips=border_strips
+    )
     alts = [np.ascontiguousarray(a, np.float32).reshape(3, 3, h, w) for a in alternatives]
     if untrusted is None:
         bad = np.zeros((n, h, w), np.bool_)

@@ -41,7 +41,6 @@ __all__ = [
     "render_view",
 ]
 
-_WHITE = (255, 255, 255)
 _FONT = cv2.FONT_HERSHEY_SIMPLEX
 
 
