@@ -195,6 +195,25 @@ def test_register_and_fuse_equals_registration_then_median(n, still_reference):
     np.testing.assert_array_equal(only[measured], fused[measured])
 
 
+def test_an_untrusted_reference_sample_abstains_whether_or_not_the_reference_moves():
+    """The kernel's shortcut for a reference whose map is zero skipped ``untrusted[ref]``:
+    the untrusted reference sample won (1500) where a map 1e-6 px off gave the other frame's
+    1000 mm."""
+    from upsr.method.fusion import register_and_fuse
+
+    lowres = np.full((2, 6, 6), 1000.0, np.float32)
+    lowres[0] = 1500.0
+    maps = np.zeros((2, 12, 12, 2), np.float32)
+    untrusted = np.zeros((2, 6, 6), bool)
+    untrusted[0, 2, 2] = True
+    still = register_and_fuse(lowres, maps, 2, 0, untrusted=untrusted)
+    maps[0, -1, -1, 0] = 1e-6
+    moved = register_and_fuse(lowres, maps, 2, 0, untrusted=untrusted)
+    np.testing.assert_array_equal(still, moved)
+    np.testing.assert_array_equal(still[4:6, 4:6], 1000.0)
+    assert (still[untrusted[0].repeat(2, 0).repeat(2, 1) == 0] == 1500.0).all()
+
+
 def test_temporal_median_refuses_what_is_not_a_registered_stack():
     """±inf and negative samples gave ±inf and negative depth; a wrong shape, ref or weights
     gave plain ValueErrors or NumPy's broadcast error: one InputError each (a ValueError)."""
