@@ -269,17 +269,17 @@ def check_fmt(fmt: str) -> str:
 DEPTH_SCALE_RANGE = (1e-3, 1e9)
 
 
-def check_depth_scale(depth_scale: float) -> float:
+def check_depth_scale(depth_scale: float, name: str = "depth_scale") -> float:
     """``depth_scale`` (raw units per metre) as a float within :data:`DEPTH_SCALE_RANGE`,
-    else InputError."""
+    else InputError naming it ``name`` (the option the user gave)."""
     try:
         s = float(depth_scale)
     except (TypeError, ValueError):
-        raise InputError(f"depth_scale must be a number, got {depth_scale!r}") from None
+        raise InputError(f"{name} must be a number, got {depth_scale!r}") from None
     lo, hi = DEPTH_SCALE_RANGE
     if not lo <= s <= hi:  # (NaN too)
         raise InputError(
-            f"depth_scale must be {lo:g}..{hi:g} raw units per metre (1000 = mm, 1 = metres), "
+            f"{name} must be {lo:g}..{hi:g} raw units per metre (1000 = mm, 1 = metres), "
             f"got {depth_scale!r}"
         )
     return s

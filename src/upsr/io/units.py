@@ -88,15 +88,16 @@ def resolve_depth_scales(
     (1000) unless ``output_depth_scale`` says otherwise. Giving ``depth_scale`` and a different
     ``input_depth_scale`` is refused.
     """
+    old, new, out = "--depth-scale", "--input-depth-scale", "--output-depth-scale"
     if depth_scale is not None and input_depth_scale is not None:
-        if check_depth_scale(depth_scale) != check_depth_scale(input_depth_scale):
+        if check_depth_scale(depth_scale, old) != check_depth_scale(input_depth_scale, new):
             raise InputError(
                 f"--depth-scale {depth_scale} and --input-depth-scale {input_depth_scale} "
                 f"disagree: give one (both are the input's raw units per metre)"
             )
-    inp = input_depth_scale if input_depth_scale is not None else depth_scale
-    s_in = check_depth_scale(1000.0 if inp is None else inp)
-    s_out = check_depth_scale(1000.0 if output_depth_scale is None else output_depth_scale)
+    inp, name = (input_depth_scale, new) if input_depth_scale is not None else (depth_scale, old)
+    s_in = check_depth_scale(1000.0 if inp is None else inp, name)
+    s_out = check_depth_scale(1000.0 if output_depth_scale is None else output_depth_scale, out)
     return s_in, s_out
 
 

@@ -135,7 +135,12 @@ from upsr.method.noise import NOISE_FREE_MM, second_differences, temporal_noise_
 from upsr.method.pipeline import TwoStagePipeline
 from upsr.method.slopes import plane_slopes, sloped_pixels
 from upsr.method.state_update import STATE_NOISE_FACTOR, recursive_update
-from upsr.method.statistics import first_frame_noise_mm, noise_estimator, trust_profile
+from upsr.method.statistics import (
+    VideoStatistics,
+    first_frame_noise_mm,
+    noise_estimator,
+    trust_profile,
+)
 from upsr.method.thin import ThinParts
 from upsr.method.trust import reference_anchor
 from upsr.method.upsampling import resample_nearest, upsample_nearest
@@ -221,11 +226,14 @@ class RecursiveUPSR(TwoStagePipeline):
         #: frame), "registration" (radial offsets of the registered state), "fusion" (mixed
         #: pixels, anchor, registration and update of the state), "deblur" (finishing).
         self.timings: dict[str, float] = dict.fromkeys(STAGES, 0.0)
+        self._front: MotionFrontEnd | None = None
+        self._last_stats: VideoStatistics | None = None
         self.reset()
 
     def reset(self) -> None:
         """Forget the state (start a new video), once a frame still finishing is done."""
         self._reset_pipeline()
+        self._last_stats = self.statistics
         cfg = self.config
         self._flow = self._custom_flow or make_flow_backend(cfg.flow, cfg.flow_preset)
         self._front: MotionFrontEnd | None = None
@@ -254,6 +262,19 @@ class RecursiveUPSR(TwoStagePipeline):
     def frames_seen(self) -> int:
         """Number of frames pushed since the last reset/flush."""
         return self._count
+
+    @property
+    def statistics(self) -> VideoStatistics | None:
+        """The choices made once per video, as :attr:`upsr.method.windowed.UPSR.statistics`
+        (from its first frame with depth; the mixed-pixel removal as decided so far): those of
+        the current video, else of the last one (after :meth:`flush`); None before."""
+        if self._front is None:
+            return self._last_stats
+        noise = self._noise()
+        return VideoStatistics(
+            self._estimator, noise, noise, self._remove_mixed, self._profile,
+            self._front.depth_scale,
+        )  # fmt: skip
 
     @property
     def output_shape(self) -> tuple[int, int] | None:

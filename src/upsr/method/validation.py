@@ -1,6 +1,6 @@
 """Checks and normalisation of depth inputs.
 
-Conventions (``../shared/SPEC.md`` §1): depth is in millimetres; 0 and NaN mean "no
+Conventions (``docs/SPEC.md`` §1): depth is in millimetres; 0 and NaN mean "no
 measurement". Everything else must be a finite, non-negative number.
 """
 

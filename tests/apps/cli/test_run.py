@@ -393,7 +393,7 @@ def test_empty_frame_in_the_middle_is_fine(
         (["-r", "2", "-n", "3", "--refine-preset", "slow"], "--refine-preset"),
         (["-r", "2", "-n", "3", "--speckle-px", "-1"], "--speckle-px"),
         (["-r", "2", "-n", "3", "--workers", "-1"], "--workers"),
-        (["-r", "2", "-n", "3", "--depth-scale", "0"], "depth_scale"),
+        (["-r", "2", "-n", "3", "--depth-scale", "0"], "--depth-scale must be"),
         (["-r", "2", "-n", "3", "--key", "depth"], "only applies to .npz"),
         (["-r", "2", "-n", "3", "--bogus"], "No such option"),
         (["-n", "3"], "Missing option '--scale'"),
@@ -532,3 +532,9 @@ def test_run_reports_the_per_video_choices(
     rc, _, stderr = run_cli(capsys, "run", near, "-o", tmp_path / "n.npy", "-r", 2, "-n", 3)
     assert rc == 0, stderr
     assert "depth thresholds x0." in stderr and "(a near scene)" in stderr
+    # the recursive mode's choices too (it printed none)
+    rc, _, stderr = run_cli(capsys, "run", near, "-o", tmp_path / "r.npy", "-r", 2, "--recursive")
+    assert rc == 0, stderr
+    line = [s for s in stderr.replace("\r", "\n").splitlines() if "fused by the" in s]
+    assert len(line) == 1 and line[0].startswith("upsr: fused by the mean")
+    assert "depth thresholds x0." in line[0] and "(a near scene)" in line[0]

@@ -16,6 +16,7 @@ import tifffile
 import upsr
 from tests.apps._util import H, T, W, png_folder, run_cli, video
 from upsr.apps import _preflight
+from upsr.errors import InputError
 from upsr.io import video as io
 from upsr.method import windowed as pipeline
 
@@ -63,6 +64,10 @@ def test_input_and_output_depth_scales_are_separate(capsys, here: Path) -> None:
     rc, _, err = run_cli(capsys, "run", "m.tif", "-o", "x.npy", "-r", 1, *FAST,
                          "--depth-scale", 1, "--input-depth-scale", 1000)  # fmt: skip
     _one_error(rc, err, "disagree")
+    # an absurd scale is refused naming the option given (it said "depth_scale")
+    for option in ("--input-depth-scale", "--output-depth-scale", "--depth-scale"):
+        rc, _, err = run_cli(capsys, "run", "m.tif", "-o", "y.npy", "-r", 1, *FAST, option, 1e10)
+        _one_error(rc, err, f"{option} must be 0.001..1e+09 raw units per metre")
 
 
 def test_depth_scale_help_says_it_is_the_inputs_alias() -> None:
@@ -263,6 +268,25 @@ def test_kernel_note_on_a_cold_cache(capsys, here: Path, monkeypatch) -> None:
     monkeypatch.setitem(_preflight._STATE, "noted", False)
     rc, _, err = run_cli(capsys, "run", "in.npy", "-o", "b.npy", "-r", 1, "-n", 1, "-q")
     assert rc == 0 and _preflight.KERNEL_NOTE not in err
+
+
+def test_kernel_note_of_batch_and_demo(capsys, here: Path, monkeypatch) -> None:
+    """`make demo` sat at 0/15 frames for 79 s on a cold cache without the note; batch too."""
+    from upsr.apps import demo as demo_module
+
+    np.save("in.npy", video())
+    monkeypatch.setattr(_preflight, "kernel_cache_warm", lambda: False)
+    monkeypatch.setitem(_preflight._STATE, "noted", False)
+    rc, _, err = run_cli(capsys, "batch", "in.npy", "--out", "b", "-r", 1, "-n", 1)
+    assert rc == 0 and _preflight.KERNEL_NOTE in err
+    monkeypatch.setitem(_preflight._STATE, "noted", False)
+
+    def no_demo(*args, **kwargs):
+        raise InputError("stopped after the note")
+
+    monkeypatch.setattr(demo_module, "run_demo", no_demo)
+    rc, _, err = run_cli(capsys, "demo", "--out", "d")
+    assert rc == 2 and _preflight.KERNEL_NOTE in err and "stopped after the note" in err
 
 
 def test_recursive_refuses_the_windowed_modes_flags(capsys, here: Path) -> None:

@@ -36,7 +36,7 @@ def batch(
         typer.Option("--out", "-o", show_default=False, help="Output folder (one file each)."),
     ],
     scale: opt.ScaleOpt,
-    frames: opt.FramesOpt = None,
+    frames: opt.WindowedFramesOpt = None,
     output_format: Annotated[
         opt.OutFormat,
         typer.Option("--format", "-f", case_sensitive=False, help="Output format."),
@@ -87,13 +87,14 @@ def batch(
     others go on; exit status 2 (bad input) or 1 (internal error) if any failed.
     """
     cfg = opt.method_config(locals())  # first: locals() are the options
-    from upsr.apps._preflight import memory_limit
+    from upsr.apps._preflight import kernel_note, memory_limit
     from upsr.apps.batch import run_batch
     from upsr.io.units import resolve_depth_scales
 
     mem = memory_limit(max_memory)
     s_in, s_out = resolve_depth_scales(depth_scale, input_depth_scale, output_depth_scale)
     scale_given = depth_scale is not None or input_depth_scale is not None
+    kernel_note(quiet)
     start = time.perf_counter()
     result = run_batch(
         inputs,

@@ -36,8 +36,9 @@ def demo(
 ) -> None:
     """Run the built-in demo: a synthetic moving scene, UP-SR vs baselines, metrics table."""
     from upsr.apps import demo as demo_module
-    from upsr.apps._preflight import removed_on_failure
+    from upsr.apps._preflight import kernel_note, removed_on_failure
 
+    kernel_note(quiet)
     with removed_on_failure(out):
         result = demo_module.run_demo(out, seed=seed, progress=not quiet)
     typer.echo(demo_module.format_metrics_table(result))

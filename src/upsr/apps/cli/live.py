@@ -51,7 +51,6 @@ from upsr.apps.cli.options import (
     IterationsOpt,
     MaxMemoryOpt,
     OutFormat,
-    QuietOpt,
     ScaleOpt,
     ValidRangeOpt,
     config_from_options,
@@ -152,6 +151,12 @@ LiveDepthScaleOpt = Annotated[
     ),
 ]
 #: (the recursive mode's N and flow grid, not the windowed mode's of ``upsr run``)
+LiveQuietOpt = Annotated[
+    bool,
+    typer.Option(
+        "--quiet", "-q", help="No status line, notes or hints on stderr (the summary stays)."
+    ),
+]
 LiveFramesOpt = Annotated[
     int | None,
     typer.Option(
@@ -199,7 +204,7 @@ def live(
     edge_mm: EdgeMmOpt = None,
     max_memory: MaxMemoryOpt = None,
     overwrite: LiveOverwriteOpt = False,
-    quiet: QuietOpt = False,
+    quiet: LiveQuietOpt = False,
 ) -> None:
     """Super-resolve a RealSense camera or recording live (recursive mode, latency 0).
 
@@ -253,6 +258,7 @@ def live(
         pre.check_run_resources(
             (1, h, w), cfg, workers=1, out_fmt=resolved, output=None, max_memory=mem
         )
+        pre.kernel_note(quiet)
         if not quiet:
             sys.stderr.write(f"upsr live: loading the kernels for {w}x{h} frames ...")
             sys.stderr.flush()

@@ -279,16 +279,22 @@ ScaleOpt = Annotated[
         help="Super-resolution factor r (integer, 1 <= r <= 16): output frames are (r*h) x (r*w).",
     ),
 ]
+_FRAMES_HELP = (
+    "Window length N: frames fused per output frame (1 <= N <= 256 and the number of "
+    "frames) [default: 9, or all the frames of a shorter video]"
+)
 FramesOpt = Annotated[
     int | None,
     typer.Option(
         "--frames",
         "-n",
         show_default=False,
-        help="Window length N: frames fused per output frame (1 <= N <= 256 and the number of "
-        "frames) [default: 9, or all the frames of a shorter video]; in the recursive mode the "
-        "most frames a pixel's state counts (any video length).",
+        help=f"{_FRAMES_HELP}; with --recursive the most frames a pixel's state counts (any "
+        "video length).",
     ),
+]
+WindowedFramesOpt = Annotated[
+    int | None, typer.Option("--frames", "-n", show_default=False, help=f"{_FRAMES_HELP}.")
 ]
 NoDeblurOpt = Annotated[
     bool,
@@ -351,7 +357,7 @@ FlowScaleOpt = Annotated[
         "--flow-scale",
         min=1,
         help="Upsampling factor s <= r of the frames the flow is computed on [default: the "
-        "smallest s >= 2 giving a flow grid >= 192 px wide]. Smaller: faster.",
+        "smallest s >= 2 (--recursive: 1) with a flow grid >= 192 px wide]. Smaller: faster.",
     ),
 ]
 RefinePresetOpt = Annotated[

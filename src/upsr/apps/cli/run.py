@@ -44,14 +44,15 @@ __all__ = ["register", "run"]
 
 _RUN_EPILOG = """\b
 Input formats (by name; --input-format to force):
-  .npy / .npz   one (T, h, w) array of depth in mm (any integer or float dtype)
+  .npy / .npz   one (T, h, w) array of depth (any integer or float dtype)
   FOLDER        16-bit single-channel PNG frames, natural name order
-                (raw value / depth-scale = metres)
-  .tif/.tiff    TIFF, one frame per page, or a folder of TIFFs (raw / depth-scale = m)
+  .tif/.tiff    TIFF, one frame per page, or a folder of TIFFs
   .exr          OpenEXR (channel Z/depth/...), or a folder of EXRs
   .bag          ROS 1 / RealSense bag; a ROS 2 bag folder (metadata.yaml): --topic
   .pgm          NYU raw Kinect disparity (--input-format pgm: plain 16-bit depth)
   tum, sun      --input-format for TUM (raw/5000 m) and SUN RGB-D PNGs
+Units: raw value / --input-depth-scale = metres (default 1000: mm; 1: metres) for
+.npy/.npz, PNG, TIFF, EXR and PGM; bags, nyu, tum and sun carry their own units.
 The intrinsics (--intrinsics, or from the bag) scaled by r go to OUTPUT.intrinsics.json
 (with the frame names and timestamps); --color writes the colour on the output grid to
 OUTPUT.color/. Output formats: .npy, .npz, .tif, .exr or .png (one frame), a folder of
@@ -222,7 +223,7 @@ def run(
             else (color, color_dest, names if keep_names else None),
         )
     _summary(info.shape, cfg, time.perf_counter() - start, output)
-    stats = getattr(engine, "statistics", None)  # (the windowed mode's, of this video)
+    stats = engine.statistics  # (of this video)
     if stats is not None and not quiet:
         typer.echo(f"upsr: {_choices(stats)}", err=True)
 
