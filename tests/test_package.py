@@ -20,3 +20,22 @@ def test_the_kernels_threads_wait_passively_unless_the_user_chose(given, expecte
         [sys.executable, "-c", code], env=env, capture_output=True, text=True, check=True
     )
     assert done.stdout.strip() == expected
+
+
+def test_open3d_imported_first_does_not_make_numba_warn():
+    """Open3D loads an older libtbb; numba tried TBB first and warned ("The TBB threading
+    layer requires TBB version 2021 update 6 ...") on the first kernel: OpenMP first."""
+    pytest.importorskip("open3d")
+    env = {k: v for k, v in os.environ.items() if k != "NUMBA_THREADING_LAYER_PRIORITY"}
+    code = (
+        "import warnings; warnings.simplefilter('error')\n"
+        "import open3d, upsr\n"
+        "import numba, numpy as np\n"
+        "@numba.njit(parallel=True)\n"
+        "def f(a):\n"
+        "    for i in numba.prange(a.size):\n"
+        "        a[i] += 1\n"
+        "f(np.zeros(4)); print(numba.threading_layer())"
+    )
+    done = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True)
+    assert done.returncode == 0 and done.stdout.strip() == "omp", done.stderr

@@ -29,6 +29,9 @@ from upsr._lazy import attach
 # process beside it on two cores, 68 with this; alone, the same rate at less CPU). Read by
 # the OpenMP runtime when numba first loads it; a value the user set is kept.
 os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
+# OpenMP first, as above: numba tries TBB first, and an older libtbb already loaded (Open3D's)
+# made it warn on every process's first kernel (read when numba is first imported).
+os.environ.setdefault("NUMBA_THREADING_LAYER_PRIORITY", "omp tbb workqueue")
 
 _lazy_getattr, __dir__, __all__ = attach(
     __name__,

@@ -20,11 +20,19 @@ def test_check_frame_range() -> None:
 def test_natural_key() -> None:
     names = ["f10.png", "F2.png", "f1.png", "g.png"]
     assert sorted(names, key=_base.natural_key) == ["f1.png", "F2.png", "f10.png", "g.png"]
+    # times in seconds as str(float) writes them: fractions of any length by their value
+    # (the fractions compared as integers put .1 before .0333333: frames read out of order)
+    times = [f"{1700000000 + i / 30}.png" for i in range(8)]
+    assert times[1] == "1700000000.0333333.png" and times[3] == "1700000000.1.png"
+    assert sorted(times[::-1], key=_base.natural_key) == times
 
 
 def test_reading_turns_failures_into_input_errors() -> None:
     with pytest.raises(InputError, match="x: corrupt or unreadable"), _base.reading("x"):
         raise ValueError("bad")
+    with pytest.raises(InputError, match=r"x: compressed .* needs the imagecodecs package"):
+        with _base.reading("x"):
+            raise ValueError("<COMPRESSION.LZW: 5> requires the 'imagecodecs' package")
     with pytest.raises(InputError, match="x: cannot read"), _base.reading("x"):
         raise FileNotFoundError(2, "No such file")
 

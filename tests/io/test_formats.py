@@ -143,6 +143,10 @@ def test_tiff_inputs(tmp_path: Path, tifffile) -> None:
     tifffile.imwrite(tmp_path / "nan.tif", nan.astype(np.float64), photometric="minisblack")
     got = io.read_video(tmp_path / "nan.tif")
     assert got[0, 1, 1] == 0 and got.dtype == np.float32
+    # OpenCV's TIFFs are LZW-compressed: read through imagecodecs (they were "corrupt")
+    cv2.imwritemulti(str(tmp_path / "cv.tif"), list(v.astype(np.uint16)))
+    assert tifffile.TiffFile(tmp_path / "cv.tif").pages[0].compression == 5  # LZW
+    np.testing.assert_array_equal(io.read_video(tmp_path / "cv.tif"), v)
 
 
 @pytest.mark.parametrize(

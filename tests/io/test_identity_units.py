@@ -13,6 +13,7 @@ import upsr.io as uio
 from upsr.errors import InputError
 from upsr.geometry.camera import PinholeCamera
 from upsr.geometry.intrinsics import load_intrinsics, write_intrinsics
+from upsr.io.identity import first_step_back
 from upsr.io.units import DepthUnitWarning
 
 cv2 = pytest.importorskip("cv2")
@@ -67,8 +68,10 @@ def test_npz_timestamps_round_trip(tmp_path: Path) -> None:
     with np.load(out) as z:
         assert z["timestamps"].dtype == np.int64
     assert uio.read_timestamps(uio.write_video(tmp_path / "n.npz", _video())) is None
-    with pytest.raises(InputError, match="back in time"):
-        uio.write_video(tmp_path / "b.npz", _video(), timestamps_ns=[3, 2, 1])
+    # a camera clock that goes back (a reset): kept as recorded (it was refused)
+    back = uio.write_video(tmp_path / "b.npz", _video(), timestamps_ns=[30, 40, 10])
+    np.testing.assert_array_equal(uio.read_timestamps(back), [30, 40, 10])
+    assert first_step_back([30, 40, 10]) == 2 and first_step_back([1, 1, 2]) is None
     with pytest.raises(InputError, match="timestamps"):
         uio.write_video(tmp_path / "c.npz", _video(), timestamps_ns=[1, 2])
     assert not (tmp_path / "c.npz").exists()

@@ -15,6 +15,7 @@ import re
 import stat
 from collections.abc import Iterator
 from dataclasses import dataclass
+from decimal import Decimal
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, BinaryIO, Protocol
 
@@ -318,10 +319,12 @@ def check_frame_range(start: Any, stop: Any, n_frames: int, name: str) -> tuple[
 
 
 def natural_key(name: str) -> tuple[Any, ...]:
-    """Sort key of file names in natural order (``frame2`` before ``frame10``)."""
-    # re.split with a capturing group alternates text, digits, text, ...: same types compare
-    parts = re.split(r"([0-9]+)", name)
-    return (*(int(p) if i % 2 else p.casefold() for i, p in enumerate(parts)), name)
+    """Sort key of file names in natural order (``frame2`` before ``frame10``), numbers with
+    a fraction by their value (times in seconds: ``1700000000.0333333`` before
+    ``1700000000.1``, whatever the number of decimals)."""
+    # re.split with a capturing group alternates text, number, text, ...: same types compare
+    parts = re.split(r"([0-9]+(?:\.[0-9]+)?)", name)
+    return (*(Decimal(p) if i % 2 else p.casefold() for i, p in enumerate(parts)), name)
 
 
 @contextlib.contextmanager
@@ -336,6 +339,11 @@ def reading(name: str) -> Iterator[None]:
     except MemoryError:
         raise InputError(f"{name}: too large to read in the memory available") from None
     except Exception as e:  # zipfile/zlib/numpy header parsing: all the user's data
+        if "imagecodecs" in str(e):  # (tifffile: a compressed TIFF without the codecs)
+            raise InputError(
+                f"{name}: compressed with a codec that needs the imagecodecs package (pip "
+                "install imagecodecs; the [io] extra has it)"
+            ) from None
         raise InputError(
             one_line(f"{name}: corrupt or unreadable ({type(e).__name__}: {e})")
         ) from None

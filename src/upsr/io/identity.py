@@ -38,6 +38,7 @@ __all__ = [
     "check_frame_names",
     "check_timestamps",
     "finish_output",
+    "first_step_back",
     "read_frame_names",
     "read_timestamps",
 ]
@@ -149,16 +150,23 @@ def check_frame_names(names: Sequence[str], n_frames: int | None = None) -> list
 
 
 def check_timestamps(stamps: Sequence[int] | np.ndarray, n_frames: int | None = None) -> np.ndarray:
-    """int64 ns, one per frame, non-decreasing."""
+    """int64 ns, one per frame, as recorded (a camera's clock may go back: a reset;
+    :func:`first_step_back` finds where)."""
     ts = np.asarray(stamps)
     if ts.ndim != 1 or (ts.size and ts.dtype.kind not in "iu"):
         raise InputError("timestamps must be a 1-D sequence of integer ns")
     ts = ts.astype(np.int64)
-    if ts.size > 1 and (np.diff(ts) < 0).any():
-        raise InputError("timestamps go back in time")
     if n_frames is not None and ts.size != n_frames:
         raise InputError(f"{ts.size} timestamps for {n_frames} frames")
     return ts
+
+
+def first_step_back(stamps: Sequence[int] | np.ndarray | None) -> int | None:
+    """The first frame whose timestamp is earlier than its predecessor's, or None."""
+    if stamps is None or len(stamps) < 2:
+        return None
+    back = np.flatnonzero(np.diff(np.asarray(stamps, np.int64)) < 0)
+    return int(back[0]) + 1 if back.size else None
 
 
 def finish_output(

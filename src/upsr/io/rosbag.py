@@ -515,6 +515,7 @@ class FrameSink:
         self._writer = Writer(self._inner, version=8)
         self._writer.open()
         self._stamps: Sequence[int] | None = None
+        self._logged = -1  # the last message's log time (ns)
         self._camera: Any = None
         self._frame_id = "camera_depth_optical_frame"
         self._conn = self._writer.add_connection(
@@ -566,11 +567,14 @@ class FrameSink:
             step=4 * w,
             data=np.ascontiguousarray(m).view(np.uint8).reshape(-1),
         )
-        self._writer.write(self._conn, stamp, self._ts.serialize_cdr(msg, "sensor_msgs/msg/Image"))
+        # the headers keep the frame's time as recorded; the bag's log times rise (a camera
+        # clock reset: 1 ns after the last), so that a player keeps the frames' order
+        self._logged = logged = max(stamp, self._logged + 1)
+        self._writer.write(self._conn, logged, self._ts.serialize_cdr(msg, "sensor_msgs/msg/Image"))
         if self._info_conn is not None:
             info = camera_info_message(self._ts, self._camera, self._header(stamp))
             self._writer.write(
-                self._info_conn, stamp, self._ts.serialize_cdr(info, "sensor_msgs/msg/CameraInfo")
+                self._info_conn, logged, self._ts.serialize_cdr(info, "sensor_msgs/msg/CameraInfo")
             )
 
     def close(self) -> None:

@@ -476,7 +476,7 @@ class VideoWriter(AtomicWriter):
 
     def write(self, frame: npt.ArrayLike, timestamp_ns: int | None = None) -> None:
         """Append one (h, w) depth frame in mm (0 or NaN = no measurement); with
-        ``timestamp_ns``, its time (every frame's then, non-decreasing; not with the
+        ``timestamp_ns``, its time (every frame's then, as recorded; not with the
         writer's ``timestamps_ns``)."""
         if self._closed:
             raise ValueError("write to a closed VideoWriter")
@@ -499,7 +499,8 @@ class VideoWriter(AtomicWriter):
         self.frames_written = t + 1
 
     def _check_stamp(self, t: int, stamp: int | None) -> None:
-        """A frame's own timestamp: given for every frame or none, never going back."""
+        """A frame's own timestamp: given for every frame or none (kept as given, a clock
+        that goes back included)."""
         given = self._stamps is not None
         if stamp is not None and self.timestamps_ns is not None:
             raise InputError(f"{self.path}: timestamps given to the writer and to frame {t}")
@@ -511,8 +512,6 @@ class VideoWriter(AtomicWriter):
         stamp = int(stamp)
         if self._stamps is None:
             self._stamps = []
-        elif stamp < self._stamps[-1]:
-            raise InputError(f"{self.path}: frame {t}'s timestamp goes back in time")
         self._stamps.append(stamp)
 
     # -- finishing -----------------------------------------------------------------------------

@@ -17,6 +17,7 @@ import upsr
 from tests.apps._util import H, T, W, png_folder, run_cli, video
 from upsr.apps import _preflight
 from upsr.errors import InputError
+from upsr.io import identity
 from upsr.io import video as io
 from upsr.method import windowed as pipeline
 
@@ -447,3 +448,14 @@ def test_batch_output_scale_names_and_sidecar(capsys, here: Path) -> None:
     assert abs(np.median(raw[raw > 0]) / 5 - np.median(video())) < 50
     side = json.loads((here / "out" / "rec.intrinsics.json").read_text())
     assert side["frame_names"] == [f"{i:03d}" for i in range(T)]
+
+
+def test_timestamps_that_go_back_are_kept_with_a_warning(capsys, here: Path) -> None:
+    """A camera clock reset (times 30, 40, 10 ms) refused the whole recording ("timestamps go
+    back in time", even for a .npy output); now kept as recorded, with one warning."""
+    np.savez("in.npz", depth=video()[:3], timestamps=np.array([30, 40, 10]) * 10**6)
+    rc, _, err = run_cli(capsys, "run", "in.npz", "-o", "out.npz", "-r", 1, *FAST)
+    assert rc == 0, err
+    assert "warning: in.npz: the timestamps go back in time at frame 2" in err
+    stamps = identity.read_timestamps(Path("out.npz"))
+    np.testing.assert_array_equal(stamps, np.array([30, 40, 10]) * 10**6)

@@ -440,16 +440,14 @@ class _Writer(threading.Thread):
     def run(self) -> None:
         try:
             with self._opened() as writer:
-                last = 0
                 while (item := self._queue.get()) is not _CLOSE:
                     if item is _ABORT or self.abort.is_set():
                         raise _Aborted  # (the writer discards what it wrote)
                     frame, out, stamp = item
-                    # the SDK's time of the frame (a camera's clock may step back: then the
-                    # last time again, rather than a stream refused)
-                    last = max(last, stamp)
-                    writer.write(out, timestamp_ns=last)
-                    self.stamps.append(last)
+                    # the SDK's time of the frame, as recorded (a camera's clock may step
+                    # back: as upsr run keeps it)
+                    writer.write(out, timestamp_ns=stamp)
+                    self.stamps.append(stamp)
                     self._written(frame, out)
                 if self.abort.is_set():
                     raise _Aborted

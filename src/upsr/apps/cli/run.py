@@ -7,6 +7,7 @@ import dataclasses
 import itertools
 import sys
 import time
+import warnings
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Annotated, Any
@@ -183,6 +184,10 @@ def run(
                    err=True)  # fmt: skip
     names = identity.read_frame_names(input_path, fmt=in_fmt)
     stamps = identity.read_timestamps(input_path, fmt=in_fmt, topic=topic, key=key)
+    back = identity.first_step_back(stamps)
+    if back is not None:
+        warnings.warn(f"{input_path.name}: the timestamps go back in time at frame {back} (a "
+                      "camera clock reset?): kept as recorded", stacklevel=1)  # fmt: skip
     source = io.iter_frames(input_path, key=key, depth_scale=s_in, fmt=in_fmt, topic=topic)
     with contextlib.closing(source):
         read = pre.frames_until_depth(source)
