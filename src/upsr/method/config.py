@@ -47,7 +47,7 @@ MAX_TOLERANCE = 1e6
 #: Speckles (px): the largest output frame (MAX_SCALE² · the largest input frame).
 MAX_SPECKLE_PX = MAX_SCALE * MAX_SCALE * (1 << 28)
 #: Power of a noise profile σ₁·(z / 1 m)^p (disparity-based cameras: about 2).
-MAX_NOISE_POWER = 4.0
+MAX_NOISE_POWER = 4.0  # (noise.PROFILE_MAX_POWER: the same bound for a fitted one)
 _PROFILE_NAMES = ("auto", "constant")
 
 BlurModel = Literal["none", "box", "gaussian"]

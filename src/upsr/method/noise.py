@@ -34,6 +34,7 @@ from upsr.errors import InputError
 __all__ = [
     "NOISE_FREE_MM",
     "PROFILE_BIN_RATIO",
+    "PROFILE_MAX_POWER",
     "PROFILE_MAX_PX",
     "PROFILE_MIN_POWER",
     "PROFILE_MIN_SAMPLES",
@@ -88,6 +89,11 @@ PROFILE_MIN_SPAN = 1.3
 #: realistic scenes (4 scenes × 2 seeds, ``benchmarks/realistic_eval.py``) Laplacian, Gaussian
 #: and ToF noise fit −0.27 … +0.07, the Kinect model 1.56 … 1.86.
 PROFILE_MIN_POWER = 0.5
+#: A fitted power above this is no sensor's noise (stereo and structured light: about 2) but
+#: what is left of depth without noise (a clean render: rounding that grows with depth; a
+#: 14 m corridor fitted p = 9.6, and the deblurring's steps at 12 m were 2.7 million times its
+#: median step): taken for p = 0 (``UPSRConfig``'s trust_noise_profile allows up to 4 too).
+PROFILE_MAX_POWER = 4.0
 
 
 @nb.njit(cache=True, nogil=True)
@@ -229,7 +235,8 @@ def noise_profile(
     -------
     (sigma_1m_mm, power): σ₁ (mm, the std at 1 m) and p. p = 0 (σ₁ the counts-weighted mean
     std of the bins) where the depths span less than :data:`PROFILE_MIN_SPAN`, where the
-    fitted power is below :data:`PROFILE_MIN_POWER`, or where no bin is filled (σ₁ = 0).
+    fitted power is below :data:`PROFILE_MIN_POWER` or above :data:`PROFILE_MAX_POWER`, or
+    where no bin is filled (σ₁ = 0).
     """
     z = np.asarray(frames, np.float32)
     if z.ndim == 2:
@@ -269,7 +276,7 @@ def noise_profile(
     w = np.sqrt(nb_)
     design = np.stack([np.ones_like(zb), np.log(zb / 1000.0)], axis=1)
     (log_s1, power), *_ = np.linalg.lstsq(design * w[:, None], np.log(sb) * w, rcond=None)
-    if not power >= PROFILE_MIN_POWER:
+    if not PROFILE_MIN_POWER <= power <= PROFILE_MAX_POWER:
         return level, 0.0
     return float(math.exp(log_s1)), float(power)
 
