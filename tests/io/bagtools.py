@@ -223,3 +223,33 @@ def encode_compressed_depth(
     else:
         body = _imencode_png(raw)
     return f"{encoding}; compressedDepth {codec}", header + body
+
+
+def realsense_ros2_bag(
+    path: Path,
+    frames: Sequence[np.ndarray],
+    *,
+    option_units: str,
+    metadata: Sequence[str | None],
+    header_ms: Sequence[float],
+) -> Path:
+    """A ROS 2 bag laid out as librealsense 2.59 records (16UC1 Depth_0 images, a Depth_Units
+    option as text, each frame's ``…/image/metadata`` text logged with it; None: none)."""
+    from rosbags.rosbag2 import Writer
+    from rosbags.typesys import Stores, get_typestore
+
+    ts = get_typestore(Stores.ROS2_HUMBLE)
+    s, root = "std_msgs/msg/String", "/device_0/sensor_0"
+    with Writer(path, version=9) as w:
+        option = w.add_connection(f"{root}/option/Depth_Units/value", s, typestore=ts)
+        w.write(option, 1, ts.serialize_cdr(ts.types[s](data=option_units), s))
+        img = w.add_connection(f"{root}/Depth_0/image/data", "sensor_msgs/msg/Image", typestore=ts)
+        meta = w.add_connection(f"{root}/Depth_0/image/metadata", s, typestore=ts)
+        for i, (f, text, ms) in enumerate(zip(frames, metadata, header_ms, strict=True)):
+            t = (i + 1) * 10**8
+            msg = image(ts, f, "16UC1")
+            msg.header.stamp.sec, msg.header.stamp.nanosec = divmod(round(ms * 1e6), 10**9)
+            w.write(img, t, ts.serialize_cdr(msg, "sensor_msgs/msg/Image"))
+            if text is not None:
+                w.write(meta, t, ts.serialize_cdr(ts.types[s](data=text), s))
+    return path

@@ -267,3 +267,30 @@ def test_lone_db3_and_mcap(tmp_path: Path) -> None:
     bad.write_bytes(b"not sqlite at all" * 10)
     with pytest.raises(InputError, match=r"x\.db3"):
         uio.probe(bad)
+
+
+def test_realsense_frames_take_their_own_units_and_times_from_their_metadata(tmp_path) -> None:
+    """librealsense writes each frame's depth units and time into its metadata: upsr run read
+    the Depth_Units option only (a D405 recording with no or another option: 10 times too
+    deep) and, with one metadata message missing, took every time from the header stamps
+    (another clock: the time since the recording began)."""
+    from .bagtools import realsense_ros2_bag
+
+    raw = [15000, 15000, 15000, 1500, 1500]  # 1500 mm at 0.1 mm, then at 1 mm
+    units = ["0.000100"] * 3 + ["0.001000", None]
+    header = [33.3 * k for k in range(5)]
+    meta = [
+        None if u is None else f"Frame number={k};timestamp={1000 + h:.6f};depth_units={u};"
+        for k, (u, h) in enumerate(zip(units, header, strict=True))
+    ]
+    bag = realsense_ros2_bag(
+        tmp_path / "rs",
+        [np.full((6, 8), v, np.uint16) for v in raw],
+        option_units="0.001000",
+        metadata=meta,
+        header_ms=header,
+    )
+    np.testing.assert_array_equal(uio.read_video(bag), np.full((5, 6, 8), 1500.0, np.float32))
+    np.testing.assert_allclose(
+        uio.read_timestamps(bag) / 1e6, [1000.0, 1033.3, 1066.6, 1099.9, 1133.2], atol=1e-3
+    )

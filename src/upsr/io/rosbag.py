@@ -346,6 +346,8 @@ def frames(
         with reading(name):
             conn, _ = _depth_connection(reader, opts.topic, name)
             units = _depth_units_mm(reader, conn.topic, name)
+            # (RealSense .db3: each frame's own units, where its metadata gives them)
+            meta = _realsense_meta(reader, conn.topic) or {}
             conns = [c for c in reader.connections if c.topic == conn.topic]
             messages = reader.messages(connections=conns)
             for _ in range(start):
@@ -359,8 +361,10 @@ def frames(
                 item = next(messages, None)
                 if item is None:
                     break
-                c, _, raw = item
-                frame = _decode(_parse(reader, c, raw, label), units, label)
+                c, t, raw = item
+                own = _meta_value(meta.get(t), "depth_units")
+                frame_units = units if own is None else realsense_units_mm(own, label)
+                frame = _decode(_parse(reader, c, raw, label), frame_units, label)
             if shape is None:
                 shape = frame.shape
             elif frame.shape != shape:
@@ -377,8 +381,10 @@ def timestamps(path: Path, opts: ReadOptions, fmt: str = "rosbag") -> np.ndarray
 
     The header stamp of each depth message; RealSense recordings whose header stamps are not
     the frame times (``.db3`` of librealsense 2.59 holds the time since the recording began)
-    take the ``timestamp=`` (ms) of the ``…/image/metadata`` messages, which is what the SDK's
-    playback reports; messages whose header stamps are all 0 take the bag's receive times.
+    take the ``timestamp=`` (ms) of each frame's ``…/image/metadata`` message (the one logged
+    with it), which is what the SDK's playback reports (a frame without one: its header stamp
+    on that clock, the median offset of the others); messages whose header stamps are all 0
+    take the bag's receive times.
     """
     name = str(path)
     with _open(path) as reader, reading(name):
@@ -388,15 +394,21 @@ def timestamps(path: Path, opts: ReadOptions, fmt: str = "rosbag") -> np.ndarray
         for c, t, raw in reader.messages(connections=conns):
             header.append(_parse(reader, c, raw, f"{name} {conn.topic}").stamp_ns)
             received.append(t)
-        meta = _realsense_meta_stamps(reader, conn.topic)
-    if meta is not None and len(meta) == len(header):
-        return np.asarray(meta, np.int64)
+        meta = _realsense_meta(reader, conn.topic) or {}
+    own = [_meta_value(meta.get(t), "timestamp") for t in received]
+    known = [k for k, v in enumerate(own) if v is not None]
+    if known:
+        stamps = np.asarray([round(v * 1e6) if v is not None else 0 for v in own], np.int64)
+        offset = int(np.median([stamps[k] - header[k] for k in known]))
+        return np.where([v is None for v in own], np.asarray(header) + offset, stamps)
     if header and not any(header):
         return np.asarray(received, np.int64)
     return np.asarray(header, np.int64)
 
 
-def _realsense_meta_stamps(reader: Any, depth_topic: str) -> list[int] | None:
+def _realsense_meta(reader: Any, depth_topic: str) -> dict[int, str] | None:
+    """A RealSense ``.db3``'s ``…/image/metadata`` texts by log time (a frame's is logged with
+    it), or None (none, or ROS 1 RealSense bags: KeyValue metadata, header stamps the times)."""
     m = re.match(r"(.*/Depth_\d+)/image/", depth_topic)
     if m is None:
         return None
@@ -405,15 +417,20 @@ def _realsense_meta_stamps(reader: Any, depth_topic: str) -> list[int] | None:
         c for c in reader.connections if c.topic == topic and c.msgtype == "std_msgs/msg/String"
     ]
     if not conns:
-        return None  # ROS 1 RealSense bags: KeyValue metadata, header stamps are the frame times
-    out = []
-    for c, _, raw in reader.messages(connections=conns):
-        text = str(reader.deserialize(raw, c.msgtype).data)
-        found = re.search(r"(?:^|;)timestamp=([0-9.eE+-]+)", text)
-        if found is None:
-            return None
-        out.append(round(float(found.group(1)) * 1e6))
-    return out
+        return None
+    return {
+        t: str(reader.deserialize(raw, c.msgtype).data)
+        for c, t, raw in reader.messages(connections=conns)
+    }
+
+
+def _meta_value(text: str | None, key: str) -> float | None:
+    """The number ``key=`` of a RealSense metadata text, or None."""
+    found = None if text is None else re.search(rf"(?:^|;){key}=([0-9.eE+-]+)", text)
+    try:
+        return None if found is None else float(found.group(1))
+    except ValueError:
+        return None
 
 
 def _camera_from_string(text: str, w: int, h: int) -> Any:
