@@ -62,7 +62,8 @@ def prepare_recording(
 
     lim = limits or {}
     sensor, strict, scale_given, out_scale = lim.get("units", ("default", False, False, 1000.0))
-    check_scale_applies([rec.input], read["fmt"], scale_given)  # (this recording's failure)
+    # (this recording's failure)
+    check_scale_applies([rec.input], read["fmt"], scale_given, read["topic"], read["depth_scale"])
     info = io.probe(rec.input, key=read["key"], fmt=read["fmt"], topic=read["topic"])
     if shrink_frames and cfg.n_frames > info.n_frames:
         cfg = dataclasses.replace(cfg, n_frames=info.n_frames)

@@ -207,16 +207,28 @@ def check_first_frame(
     )
 
 
-def check_scale_applies(inputs: Sequence[Path], in_fmt: str | None, given: bool) -> None:
+def check_scale_applies(
+    inputs: Sequence[Path],
+    in_fmt: str | None,
+    given: bool,
+    topic: str | None = None,
+    scale: float = 1000.0,
+) -> None:
     """An input depth scale given on the command line, even 1000, is refused for an input
-    whose format fixes its units (ROS bags, ``nyu``, ``tum``, ``sun``): it would be ignored."""
+    whose format fixes its units (``nyu``, ``tum``, ``sun``): it would be ignored (a ROS bag's
+    reader decides: 16-bit depth takes it, a RealSense recording or metres refuse it)."""
     if not given:
         return
+    from upsr.io.registry import ReadOptions
     from upsr.io.video import ARRAY_FORMATS, SCALED_FORMATS, _input_format
 
     for path in inputs:
         f = _input_format(Path(path), in_fmt)
-        if f not in SCALED_FORMATS + ARRAY_FORMATS:
+        if f == "rosbag":
+            from upsr.io.rosbag import check_given_scale
+
+            check_given_scale(Path(path), ReadOptions(topic=topic, depth_scale=scale))
+        elif f not in SCALED_FORMATS + ARRAY_FORMATS:
             raise InputError(
                 f"{path}: --input-depth-scale does not apply to {f} input, whose units the "
                 f"format fixes"
@@ -229,8 +241,8 @@ def read_options(
 ) -> dict[str, Any]:  # fmt: skip
     """The keyword arguments of :func:`upsr.io.iter_frames` for the read options of
     ``inputs``; a depth scale given (not None) is checked by :func:`check_scale_applies`."""
-    check_scale_applies(inputs, in_fmt, depth_scale is not None)
     scale = 1000.0 if depth_scale is None else depth_scale
+    check_scale_applies(inputs, in_fmt, depth_scale is not None, topic, scale)
     return {"key": key, "topic": topic, "fmt": in_fmt, "depth_scale": scale}
 
 

@@ -344,10 +344,12 @@ def frames(
     name = str(path)
     with _open(path) as reader:
         with reading(name):
-            conn, _ = _depth_connection(reader, opts.topic, name)
+            conn, first = _depth_connection(reader, opts.topic, name)
             units = _depth_units_mm(reader, conn.topic, name)
             # (RealSense .db3: each frame's own units, where its metadata gives them)
             meta = _realsense_meta(reader, conn.topic) or {}
+            if opts.depth_scale != 1000.0:
+                units = _given_units_mm(first, opts, units is not None or bool(meta), name)
             conns = [c for c in reader.connections if c.topic == conn.topic]
             messages = reader.messages(connections=conns)
             for _ in range(start):
@@ -404,6 +406,30 @@ def timestamps(path: Path, opts: ReadOptions, fmt: str = "rosbag") -> np.ndarray
     if header and not any(header):
         return np.asarray(received, np.int64)
     return np.asarray(header, np.int64)
+
+
+def check_given_scale(path: Path, opts: ReadOptions) -> None:
+    """Refuse a depth scale given for this bag's depth topic (even 1000) where it would not
+    be applied (:func:`_given_units_mm`)."""
+    name = str(path)
+    with _open(path) as reader, reading(name):
+        conn, first = _depth_connection(reader, opts.topic, name)
+        realsense = _depth_units_mm(reader, conn.topic, name) is not None
+        _given_units_mm(first, opts, realsense or bool(_realsense_meta(reader, conn.topic)), name)
+
+
+def _given_units_mm(msg: Any, opts: ReadOptions, realsense: bool, name: str) -> float:
+    """mm per raw unit of a depth scale given for a bag: 16-bit depth recorded by a driver
+    that publishes the camera's raw units rather than REP 118's mm (realsense-ros with a
+    D405's 0.1 mm); refused for a RealSense recording (its frames carry their units) and for
+    float depth (metres, REP 117)."""
+    what = f"a depth scale ({opts.depth_scale:g} units/m) does not apply to"
+    if realsense:
+        raise InputError(f"{name}: {what} a RealSense recording, which carries its units")
+    enc = msg.format.split(";")[0] if isinstance(msg, CompressedMsg) else msg.encoding
+    if str(enc).strip().lower() == "32fc1":
+        raise InputError(f"{name}: {what} 32FC1 depth, in metres (REP 117)")
+    return opts.mm_per_unit
 
 
 def _realsense_meta(reader: Any, depth_topic: str) -> dict[int, str] | None:

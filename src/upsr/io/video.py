@@ -257,7 +257,7 @@ def iter_frames(
     f = _input_format(p, fmt)
     _check_key_topic(f, key, topic)
     opts = ReadOptions(key=key, depth_scale=scale, topic=topic)
-    if scale != 1000.0 and f not in SCALED_FORMATS + ARRAY_FORMATS:
+    if scale != 1000.0 and f not in SCALED_FORMATS + ARRAY_FORMATS + ("rosbag",):
         raise InputError(
             f"{p}: a depth scale ({scale:g} units/m) does not apply to {f} input, whose units "
             f"the format fixes"

@@ -243,7 +243,7 @@ def test_a_depth_scale_that_does_not_fit_one_recording_fails_that_one_only(
     assert main(args) == 2
     cap = capsys.readouterr()
     assert "1 done, 0 skipped (output exists), 1 failed" in cap.out
-    assert "--input-depth-scale does not apply to rosbag input" in cap.err
+    assert "does not apply to a RealSense recording, which carries its units" in cap.err
     assert np.median(np.load(out / "m.npy")) == pytest.approx(1500.0, abs=1.0)
 
 

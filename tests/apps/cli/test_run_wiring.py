@@ -459,3 +459,22 @@ def test_timestamps_that_go_back_are_kept_with_a_warning(capsys, here: Path) -> 
     assert "warning: in.npz: the timestamps go back in time at frame 2" in err
     stamps = identity.read_timestamps(Path("out.npz"))
     np.testing.assert_array_equal(stamps, np.array([30, 40, 10]) * 10**6)
+
+
+def test_a_bags_16_bit_depth_in_other_units_takes_the_input_depth_scale(capsys, here: Path) -> None:
+    """realsense-ros publishes a D405's raw 0.1 mm units as 16UC1: the output was 10 times
+    too deep, and --input-depth-scale 10000 was refused for any bag. 16-bit depth takes it;
+    32FC1 (metres, REP 117) and a RealSense recording (its own units) refuse it, even 1000."""
+    from tests.io import bagtools
+
+    raw = np.full((3, 6, 8), 15000, np.uint16)  # 1500 mm at 0.1 mm
+    bagtools.ros2_bag(here / "d405", list(raw), encoding="16UC1")
+    rc, _, err = run_cli(capsys, "run", "d405", "-o", "a.npy", "-r", 1, *FAST,
+                         "--input-depth-scale", 10000)  # fmt: skip
+    assert rc == 0, err
+    assert np.median(np.load("a.npy")) == pytest.approx(1500.0, abs=1.0)
+    bagtools.ros2_bag(here / "m", list(raw / 10000.0), encoding="32FC1")
+    rc, _, err = run_cli(capsys, "run", "m", "-o", "b.npy", "-r", 1, *FAST,
+                         "--input-depth-scale", 1000)  # fmt: skip
+    _one_error(rc, err, "does not apply to 32FC1 depth, in metres")
+    assert not Path("b.npy").exists()

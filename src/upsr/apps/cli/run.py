@@ -166,7 +166,7 @@ def run(
     s_in, s_out = units.resolve_depth_scales(depth_scale, input_depth_scale, output_depth_scale)
     in_fmt, out_fmt = fmt(input_format), fmt(output_format)
     scale_given = depth_scale is not None or input_depth_scale is not None
-    pre.check_scale_applies([input_path], in_fmt, scale_given)
+    pre.check_scale_applies([input_path], in_fmt, scale_given, topic, s_in)
     info = io.probe(input_path, key=key, fmt=in_fmt, topic=topic)
     camera = input_camera(input_path, info, intrinsics, fmt=in_fmt, topic=topic)
     if camera_motion is CameraMotion.depth:
