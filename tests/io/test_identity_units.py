@@ -182,6 +182,13 @@ def test_detect_tum_scale(tmp_path: Path) -> None:
     assert uio.detect_tum_scale(plain, (tum_raw // 5).astype(np.uint16)) is None
     far = np.full((4, 4), 30000, np.uint16)
     assert "the values" in uio.detect_tum_scale(plain, far)
+    # a desk 0.8-1.9 m away (raw 4000-9500, below the far range) in a TUM sequence's layout
+    # (timestamp names, depth.txt beside): read as mm without a word, 5 times too deep
+    desk = (4000 + 800 * x).astype(np.uint16)
+    assert uio.detect_tum_scale(folder, desk) is None  # the names alone: could be mm
+    (tmp_path / "depth.txt").write_text("# depth maps\n")
+    msg = uio.detect_tum_scale(folder, desk)
+    assert msg is not None and "TUM timestamp names" in msg
 
 
 def test_detect_sun_packing() -> None:

@@ -197,7 +197,8 @@ def detect_tum_scale(
     (median 2500–40000, 99th percentile > 10000, beyond a Kinect's 8–10 m when read as mm) and
     either the names are TUM timestamps (``1305031102.175304``) or the folder sits in a TUM
     sequence (``rgb.txt``/``depth.txt`` beside it), or the values alone exclude mm (99th
-    percentile > 20000, i.e. 20 m for a Kinect-type sensor).
+    percentile > 20000, i.e. 20 m for a Kinect-type sensor); or, at any median 2500–40000
+    (a near scene), both the names and the sequence are TUM's.
 
     Parameters
     ----------
@@ -219,7 +220,7 @@ def detect_tum_scale(
     if v.size == 0:
         return None
     med, p99 = (float(x) for x in np.percentile(v, [50, 99]))
-    if not (2500 <= med <= 40_000 and p99 > 10_000):
+    if not 2500 <= med <= 40_000:
         return None
     if frame_names is None:
         frame_names = [p.stem] if p.is_file() else sorted(x.stem for x in p.glob("*.png"))
@@ -227,7 +228,8 @@ def detect_tum_scale(
     folder = p if p.is_dir() else p.parent
     named = bool(names) and all(_TUM_NAME.match(n) for n in names)
     sequence = any((folder.parent / f).is_file() for f in ("rgb.txt", "depth.txt"))
-    if named or sequence or p99 > 20_000:
+    # (a TUM sequence's layout and names: whatever the depth, a desk at 0.8 m too)
+    if (p99 > 10_000 and (named or sequence or p99 > 20_000)) or (named and sequence):
         why = "TUM timestamp names" if named else "a TUM sequence" if sequence else "the values"
         # (the advice first: a long path must not push it past the one-line limit)
         return (
