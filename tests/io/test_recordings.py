@@ -294,3 +294,28 @@ def test_realsense_frames_take_their_own_units_and_times_from_their_metadata(tmp
     np.testing.assert_allclose(
         uio.read_timestamps(bag) / 1e6, [1000.0, 1033.3, 1066.6, 1099.9, 1133.2], atol=1e-3
     )
+
+
+def test_only_the_depth_cameras_own_camera_info_gives_intrinsics(tmp_path) -> None:
+    """A bag with the colour camera's CameraInfo only: its intrinsics were written as the
+    depth's (or, of another size, the recording was refused)."""
+    from rosbags.rosbag2 import Writer
+    from rosbags.typesys import Stores, get_typestore
+
+    from .bagtools import K_DEFAULT, camera_info, image
+
+    ts = get_typestore(Stores.ROS2_HUMBLE)
+    info_t, img_t = "sensor_msgs/msg/CameraInfo", "sensor_msgs/msg/Image"
+    depth = np.full((6, 8), 1500, np.uint16)
+    for name, infos in (("sibling", ["color"]), ("own", ["color", "depth"])):
+        with Writer(tmp_path / name, version=9) as w:
+            for cam in infos:
+                c = w.add_connection(f"/camera/camera/{cam}/camera_info", info_t, typestore=ts)
+                k = (70.0, 0, 32.0, 0, 70.0, 24.0, 0, 0, 1) if cam == "color" else K_DEFAULT
+                size = (16, 12) if cam == "color" else (8, 6)
+                w.write(c, 1, ts.serialize_cdr(camera_info(ts, *size, k), info_t))
+            c = w.add_connection("/camera/camera/depth/image_rect_raw", img_t, typestore=ts)
+            w.write(c, 2, ts.serialize_cdr(image(ts, depth, "16UC1"), img_t))
+    assert uio.read_intrinsics(tmp_path / "sibling") is None
+    cam = uio.read_intrinsics(tmp_path / "own")
+    assert (cam.fx, cam.cx, cam.cy) == (K_DEFAULT[0], K_DEFAULT[2], K_DEFAULT[5])

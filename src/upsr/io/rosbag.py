@@ -251,19 +251,23 @@ def _namespace_score(a: str, b: str) -> int:
     return n
 
 
-def _best_match(reader: Any, depth_topic: str, msgtype: str, suffix: str = "") -> Any:
+def _camera_info_of(reader: Any, depth_topic: str) -> Any:
+    """The CameraInfo connection of the depth topic's own camera: in its namespace
+    (``/cam/depth/camera_info`` for ``/cam/depth/image_rect_raw``; RealSense's
+    ``…/Depth_0/info/camera_info``), the deepest; None where there is none (a sibling
+    camera's, ``/cam/color/camera_info``, was taken for the depth's)."""
+
+    def namespace(topic: str) -> str:
+        ns = topic.rstrip("/").rsplit("/", 1)[0]
+        return ns[: -len("/info")] if ns.endswith("/info") else ns
+
     conns = [
         c
         for c in reader.connections
-        if c.msgtype == msgtype and (not suffix or c.topic.endswith(suffix))
+        if c.msgtype == _CAMERA_INFO and (depth_topic + "/").startswith(namespace(c.topic) + "/")
     ]
-    if not conns:
-        return None
     conns.sort(key=lambda c: (-_namespace_score(c.topic, depth_topic), c.topic))
-    best = conns[0]
-    if _namespace_score(best.topic, depth_topic) == 0 and len(conns) > 1:
-        return None  # ambiguous: none shares a namespace with the depth topic
-    return best
+    return conns[0] if conns else None
 
 
 def _depth_units_mm(reader: Any, depth_topic: str, name: str) -> float | None:
@@ -489,7 +493,7 @@ def intrinsics(path: Path, opts: ReadOptions, fmt: str = "rosbag") -> Any:
         conn, msg = _depth_connection(reader, opts.topic, name)
         frame = _decode(msg, None, name)
         h, w = frame.shape
-        info_conn = _best_match(reader, conn.topic, _CAMERA_INFO)
+        info_conn = _camera_info_of(reader, conn.topic)
         info = None if info_conn is None else _first(reader, info_conn)
         if info is None:
             m = re.match(r"(.*/Depth_\d+)/", conn.topic)
@@ -509,7 +513,7 @@ def intrinsics(path: Path, opts: ReadOptions, fmt: str = "rosbag") -> Any:
     if (iw, ih) not in ((0, 0), (w, h)):
         raise InputError(
             f"{name}: camera info {info_conn.topic} is for {iw}x{ih} images, the depth images "
-            f"are {w}x{h}"
+            f"are {w}x{h}: give the depth camera's --intrinsics FX,FY,CX,CY"
         )
     return PinholeCamera(float(k[0]), float(k[4]), float(k[2]), float(k[5]), w, h)
 
