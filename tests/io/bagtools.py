@@ -41,13 +41,15 @@ def image(
     )
 
 
-def camera_info(ts: Any, w: int, h: int, k: Sequence[float]) -> Any:
+def camera_info(
+    ts: Any, w: int, h: int, k: Sequence[float], d: Sequence[float] = (0.0,) * 5
+) -> Any:
     ci = ts.types["sensor_msgs/msg/CameraInfo"]
     roi = ts.types["sensor_msgs/msg/RegionOfInterest"](
         x_offset=0, y_offset=0, height=0, width=0, do_rectify=False
     )
     names = ("D", "K", "R", "P") if "K" in ci.__dataclass_fields__ else ("d", "k", "r", "p")
-    arrays = (np.zeros(5), np.asarray(k, float), np.eye(3).reshape(-1), np.zeros(12))
+    arrays = (np.asarray(d, float), np.asarray(k, float), np.eye(3).reshape(-1), np.zeros(12))
     return ci(
         header=_header(ts),
         height=h,

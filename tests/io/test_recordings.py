@@ -319,3 +319,24 @@ def test_only_the_depth_cameras_own_camera_info_gives_intrinsics(tmp_path) -> No
     assert uio.read_intrinsics(tmp_path / "sibling") is None
     cam = uio.read_intrinsics(tmp_path / "own")
     assert (cam.fx, cam.cx, cam.cy) == (K_DEFAULT[0], K_DEFAULT[2], K_DEFAULT[5])
+
+
+def test_a_lens_distortion_that_is_dropped_is_said(tmp_path) -> None:
+    """Non-zero distortion coefficients were dropped without a word (the intrinsics sidecar
+    says pinhole): a warning; none for zero coefficients (the other tests' bags)."""
+    from rosbags.rosbag2 import Writer
+    from rosbags.typesys import Stores, get_typestore
+
+    from .bagtools import K_DEFAULT, camera_info, image
+
+    ts = get_typestore(Stores.ROS2_HUMBLE)
+    info_t, img_t = "sensor_msgs/msg/CameraInfo", "sensor_msgs/msg/Image"
+    with Writer(tmp_path / "bag", version=9) as w:
+        c = w.add_connection("/cam/depth/camera_info", info_t, typestore=ts)
+        msg = camera_info(ts, 8, 6, K_DEFAULT, d=(0.12, -0.25, 0.0, 0.0, 0.01))
+        w.write(c, 1, ts.serialize_cdr(msg, info_t))
+        c = w.add_connection("/cam/depth/image_raw", img_t, typestore=ts)
+        w.write(c, 2, ts.serialize_cdr(image(ts, np.full((6, 8), 1500, np.uint16), "16UC1"), img_t))
+    with pytest.warns(UserWarning, match="lens distortion .plumb_bob, 5 coefficients"):
+        cam = uio.read_intrinsics(tmp_path / "bag")
+    assert cam.fx == K_DEFAULT[0]

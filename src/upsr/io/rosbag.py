@@ -17,6 +17,7 @@ from __future__ import annotations
 import contextlib
 import os
 import re
+import warnings
 from collections.abc import Iterator, Sequence
 from pathlib import Path
 from typing import Any, BinaryIO
@@ -463,11 +464,27 @@ def _meta_value(text: str | None, key: str) -> float | None:
         return None
 
 
+def _warn_distortion(model: Any, coeffs: Any) -> None:
+    """A warning where the camera's lens distortion (non-zero coefficients) is dropped: upsr's
+    intrinsics (and ``OUTPUT.intrinsics.json``) are a pinhole's."""
+    try:
+        values = [float(c) for c in coeffs if str(c).strip()]
+    except (TypeError, ValueError):
+        values = []
+    if any(v != 0.0 for v in values):
+        warnings.warn(
+            f"the depth camera's lens distortion ({model or 'a model'}, {len(values)} "
+            "coefficients) is not modelled: its intrinsics are taken as a pinhole's",
+            stacklevel=2,
+        )
+
+
 def _camera_from_string(text: str, w: int, h: int) -> Any:
     """librealsense 2.59's ``…/Depth_0/camera_info`` String: ``width=..;fx=..;ppx=..``."""
     from upsr.geometry.camera import PinholeCamera
 
     kv = dict(p.split("=", 1) for p in text.split(";") if "=" in p)
+    _warn_distortion(kv.get("model", ""), kv.get("coeffs", "").split(","))
     try:
         return PinholeCamera(
             float(kv["fx"]), float(kv["fy"]), float(kv["ppx"]), float(kv["ppy"]), w, h
@@ -515,6 +532,9 @@ def intrinsics(path: Path, opts: ReadOptions, fmt: str = "rosbag") -> Any:
             f"{name}: camera info {info_conn.topic} is for {iw}x{ih} images, the depth images "
             f"are {w}x{h}: give the depth camera's --intrinsics FX,FY,CX,CY"
         )
+    _warn_distortion(
+        getattr(info, "distortion_model", ""), getattr(info, "d", getattr(info, "D", []))
+    )
     return PinholeCamera(float(k[0]), float(k[4]), float(k[2]), float(k[5]), w, h)
 
 
