@@ -6,7 +6,9 @@ streaming, so that the engine can be made and warmed up first (:mod:`upsr.method
 :meth:`FrameSource.start` starts it. A reader thread takes each frame from the SDK and hands it
 over through a queue of ONE frame: a frame that arrives while the previous one is still being
 processed replaces it, and the one replaced is counted as dropped (never queued without
-bound); gaps in the SDK's frame numbers count as dropped too. A recording not in real time is
+bound); gaps in a camera's frame numbers count as dropped too (a recording's dropped frames are
+those it holds that the SDK did not give: gaps in its frame numbers are frames the camera
+dropped while recording). A recording not in real time is
 played as fast as it is taken, every frame: its depth sensor is opened directly, in
 non-real-time playback from the start, and its frame callback waits for the queue (a pipeline
 starts in real time and, with a slow first frame, lost one). Needs the optional extra
@@ -92,6 +94,12 @@ class FrameSource:
                 profile = self._resolve_pipeline(recording)
         except RuntimeError as e:
             offered = self._offered(recording)
+            several = self._offered(recording, always=True) if self._stream is None else ""
+            if several.count("x") > 1:  # (WxH each: several depth streams, none asked for)
+                raise InputError(
+                    f"{recording or 'RealSense camera'}: several depth streams{several}: "
+                    "choose one with --stream WxH@FPS"
+                ) from e
             if not offered and recording is not None:  # (the SDK's reason, without its request)
                 reason = str(e).rsplit("Reason: ", 1)[-1]
                 raise InputError(f"{recording}: the RealSense SDK cannot play it: {reason}") from e
@@ -164,11 +172,20 @@ class FrameSource:
         device = rs.context().load_device(str(recording))
         self._playback = device.as_playback()
         self._playback.set_real_time(False)  # before anything plays
-        for sensor in device.query_sensors():
-            for prof in sensor.get_stream_profiles():
-                if prof.stream_type() == rs.stream.depth and self._wanted(prof):
-                    self._sensor, self._profile = sensor, prof
-                    return prof.as_video_stream_profile()
+        found = [
+            (sensor, prof)
+            for sensor in device.query_sensors()
+            for prof in sensor.get_stream_profiles()
+            if prof.stream_type() == rs.stream.depth and self._wanted(prof)
+        ]
+        if len(found) > 1 and self._stream is None:  # (as in real time, and upsr run)
+            raise InputError(
+                f"{recording}: several depth streams{self._offered(recording, always=True)}: "
+                "choose one with --stream WxH@FPS"
+            )
+        if found:
+            self._sensor, self._profile = found[0]
+            return found[0][1].as_video_stream_profile()
         what = "" if self._stream is None else " " + _stream_text(self._stream)
         raise InputError(f"{recording}: no depth stream{what}{self._offered(recording)}")
 
@@ -180,10 +197,11 @@ class FrameSource:
         video = profile.as_video_stream_profile()
         return (video.width(), video.height()) == (w, h) and fps in (0, profile.fps())
 
-    def _offered(self, recording: Path | None) -> str:
+    def _offered(self, recording: Path | None, always: bool = False) -> str:
         """``" (offered: WxH@FPS, …)"``: the depth streams of the recording or of the first
-        camera, where a ``stream`` was asked for ("" otherwise, or where none can be read)."""
-        if self._stream is None:
+        camera, where a ``stream`` was asked for or ``always`` ("" otherwise, or where none
+        can be read)."""
+        if self._stream is None and not always:
             return ""
         rs = self._rs
         try:
@@ -269,8 +287,10 @@ class FrameSource:
                 if not depth:
                     continue
                 number = depth.get_frame_number()
-                if last is not None and number > last + 1:
-                    self._unseen += number - last - 1  # the SDK dropped these
+                if last is not None and number > last + 1 and self._in_recording is None:
+                    # the SDK dropped these (a recording's are counted at its end: gaps in
+                    # its frame numbers are frames the camera dropped while recording)
+                    self._unseen += number - last - 1
                 last = number
                 item = self._item(depth)
                 try:
@@ -307,7 +327,7 @@ class FrameSource:
                 if self._error is not None:
                     raise InputError(f"RealSense: {self._error}")
                 if self._in_recording is not None and not self._stop.is_set():
-                    self._unseen = max(self._unseen, self._in_recording - self.received)
+                    self._unseen = max(0, self._in_recording - self.received)
                 return
             yield item
 

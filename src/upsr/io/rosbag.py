@@ -169,6 +169,8 @@ def _depth_connection(reader: Any, topic: str | None, name: str) -> tuple[Any, A
             found.append((c, msg))
         else:
             others.append(f"{c.topic} ({_describe(msg)})")
+    if not images:
+        raise InputError(f"{name}: no image topic in it (an empty recording?)")
     if not found:
         what = f"topic {topic!r} is not" if topic is not None else "no topic is"
         raise InputError(
@@ -177,8 +179,11 @@ def _depth_connection(reader: Any, topic: str | None, name: str) -> tuple[Any, A
             f"16-bit PNG); image topics: {', '.join(others) or 'none'}"
         )
     if len(found) > 1:
+        # (the advice and the names before the bag's path: a long line is cut in its middle)
         names = ", ".join(c.topic for c, _ in found)
-        raise InputError(f"{name}: several depth topics ({names}): choose one with --topic")
+        raise InputError(
+            f"{Path(name).name}: several depth topics, choose one with --topic: {names}"
+        )
     return found[0]
 
 

@@ -152,6 +152,23 @@ def test_frames_a_real_time_playback_skips_before_the_first_count_as_dropped(tmp
     assert done + dropped == len(_frames()) and np.load(out).shape[0] == done
 
 
+def test_frames_the_camera_dropped_while_recording_are_not_dropped_by_upsr(tmp_path, capsys):
+    """A recording whose frame numbers have gaps (10, 11, 13, 14, 20, ...: the camera dropped
+    frames while recording) said "13 dropped" of 8 frames processed, with advice to keep up."""
+    from upsr.research.synth.recording import write_realsense_recording
+
+    frames = np.round(_frames()[:8])
+    numbers = [10, 11, 13, 14, 20, 21, 22, 30]
+    rec = write_realsense_recording(
+        tmp_path / "gaps.db3", frames, real_time=True, frame_numbers=numbers
+    )
+    rc, stdout, err = run_cli(capsys, "live", rec, "-o", tmp_path / "o.npy", "-r", "2", "-q")
+    assert rc == 0, err
+    done = int(stdout.split("live: ")[1].split(" frames")[0])
+    dropped = int(stdout.split(" dropped")[0].rsplit(" ", 1)[1])
+    assert done + dropped == len(frames)
+
+
 def test_the_summary_gives_the_median_latency():
     from upsr.apps.cli.live import latency_text
 

@@ -10,6 +10,7 @@ and ``upsr live`` (which plays it back through the SDK as a camera). Needs the o
 from __future__ import annotations
 
 import time
+from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
@@ -28,6 +29,7 @@ def write_realsense_recording(
     units_m: float = 0.001,
     intrinsics: tuple[float, float, float, float] | None = None,
     real_time: bool = False,
+    frame_numbers: Sequence[int] | None = None,
 ) -> Path:
     """Record ``frames_mm`` as a RealSense depth stream through the SDK.
 
@@ -47,6 +49,9 @@ def write_realsense_recording(
         Feed one frame every 1/``fps`` s, so that the recording plays back at the camera's
         rate (the SDK records the time of arrival); else as fast as possible (the whole
         recording then plays back within a few milliseconds).
+    frame_numbers : sequence of int, optional
+        The camera's number of each frame (default 1, 2, …; gaps: frames the camera dropped
+        while recording).
 
     Returns
     -------
@@ -92,7 +97,7 @@ def write_realsense_recording(
         f.stride = w * 2
         f.timestamp = t * 1000.0 / fps
         f.domain = rs.timestamp_domain.hardware_clock
-        f.frame_number = t + 1
+        f.frame_number = t + 1 if frame_numbers is None else int(frame_numbers[t])
         f.profile = profile.as_video_stream_profile()
         sensor.on_video_frame(f)
         queue.wait_for_frame(1000)
