@@ -340,3 +340,19 @@ def test_a_lens_distortion_that_is_dropped_is_said(tmp_path) -> None:
     with pytest.warns(UserWarning, match="lens distortion .plumb_bob, 5 coefficients"):
         cam = uio.read_intrinsics(tmp_path / "bag")
     assert cam.fx == K_DEFAULT[0]
+
+
+def test_a_cut_a_renamed_and_an_active_recording_are_named_for_what_they_are(tmp_path) -> None:
+    """A RealSense .db3 named .bag was 'corrupt (UnicodeDecodeError)'; a ROS 1 bag cut short
+    'corrupt (Bag index looks damaged)'; a .bag.active 'unknown input format'."""
+    db3 = DATA / "rs259_1mm.db3"
+    renamed = tmp_path / "rec.bag"
+    renamed.write_bytes(db3.read_bytes())
+    np.testing.assert_array_equal(uio.read_video(renamed), uio.read_video(db3))
+    whole = (DATA / "rs256_1mm.bag").read_bytes()
+    (tmp_path / "cut.bag").write_bytes(whole[: len(whole) // 2])
+    with pytest.raises(InputError, match=r"index is damaged .* `rosbag reindex` repairs it"):
+        uio.read_video(tmp_path / "cut.bag")
+    (tmp_path / "live.bag.active").write_bytes(whole)
+    with pytest.raises(InputError, match="still being recorded, or cut short: `rosbag reindex`"):
+        uio.read_video(tmp_path / "live.bag.active")

@@ -78,11 +78,17 @@ def _bag_path(path: Path) -> Path:
     return path
 
 
+def _is_sqlite(path: Path) -> bool:
+    """Whether a file is an SQLite database (a RealSense ``.db3`` recording renamed ``.bag``)."""
+    with reading(str(path)), open(path, "rb") as fh:
+        return fh.read(16) == b"SQLite format 3\x00"
+
+
 @contextlib.contextmanager
 def _open(path: Path) -> Iterator[Any]:
     require("rosbags", "reading ROS bags")
     bag = _bag_path(path)
-    if bag.is_file() and bag.suffix.lower() == ".db3":
+    if bag.is_file() and (bag.suffix.lower() == ".db3" or _is_sqlite(bag)):
         from upsr.io._db3 import Db3Reader
 
         with reading(str(path)):
@@ -93,7 +99,15 @@ def _open(path: Path) -> Iterator[Any]:
 
         with reading(str(path)):
             reader = AnyReader([bag], default_typestore=get_typestore(Stores.LATEST))
-            reader.open()
+            try:
+                reader.open()
+            except Exception as e:  # (rosbags: "Bag index looks damaged")
+                if "index" not in str(e).lower() or bag.is_dir():
+                    raise
+                raise InputError(
+                    f"{path}: its index is damaged (a recording cut short?): `rosbag reindex` "
+                    "repairs it"
+                ) from None
     try:
         yield reader
     finally:

@@ -119,6 +119,11 @@ def _input_format(path: Path, fmt: str | None) -> str:
     else:
         suffix = path.suffix.lower()
         f = suffix[1:] if suffix in (".npy", ".npz", ".png") else formats.detect_file(path)
+        if f is None and path.name.lower().endswith(".bag.active"):
+            raise InputError(
+                f"{path}: a ROS 1 bag still being recorded, or cut short: `rosbag reindex` "
+                "repairs it, then name it .bag"
+            )
         if f is None:
             raise InputError(
                 f"{path}: unknown input format {path.suffix or '(no suffix)'!r} (npy, npz, "
