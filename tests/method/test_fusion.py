@@ -77,27 +77,6 @@ def test_bad_arguments():
         temporal_median(np.ones((3, 2, 2)), ref=3)
 
 
-def test_splat_nearest_places_samples_at_their_registered_centres():
-    from upsr.method.fusion import splat_nearest
-    from upsr.method.upsampling import upsample_nearest
-
-    rng = np.random.default_rng(0)
-    lr = rng.uniform(1000, 2000, (1, 5, 6)).astype(np.float32)
-    zero = np.zeros((1, 10, 12, 2), np.float32)
-    # r = 2, no motion: every high-res pixel is 0.71 px from its own low-res centre only
-    np.testing.assert_array_equal(splat_nearest(lr, zero, 2, 1.0), upsample_nearest(lr[0], 2))
-    # r = 4: the centres sit 1.5 px from the block corners; beyond the radius nothing is known
-    g = splat_nearest(lr, np.zeros((1, 20, 24, 2), np.float32), 4, 1.0)
-    assert np.isnan(g[0, 0]) and g[1, 1] == lr[0, 0, 0] and g[2, 2] == lr[0, 0, 0]
-    # a second frame moved by +1 px fills in between: its samples land 1 px further right
-    two = np.concatenate([lr, lr + 5])
-    maps = np.zeros((2, 20, 24, 2), np.float32)
-    maps[1, ..., 0] = 1.0
-    g2 = splat_nearest(two, maps, 4, 0.75)
-    # frame 1's sample centred at (x, y) = (1.5, 1.5) lands at (2.5, 1.5): nearest to (3, 1)
-    assert g2[1, 3] == lr[0, 0, 0] + 5 and g2[1, 1] == lr[0, 0, 0]
-
-
 def test_guide_decides_between_surfaces():
     stack = px(1000, 1001, 3000, 3001, 3002)
     assert temporal_median(stack, 0)[0, 0] == 3001

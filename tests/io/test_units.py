@@ -1,8 +1,8 @@
-"""Frame identity (names, timestamps), units checks and colour resampling (issue 15)."""
+"""upsr.io.units: depth scales, plausible depth ranges, TUM and SUN RGB-D detection, output
+capacity."""
 
 from __future__ import annotations
 
-import json
 import warnings
 from pathlib import Path
 
@@ -10,102 +10,11 @@ import numpy as np
 import pytest
 
 import upsr.io as uio
+from tests.io._frames import NAMES, _png_folder
 from upsr.errors import InputError
-from upsr.geometry.camera import PinholeCamera
-from upsr.geometry.intrinsics import load_intrinsics, write_intrinsics
-from upsr.io.identity import first_step_back
 from upsr.io.units import DepthUnitWarning
 
-cv2 = pytest.importorskip("cv2")
 
-NAMES = ["1305031102.175304", "1305031102.211214", "1305031102.243211"]
-
-
-def _png_folder(path: Path, frames: np.ndarray, names: list[str]) -> Path:
-    path.mkdir()
-    for f, n in zip(frames, names, strict=True):
-        cv2.imwrite(str(path / f"{n}.png"), f.astype(np.uint16))
-    return path
-
-
-def _video(t: int = 3) -> np.ndarray:
-    return np.stack([np.full((6, 8), 1000.0 + 10 * k, np.float32) for k in range(t)])
-
-
-def test_png_folder_keeps_frame_names_and_stamps(tmp_path: Path) -> None:
-    inp = _png_folder(tmp_path / "depth", _video(), NAMES)
-    names = uio.read_frame_names(inp)
-    assert names == NAMES
-    stamps = uio.read_timestamps(inp)
-    assert stamps[0] == 1305031102_175304000
-    out = uio.write_video(tmp_path / "out", uio.read_video(inp), frame_names=names)
-    assert sorted(p.stem for p in out.iterdir()) == NAMES
-    np.testing.assert_array_equal(uio.read_video(out), _video())
-    assert uio.read_frame_names(tmp_path / "out.npy" if False else out) == NAMES
-
-
-def test_exr_folder_keeps_names(tmp_path: Path) -> None:
-    pytest.importorskip("OpenEXR")
-    out = uio.write_video(tmp_path / "exr", _video(), fmt="exr", frame_names=["a", "b", "c"])
-    assert sorted(p.name for p in out.iterdir()) == ["a.exr", "b.exr", "c.exr"]
-
-
-def test_frame_names_checked(tmp_path: Path) -> None:
-    for bad in (["a", "a", "b"], ["a", "../b", "c"], ["a", ".b", "c"], ["a", "b"]):
-        with pytest.raises(InputError):
-            uio.write_video(tmp_path / "o", _video(), frame_names=bad)
-    assert not (tmp_path / "o").exists()
-    # names that are also the default ones, shuffled, do not collide
-    out = uio.write_video(tmp_path / "p", _video(), frame_names=["000001", "000002", "000000"])
-    np.testing.assert_array_equal(uio.read_video(out)[0], _video()[2])
-
-
-def test_npz_timestamps_round_trip(tmp_path: Path) -> None:
-    stamps = np.array([10, 20, 35], np.int64) * 10**6
-    out = uio.write_video(tmp_path / "o.npz", _video(), timestamps_ns=stamps)
-    np.testing.assert_array_equal(uio.read_timestamps(out), stamps)
-    np.testing.assert_array_equal(uio.read_video(out), _video())
-    with np.load(out) as z:
-        assert z["timestamps"].dtype == np.int64
-    assert uio.read_timestamps(uio.write_video(tmp_path / "n.npz", _video())) is None
-    # a camera clock that goes back (a reset): kept as recorded (it was refused)
-    back = uio.write_video(tmp_path / "b.npz", _video(), timestamps_ns=[30, 40, 10])
-    np.testing.assert_array_equal(uio.read_timestamps(back), [30, 40, 10])
-    assert first_step_back([30, 40, 10]) == 2 and first_step_back([1, 1, 2]) is None
-    with pytest.raises(InputError, match="timestamps"):
-        uio.write_video(tmp_path / "c.npz", _video(), timestamps_ns=[1, 2])
-    assert not (tmp_path / "c.npz").exists()
-
-
-def test_intrinsics_json_carries_stamps_names(tmp_path: Path) -> None:
-    cam = PinholeCamera(100.0, 101.0, 63.5, 47.5, 128, 96)
-    p = write_intrinsics(
-        tmp_path / "o.npy.intrinsics.json", cam, timestamps_ns=[5, 6], frame_names=["x", "y"]
-    )
-    d = json.loads(p.read_text())
-    assert d["timestamps_ns"] == [5, 6] and d["frame_names"] == ["x", "y"]
-    assert d["intrinsic_matrix"] == [100.0, 0.0, 0.0, 0.0, 101.0, 0.0, 63.5, 47.5, 1.0]
-    assert load_intrinsics(p) == cam
-    np.save(tmp_path / "o.npy", _video(2))
-    np.testing.assert_array_equal(uio.read_timestamps(tmp_path / "o.npy"), [5, 6])
-
-
-def test_frame_counters_are_not_times_and_the_sidecar_wins(tmp_path: Path) -> None:
-    """``000000.png`` (upsr's own folder names) counts frames: no times of 0, 1, 2 s; the
-    times upsr wrote beside such a folder are those read back (before: the names won)."""
-    counted = _png_folder(tmp_path / "counted", _video(), ["000000", "000001", "000002"])
-    assert uio.read_timestamps(counted) is None
-    cam = PinholeCamera(100.0, 101.0, 3.5, 2.5, 8, 6)
-    write_intrinsics(tmp_path / "counted.intrinsics.json", cam, timestamps_ns=[0, 33, 67])
-    np.testing.assert_array_equal(uio.read_timestamps(counted), [0, 33, 67])
-    tum = _png_folder(tmp_path / "tum", _video(), NAMES)
-    write_intrinsics(tmp_path / "tum.intrinsics.json", cam, timestamps_ns=[1, 2, 3])
-    np.testing.assert_array_equal(uio.read_timestamps(tum), [1, 2, 3])
-
-
-# ---------------------------------------------------------------------------------------------
-# units
-# ---------------------------------------------------------------------------------------------
 def test_resolve_depth_scales() -> None:
     assert uio.resolve_depth_scales() == (1000.0, 1000.0)
     assert uio.resolve_depth_scales(depth_scale=1) == (1.0, 1000.0)  # input only
@@ -221,37 +130,3 @@ def test_check_output_capacity(tmp_path: Path) -> None:
         uio.check_output_capacity(tmp_path / "pngs", 3, depth_scale=1.0)
     uio.check_output_capacity(tmp_path / "pngs", 3, depth_scale=100.0)  # (cm)
     uio.check_output_capacity(tmp_path / "x.tif", 3, depth_scale=1.0)
-
-
-# ---------------------------------------------------------------------------------------------
-# colour
-# ---------------------------------------------------------------------------------------------
-def test_resample_color_geometry() -> None:
-    img = np.zeros((4, 6, 3), np.uint8)
-    img[:, :, 1] = np.arange(6, dtype=np.uint8)[None, :] * 40
-    out = uio.resample_color(img, (8, 12))
-    assert out.shape == (8, 12, 3) and out.dtype == np.uint8
-    # SPEC §1: output column j' sits at input x = (j' + 0.5)/2 - 0.5
-    j = np.arange(12)
-    expect = np.clip((j + 0.5) / 2 - 0.5, 0, 5) * 40
-    np.testing.assert_allclose(out[3, :, 1], expect, atol=1)
-    grey16 = np.arange(12, dtype=np.uint16).reshape(3, 4) * 1000
-    assert uio.resample_color(grey16, (6, 8)).dtype == np.uint16
-    assert uio.resample_color(img, (2, 3)).shape == (2, 3, 3)
-
-
-def test_write_color_folder(tmp_path: Path) -> None:
-    src = tmp_path / "rgb"
-    src.mkdir()
-    for n in NAMES:
-        cv2.imwrite(str(src / f"{n}.jpg"), np.full((6, 8, 3), 77, np.uint8))
-    out = uio.write_color(src, tmp_path / "o.color", (12, 16), n_frames=3)
-    assert sorted(p.name for p in out.iterdir()) == [f"{n}.png" for n in NAMES]
-    assert cv2.imread(str(out / f"{NAMES[0]}.png")).shape == (12, 16, 3)
-    with pytest.raises(InputError, match="already exists"):
-        uio.write_color(src, out, (12, 16))
-    with pytest.raises(InputError, match="3 colour image"):
-        uio.write_color(src, tmp_path / "p", (12, 16), n_frames=4)
-    assert not (tmp_path / "p").exists()
-    one = uio.write_color(src / f"{NAMES[1]}.jpg", tmp_path / "q", (3, 4), frame_names=["f"])
-    assert [p.name for p in one.iterdir()] == ["f.png"]
