@@ -339,3 +339,25 @@ def test_enclosed_holes_are_holes_inside_measured_surroundings():
     assert not got[:, 22:].any()  # an open region (its first column: 4 of 9 columns measured)
     assert not got[frame > 0].any()
     np.testing.assert_array_equal(enclosed_holes(frame, share=1.0), np.zeros_like(got))
+
+
+@pytest.mark.parametrize("reach", [1, 3, 8, 40])
+def test_hole_backgrounds_are_a_grey_dilation_masked_to_the_holes(reach):
+    """The compiled front-following kernel equals ``reach`` steps of a 3×3 grey dilation of
+    the measured depths masked to the holes (its definition, as it was computed before)."""
+    import cv2
+
+    from upsr.method.consistency import hole_backgrounds
+
+    rng = np.random.default_rng(reach)
+    z = rng.uniform(500, 4000, (40, 50)).astype(np.float32)
+    z[rng.random(z.shape) < 0.35] = 0.0
+    z[10:30, 5:40] = 0.0  # a wide hole
+    z[2:4, 2:4] = -1.0  # removed pixels: neither hole nor depth
+    measured = np.maximum(z, 0.0)
+    far = np.zeros_like(z)
+    for _ in range(reach):
+        grown = cv2.dilate(np.maximum(measured, far), np.ones((3, 3), np.uint8),
+                           borderType=cv2.BORDER_CONSTANT)  # fmt: skip
+        far = np.where(z == 0, grown, np.float32(0.0))
+    np.testing.assert_array_equal(hole_backgrounds(z, reach_px=reach), far)

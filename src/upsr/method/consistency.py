@@ -427,17 +427,62 @@ def hole_backgrounds(reference: npt.ArrayLike, reach_px: int = HOLE_REACH_PX) ->
     ndarray float32 (h, w)
     """
     z = nan_as_zero(reference)
-    hole = z == 0
-    measured = np.maximum(z, np.float32(0.0))
-    kernel = np.ones((3, 3), np.uint8)
-    far = np.zeros_like(measured)
-    for _ in range(max(int(reach_px), 1)):
-        grown = cv2.dilate(np.maximum(measured, far), kernel, borderType=cv2.BORDER_CONSTANT)
-        grown = np.where(hole, grown, np.float32(0.0))
-        if np.array_equal(grown, far):
-            break
-        far = grown
-    return far.astype(np.float32)
+    ys, xs = np.nonzero(z == 0)
+    # the measured depths (a removed pixel's negative marker: none) and, at the hole's
+    # pixels, the farthest found so far: grown step by step over the hole's pixels only
+    depth = np.ascontiguousarray(np.maximum(z, np.float32(0.0)), np.float32)
+    _hole_reach_kernel(depth, ys, xs, max(int(reach_px), 1))
+    far = np.zeros_like(depth)
+    far[ys, xs] = depth[ys, xs]
+    return far
+
+
+@nb.njit(cache=True, nogil=True)
+def _hole_reach_kernel(depth, ys, xs, steps):  # pragma: no cover - numba
+    """``steps`` times at once (Jacobi: each step reads the previous one's values), each hole
+    pixel (ys, xs) takes the largest of ``depth`` over its 3×3 (a grey dilation masked to the
+    hole), in place. Only the hole pixels beside one that changed in the step before can
+    change (the values only grow): each step visits those (the work follows the front)."""
+    h, w = depth.shape
+    n = ys.size
+    hole = np.zeros((h, w), np.bool_)
+    for q in range(n):
+        hole[ys[q], xs[q]] = True
+    seen = np.full((h, w), -1, np.int32)  # the step a pixel was last put on the front
+    front_y = ys.copy()  # step 1: every hole pixel
+    front_x = xs.copy()
+    m_front = n
+    grown = np.empty(n, np.float32)
+    next_y = np.empty(n, ys.dtype)
+    next_x = np.empty(n, xs.dtype)
+    for step in range(steps):
+        m_changed = 0
+        for q in range(m_front):
+            y, x = front_y[q], front_x[q]
+            m = np.float32(0.0)
+            for yy in range(max(y - 1, 0), min(y + 2, h)):
+                for xx in range(max(x - 1, 0), min(x + 2, w)):
+                    m = max(m, depth[yy, xx])
+            if m != depth[y, x]:
+                grown[m_changed] = m
+                next_y[m_changed] = y
+                next_x[m_changed] = x
+                m_changed += 1
+        if m_changed == 0:
+            return
+        for q in range(m_changed):
+            depth[next_y[q], next_x[q]] = grown[q]
+        # the next front: the hole pixels around those that changed
+        m_front = 0
+        for q in range(m_changed):
+            y, x = next_y[q], next_x[q]
+            for yy in range(max(y - 1, 0), min(y + 2, h)):
+                for xx in range(max(x - 1, 0), min(x + 2, w)):
+                    if hole[yy, xx] and seen[yy, xx] != step:
+                        seen[yy, xx] = step
+                        front_y[m_front] = yy
+                        front_x[m_front] = xx
+                        m_front += 1
 
 
 def enclosed_holes(
