@@ -2,7 +2,8 @@
 Samba meshes are at ``--data``, default ``../shared/data``), speed beside a busy process,
 ``upsr live`` on SDK recordings played in real time (with pyrealsense2), the flow grid, the
 synthetic scenes, the realistic sensor scenes (``--out docs/results`` writes them to
-docs/results/realistic), stray far values and ``--valid-range``, close range and
+docs/results/realistic), the scenes built outside the rules' development (an audit), stray
+far values and ``--valid-range``, close range and
 ``--edge-mm``, thin parts on a ToF sensor, the deblurring iterations and speckle removal, and
 the Samba accuracy tables. Each benchmark prints its table and writes ``results.json`` under
 ``--out``."""
@@ -22,6 +23,7 @@ import flow_grid_eval
 import live_eval
 import load_eval
 import memory_eval
+import outside_eval
 import realistic_eval
 import samba_eval
 import speed_eval
@@ -53,6 +55,8 @@ def main() -> int:
     synthetic_eval.main(["--out", str(out / "synthetic")])
     print("\n== realistic sensors (ToF footprint, Kinect, large and camera motion) ==", flush=True)
     realistic_eval.main(["--out", str(out / "realistic")])
+    print("\n== scenes built outside the rules' development (an audit) ==", flush=True)
+    outside_eval.main(["--out", str(out / "outside")])
     print("\n== a camera at close range and --edge-mm ==", flush=True)
     close_range_eval.main(["--out", str(out / "close_range")])
     print("\n== a sensor's stray far values and --valid-range ==", flush=True)
