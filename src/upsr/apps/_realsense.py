@@ -93,13 +93,8 @@ class FrameSource:
             else:
                 profile = self._resolve_pipeline(recording)
         except RuntimeError as e:
+            self._several(recording)
             offered = self._offered(recording)
-            several = self._offered(recording, always=True) if self._stream is None else ""
-            if several.count("x") > 1:  # (WxH each: several depth streams, none asked for)
-                raise InputError(
-                    f"{recording or 'RealSense camera'}: several depth streams{several}: "
-                    "choose one with --stream WxH@FPS"
-                ) from e
             if not offered and recording is not None:  # (the SDK's reason, without its request)
                 reason = str(e).rsplit("Reason: ", 1)[-1]
                 raise InputError(f"{recording}: the RealSense SDK cannot play it: {reason}") from e
@@ -178,11 +173,8 @@ class FrameSource:
             for prof in sensor.get_stream_profiles()
             if prof.stream_type() == rs.stream.depth and self._wanted(prof)
         ]
-        if len(found) > 1 and self._stream is None:  # (as in real time, and upsr run)
-            raise InputError(
-                f"{recording}: several depth streams{self._offered(recording, always=True)}: "
-                "choose one with --stream WxH@FPS"
-            )
+        if len(found) > 1:  # (as in real time, and upsr run)
+            self._several(recording)
         if found:
             self._sensor, self._profile = found[0]
             return found[0][1].as_video_stream_profile()
@@ -197,17 +189,20 @@ class FrameSource:
         video = profile.as_video_stream_profile()
         return (video.width(), video.height()) == (w, h) and fps in (0, profile.fps())
 
-    def _offered(self, recording: Path | None, always: bool = False) -> str:
+    def _offered(self, recording: Path | None) -> str:
         """``" (offered: WxH@FPS, …)"``: the depth streams of the recording or of the first
-        camera, where a ``stream`` was asked for or ``always`` ("" otherwise, or where none
-        can be read)."""
-        if self._stream is None and not always:
-            return ""
+        camera, where a ``stream`` was asked for ("" otherwise, or where none can be read)."""
+        offered = self._depth_streams(recording) if self._stream is not None else []
+        return f" (offered: {', '.join(offered)})" if offered else ""
+
+    def _depth_streams(self, recording: Path | None) -> list[str]:
+        """``WxH@FPS`` of each depth stream of the recording or of the first camera ([] where
+        none can be read)."""
         rs = self._rs
         try:
             ctx = rs.context()
             device = ctx.load_device(str(recording)) if recording is not None else ctx.devices[0]
-            offered = sorted(
+            return sorted(
                 {
                     _stream_text((v.width(), v.height(), v.fps()))
                     for sensor in device.query_sensors()
@@ -217,8 +212,16 @@ class FrameSource:
                 }
             )
         except (RuntimeError, IndexError):
-            return ""
-        return f" (offered: {', '.join(offered)})" if offered else ""
+            return []
+
+    def _several(self, recording: Path | None) -> None:
+        """Refuse a source of several depth streams where none was asked for (``--stream``)."""
+        streams = self._depth_streams(recording) if self._stream is None else []
+        if len(streams) > 1:
+            raise InputError(
+                f"{recording or 'RealSense camera'}: several depth streams (offered: "
+                f"{', '.join(streams)}): choose one with --stream WxH@FPS"
+            )
 
     @property
     def dropped(self) -> int:

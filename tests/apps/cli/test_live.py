@@ -169,6 +169,47 @@ def test_frames_the_camera_dropped_while_recording_are_not_dropped_by_upsr(tmp_p
     assert done + dropped == len(frames)
 
 
+@needs_sdk
+def test_a_recording_of_two_depth_streams_needs_stream(tmp_path, capsys):
+    """Two depth streams: real time said "the RealSense SDK cannot play it: Couldn't resolve
+    requests", --no-real-time took the first silently: both name the streams and --stream."""
+    import time
+
+    import pyrealsense2 as rs
+
+    dev, profiles = rs.software_device(), []
+    for k, (w, h) in enumerate(((16, 12), (20, 15))):
+        sensor = dev.add_sensor(f"Depth {k}")
+        sensor.add_read_only_option(rs.option.depth_units, 0.001)
+        intr = rs.intrinsics()
+        intr.width, intr.height, intr.fx, intr.fy, intr.ppx, intr.ppy = w, h, w, w, w / 2, h / 2
+        vs = rs.video_stream()
+        vs.type, vs.index, vs.uid, vs.width, vs.height = rs.stream.depth, 0, k, w, h
+        vs.fps, vs.bpp, vs.fmt, vs.intrinsics = 30, 2, rs.format.z16, intr
+        profiles.append((sensor, sensor.add_video_stream(vs), w, h))
+    path = tmp_path / "two.db3"
+    recorder, queue = rs.recorder(str(path), dev), rs.frame_queue(16)
+    for sensor, profile, *_ in profiles:
+        sensor.open(profile)
+        sensor.start(queue)
+    for t in range(3):
+        for sensor, profile, w, h in profiles:
+            f = rs.software_video_frame()
+            f.pixels = np.full((h, w), 1500, np.uint16)
+            f.stride, f.bpp, f.timestamp, f.frame_number = 2 * w, 2, 1000.0 + 33.3 * t, t + 1
+            f.domain, f.profile = rs.timestamp_domain.system_time, profile.as_video_stream_profile()
+            sensor.on_video_frame(f)
+            time.sleep(0.01)
+    for sensor, *_ in profiles:
+        sensor.stop()
+        sensor.close()
+    del recorder
+    for extra in ([], ["--no-real-time"]):
+        rc, _, err = run_cli(capsys, "live", path, "-o", tmp_path / "o.npy", "-r", "2", *extra)
+        assert rc == 2 and "several depth streams (offered: 16x12@30, 20x15@30)" in err, err
+        assert "--stream WxH@FPS" in err and not (tmp_path / "o.npy").exists()
+
+
 def test_the_summary_gives_the_median_latency():
     from upsr.apps.cli.live import latency_text
 

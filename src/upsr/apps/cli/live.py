@@ -150,13 +150,13 @@ LiveDepthScaleOpt = Annotated[
         "bags: always mm/m. The camera's depth units are read from the SDK.",
     ),
 ]
-#: (the recursive mode's N and flow grid, not the windowed mode's of ``upsr run``)
 LiveQuietOpt = Annotated[
     bool,
     typer.Option(
         "--quiet", "-q", help="No status line, notes or hints on stderr (the summary stays)."
     ),
 ]
+#: (the recursive mode's N and flow grid, not the windowed mode's of ``upsr run``)
 LiveFramesOpt = Annotated[
     int | None,
     typer.Option(
