@@ -347,7 +347,8 @@ def markdown(rows: list[dict[str, Any]], config: dict[str, Any]) -> str:
     lines = [
         "# Scenes built outside the rules' development (audit of 7 Dec 2026)",
         "",
-        f"`outside_eval.py {config['argv']}` (seed {config['seed']}, window N = {N_FRAMES}, "
+        f"`benchmarks/outside_eval.py {config['argv']}` at {config['commit']} (seed "
+        f"{config['seed']}, window N = {N_FRAMES}, "
         f"{config['total_seconds']:.0f} s). Depths and errors in mm, shares in %. "
         "surface_moving / surface_static: surface RMSE (pixels > r px from a depth edge) on "
         "the moving parts of the truth (every pixel when the camera moves) / on the static "
@@ -403,12 +404,24 @@ def _parse(argv: Sequence[str] | None) -> argparse.Namespace:
     return p.parse_args(argv)
 
 
+def _commit() -> str:
+    """The checkout's commit (short), or "?" outside a git checkout."""
+    import subprocess
+
+    done = subprocess.run(
+        ["git", "-C", str(Path(__file__).resolve().parent), "rev-parse", "--short", "HEAD"],
+        capture_output=True, text=True, check=False,
+    )  # fmt: skip
+    return done.stdout.strip() or "?"
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     args = _parse(argv)
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     config: dict[str, Any] = {
         "argv": " ".join(sys.argv[1:] if argv is None else argv),
+        "commit": _commit(),
         "scenes": args.scenes,
         "seed": args.seed,
         "n": N_FRAMES,
