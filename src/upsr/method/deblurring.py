@@ -182,8 +182,9 @@ def _descent_step(
 
 
 #: Largest factor of a pixel's step over the image's typical step (a noise profile): the steps
-#: of a far surface grow with its noise, never beyond (a fitted p of 4 made 256 at 4 times the
-#: median depth, and the descent oscillated).
+#: of a far surface grow with its noise, never beyond (with p = 4 a surface 12 times deeper
+#: than the rest had steps 20 736 times the typical one and ended 4 m off its 12 m:
+#: tests/method/test_deblurring.py).
 MAX_STEP_SCALE = 16.0
 
 
