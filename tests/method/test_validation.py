@@ -75,3 +75,23 @@ def test_nan_as_zero_reads_a_finite_float32_frame_in_place_and_copies_anything_e
         assert out.dtype == np.float32 and out is not bad
         np.testing.assert_array_equal(out, expected)
         np.testing.assert_array_equal(np.asarray(bad), before)  # the input is left as it was
+
+
+def test_check_ref_is_the_one_check_of_a_windows_reference():
+    """temporal_median refused ref=True with an InputError, register_and_fuse took it as 1
+    and raised plain ValueErrors for the rest (review): one check for both."""
+    from upsr.method.fusion import register_and_fuse, temporal_median
+    from upsr.method.validation import check_ref
+
+    assert check_ref(None, 5) == 2 and check_ref(np.int64(4), 5) == 4
+    lowres = np.full((3, 4, 4), 1000.0, np.float32)
+    maps = np.zeros((3, 8, 8, 2), np.float32)
+    for bad in (True, 3, -1, 1.5):
+        with pytest.raises(InputError, match=r"ref must be an integer in \[0, 3\)"):
+            check_ref(bad, 3)
+        with pytest.raises(InputError, match="ref must be an integer"):
+            register_and_fuse(lowres, maps, 2, bad)
+        with pytest.raises(InputError, match="ref must be an integer"):
+            temporal_median(np.ones((3, 2, 2), np.float32), bad)
+    with pytest.raises(InputError, match="estimator"):
+        register_and_fuse(lowres, maps, 2, estimator="mode")

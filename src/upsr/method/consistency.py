@@ -33,7 +33,7 @@ import numpy as np
 import numpy.typing as npt
 
 from upsr.method.alternatives import _run
-from upsr.method.validation import nan_as_zero
+from upsr.method.validation import check_ref, nan_as_zero
 
 __all__ = [
     "ENCLOSED_RADIUS_PX",
@@ -256,8 +256,7 @@ def misregistered(
         offs = np.zeros((n, h, w), np.float32)
     else:
         offs = np.ascontiguousarray(offsets, np.float32).reshape(n, h, w)
-    if not 0 <= ref < n:
-        raise ValueError(f"ref must be in [0, {n}), got {ref}")
+    ref = check_ref(ref, n)
     out = np.empty((n, h, w), np.bool_)
     _mismatch_kernel(
         reg,
@@ -331,8 +330,7 @@ def thin_parts_followed(
     """
     reg = np.asarray(registered, np.float32)
     n = reg.shape[0]
-    if not 0 <= ref < n:
-        raise ValueError(f"ref must be in [0, {n}), got {ref}")
+    ref = check_ref(ref, n)
     anc = np.ascontiguousarray(anchor, np.float32)
     anc = np.where(np.isnan(anc), np.float32(0.0), anc)
     tol = np.ascontiguousarray(tolerance, np.float32).reshape(anc.shape)

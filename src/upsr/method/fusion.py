@@ -37,7 +37,7 @@ from upsr.method.sorting import (
 )
 from upsr.method.splat import splat_nearest, splat_points
 from upsr.method.trust import fusion_inputs
-from upsr.method.validation import nan_as_zero
+from upsr.method.validation import check_ref, nan_as_zero
 
 __all__ = [
     "register_and_fuse",
@@ -522,9 +522,7 @@ def temporal_median(
     """
     arr = _registered_stack(stack)
     n = arr.shape[0]
-    ref = (n - 1) // 2 if ref is None else ref
-    if isinstance(ref, bool) or not isinstance(ref, (int, np.integer)) or not 0 <= ref < n:
-        raise InputError(f"ref must be an integer in [0, {n}), got {ref!r}")
+    ref = check_ref(ref, n)
     try:
         wts = (
             np.ones(arr.shape, np.float32)
@@ -661,11 +659,9 @@ def register_and_fuse(
     lr = nan_as_zero(np.ascontiguousarray(lowres, np.float32))
     mp = np.ascontiguousarray(maps, np.float32)
     n, h, w = lr.shape
-    ref = (n - 1) // 2 if ref is None else int(ref)
-    if not 0 <= ref < n:
-        raise ValueError(f"ref must be in [0, {n}), got {ref}")
+    ref = check_ref(ref, n)
     if estimator not in ("median", "mean"):
-        raise ValueError(f"estimator must be 'median' or 'mean', not {estimator!r}")
+        raise InputError(f"estimator must be 'median' or 'mean', not {estimator!r}")
     hh, ww = h * scale, w * scale
     (cols, fx), (rows, fy), ratio = interpolation_tables((hh, ww), mp.shape[1:3])
     gd = np.zeros((hh, ww), np.float32) if guide is None else np.asarray(guide, np.float32)

@@ -17,6 +17,7 @@ __all__ = [
     "MAX_DEPTH_MM",
     "as_depth_frame",
     "as_depth_video",
+    "check_ref",
     "nan_as_zero",
     "no_valid_depth",
     "within_range",
@@ -153,6 +154,16 @@ def as_depth_video(
     if not (out > 0).any():
         raise InputError(f"{name}: {no_valid_depth(valid_range_mm)}")
     return out
+
+
+def check_ref(ref: object, n_frames: int) -> int:
+    """The reference frame's index of a window of ``n_frames`` (None: the middle one), an
+    integer in [0, n_frames), else :class:`~upsr.errors.InputError` (a bool is no index)."""
+    if ref is None:
+        return (n_frames - 1) // 2
+    if isinstance(ref, bool) or not isinstance(ref, (int, np.integer)) or not 0 <= ref < n_frames:
+        raise InputError(f"ref must be an integer in [0, {n_frames}), got {ref!r}")
+    return int(ref)
 
 
 def no_valid_depth(valid_range_mm: tuple[float, float] | None = None) -> str:
