@@ -61,7 +61,6 @@ from __future__ import annotations
 
 import argparse
 import functools
-import json
 import math
 import sys
 import time
@@ -93,7 +92,7 @@ from outside_scenes import (
     walker,
 )
 from realistic_eval import COLUMNS as REALISTIC_COLUMNS
-from realistic_eval import UPSR_METHODS, _sensor_sigma, score
+from realistic_eval import UPSR_METHODS, _sensor_sigma, score, write_results
 
 __all__ = ["SCENES", "failures", "main"]
 
@@ -422,18 +421,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         for case in SCENES[scene]:
             rows += run_case(case, args.seed, t_start)
     config["total_seconds"] = time.perf_counter() - t_start
-
-    def clean(v: Any) -> Any:
-        if isinstance(v, list):
-            return [clean(x) for x in v]
-        return None if isinstance(v, float) and math.isnan(v) else v
-
-    payload = {"config": config, "results": [{k: clean(v) for k, v in r.items()} for r in rows]}
-    (out / "results.json").write_text(json.dumps(payload, indent=2, ensure_ascii=False))
-    text = markdown(rows, config)
-    (out / "results.md").write_text(text)
-    print(text)
-    print(f"total {config['total_seconds']:.0f} s; wrote {out / 'results.json'} and results.md")
+    write_results(out, config, rows, markdown(rows, config))
     return 0
 
 

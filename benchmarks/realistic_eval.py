@@ -58,7 +58,7 @@ from upsr.research.metrics import evaluate, near_discontinuity
 from upsr.research.synth import degradation as deg
 from upsr.research.synth.realistic import RealisticVideo, degrade, make_realistic
 
-__all__ = ["main", "scene_options", "score", "sensor_frames"]
+__all__ = ["main", "scene_options", "score", "sensor_frames", "write_results"]
 
 ALL_SCENES = ("gallop", "gallop_none", "toward_wall", "deforming", "room", "fan")
 #: Left out of --quick unless asked for: the animal without a wall, and the out-of-sample scene.
@@ -403,6 +403,13 @@ def main(argv: Sequence[str] | None = None) -> int:
                 f"{scene:12s} {label:10s} done ({time.perf_counter() - t_start:.0f} s)", flush=True
             )
     config["total_seconds"] = time.perf_counter() - t_start
+    write_results(out, config, rows, markdown(rows, config))
+    return 0
+
+
+def write_results(out: Path, config: dict[str, Any], rows: list[dict[str, Any]], text: str) -> None:
+    """``out/results.json`` (the config and the rows, NaN as null, in lists too) and
+    ``out/results.md`` (``text``, also printed)."""
 
     def clean(v: Any) -> Any:
         return None if isinstance(v, float) and math.isnan(v) else v
@@ -415,11 +422,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         ],
     }
     (out / "results.json").write_text(json.dumps(payload, indent=2))
-    text = markdown(rows, config)
     (out / "results.md").write_text(text)
     print(text)
     print(f"total {config['total_seconds']:.0f} s; wrote {out / 'results.json'} and results.md")
-    return 0
 
 
 if __name__ == "__main__":
