@@ -371,6 +371,12 @@ class UPSRConfig:
     camera_intrinsics : (fx, fy, cx, cy) or None
         Intrinsics (px) of the low-res frames, pixel (i, j) centred at (u, v) = (j, i); needed
         by ``camera_motion="depth"``.
+    compand_knee_mm : "auto", float or None
+        Beyond the paper. Depth quantised in disparity (structured light, stereo) is companded
+        beyond this depth (mm), where one level step reaches the edge threshold, so that one
+        level is one surface (:mod:`upsr.method.companding`). ``"auto"``: fitted on the first
+        frame with depth (none for continuous depth, and with ``camera_motion="depth"``);
+        None: never.
     valid_range_mm : (float, float) or None
         Beyond the paper. (min, max) mm: the frames' depths outside are no measurement (0),
         as a depth camera SDK's threshold filter makes them: a sensor's stray near or far
@@ -416,6 +422,7 @@ class UPSRConfig:
     mode: str = "windowed"
     camera_motion: str = "flow"
     camera_intrinsics: tuple[float, float, float, float] | None = None
+    compand_knee_mm: float | str | None = "auto"
     valid_range_mm: tuple[float, float] | None = None
     deblur: DeblurConfig = field(default_factory=DeblurConfig)
 
@@ -509,6 +516,9 @@ class UPSRConfig:
             object.__setattr__(self, "camera_intrinsics", (fx, fy, cx, cy))
         if self.valid_range_mm is not None:
             object.__setattr__(self, "valid_range_mm", _valid_range(self.valid_range_mm))
+        if not (_is_str(self.compand_knee_mm) and self.compand_knee_mm == "auto"):
+            _number("compand_knee_mm ('auto' or)", self.compand_knee_mm, 0, MAX_DEPTH_PARAM_MM,
+                    lo_open=True, none=True)  # fmt: skip
         if self.camera_motion == "depth":
             _check(
                 self.camera_intrinsics is not None,
@@ -657,8 +667,7 @@ def _number(
     """
     if value is None and none:
         return None
-    lo_s = "(" if lo_open else "["
-    hi_s = ")" if hi_open else "]"
+    lo_s, hi_s = "(" if lo_open else "[", ")" if hi_open else "]"
     bounds = f"{lo_s}{lo:g}, {hi:g}{hi_s}" + (" or None" if none else "")
     kind = "an integer" if integer else "a number"
     if integer:

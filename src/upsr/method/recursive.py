@@ -112,6 +112,7 @@ from __future__ import annotations
 
 import collections
 import contextlib
+import math
 import time
 from collections.abc import Iterator
 from typing import Any
@@ -123,6 +124,7 @@ from upsr.errors import InputError
 from upsr.method._parallel import resolve_workers
 from upsr.method.anchor import noise_outliers
 from upsr.method.camera_motion import agreeing, along_axis, grid_intrinsics, pair_motion, pose_maps
+from upsr.method.companding import compand, expand
 from upsr.method.config import UPSRConfig
 from upsr.method.consistency import enclosed_holes, hole_backgrounds, maps_at_centres
 from upsr.method.finishing import finish_frame, finish_fused
@@ -140,6 +142,7 @@ from upsr.method.statistics import (
     first_frame_noise_mm,
     noise_estimator,
     trust_profile,
+    video_knee_mm,
 )
 from upsr.method.thin import ThinParts
 from upsr.method.trust import reference_anchor
@@ -241,6 +244,7 @@ class RecursiveUPSR(TwoStagePipeline):
         self._count = 0
         self._first: np.ndarray | None = None
         self._start = 0  # the first frame with depth (the statistics' frame)
+        self._knee = math.inf  # (video_knee_mm, from that frame)
         self._prev_pre: np.ndarray | None = None
         self._prev_guide: np.ndarray | None = None
         self._prev_frame: np.ndarray | None = None
@@ -273,7 +277,7 @@ class RecursiveUPSR(TwoStagePipeline):
         noise = self._noise()
         return VideoStatistics(
             self._estimator, noise, noise, self._remove_mixed, self._profile,
-            self._front.depth_scale,
+            self._front.depth_scale, self._knee,
         )  # fmt: skip
 
     @property
@@ -385,13 +389,16 @@ class RecursiveUPSR(TwoStagePipeline):
             self._count, self._any_valid = t + 1, self._any_valid or bool((f > 0).any())
             return (None, f)
         first_with_depth = self._front is None
+        if first_with_depth:  # (companding of depth quantised in disparity, from this frame)
+            self._knee = video_knee_mm(f, cfg) or math.inf
+        raw, f = f, compand(f, self._knee)
         if first_with_depth:
             self._fix_statistics(f)
             self._start = t
         front = self._front
         if cfg.remove_mixed == "auto" and t - self._start < cfg.n_frames:
             # does the sensor mix? The first N frames pooled as they arrive (one: too few edges)
-            self._mixes += footprint_counts(f, front.edge_mm)
+            self._mixes += footprint_counts(raw, front.edge_mm)  # (the sensor's, as measured)
             share = _share_of(*self._mixes)
             self._remove_mixed = has_mixed_pixels(share, was=self._remove_mixed)
             if self._remove_mixed:
@@ -536,7 +543,7 @@ class RecursiveUPSR(TwoStagePipeline):
                     fused, f, meas, anchor, keep_mean=True, thin_parts=cfg.thin_parts, thin=thin,
                     edge_mm=self._front.edge_mm,  # type: ignore[union-attr]
                 )  # fmt: skip
-            return finish_frame(
+            return expand(finish_frame(
                 finish_fused(
                     fused,
                     self._front.fixed_config,  # type: ignore[union-attr]
@@ -550,7 +557,7 @@ class RecursiveUPSR(TwoStagePipeline):
                 noise_mm=noise,
                 measured=f,
                 slopes=slopes,
-            )
+            ), self._knee)  # fmt: skip
 
     def feed(self, frame: npt.ArrayLike) -> list[np.ndarray]:
         """Add the next low-res frame; return ``[its high-res frame]`` (latency 0)."""

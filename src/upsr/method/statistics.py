@@ -1,6 +1,7 @@
 """The choices UP-SR makes once per video, from its first N frames (beyond the paper).
 
-The windowed engine fixes them with the N-th frame, before its first window, and never
+The windowed engine fixes them with the N-th frame, before its first window (the companding of
+depth quantised in disparity with its first frame with depth: :func:`video_knee_mm`), and never
 changes them (a chunk of a video run with :func:`pinned_config` gives exactly what the whole
 run gives): the front-end's depth range and noise
 (:class:`~upsr.method.frontend.MotionFrontEnd`), the trust's noise and its profile over
@@ -16,9 +17,10 @@ from typing import NamedTuple
 
 import numpy as np
 
+from upsr.method.companding import compand, expand, knee_mm
 from upsr.method.config import UPSRConfig
 from upsr.method.footprint import footprint_share, has_mixed_pixels
-from upsr.method.frontend import MotionFrontEnd
+from upsr.method.frontend import MotionFrontEnd, enough_for_statistics
 from upsr.method.noise import (
     QUANTISED_STEPS,
     choose_estimator,
@@ -38,6 +40,7 @@ __all__ = [
     "noise_estimator",
     "pinned_config",
     "trust_profile",
+    "video_knee_mm",
 ]
 
 
@@ -57,12 +60,33 @@ class VideoStatistics(NamedTuple):
     trust_noise_profile: tuple[float, float] | None = None
     #: The factor of the depth thresholds in mm (< 1: a scene nearer than ``near_depth_mm``).
     depth_scale: float = 1.0
+    #: The depth (mm) beyond which the depth is companded (:mod:`upsr.method.companding`;
+    #: inf: nowhere).
+    knee_mm: float = math.inf
+
+
+def video_knee_mm(frame: np.ndarray, cfg: UPSRConfig, *, decide: bool = False) -> float | None:
+    """The companding knee (mm) of a video from its first frame with depth (h, w) mm
+    (:func:`~upsr.method.frontend.enough_for_statistics`): ``cfg.compand_knee_mm`` where given,
+    for ``"auto"`` :func:`upsr.method.companding.knee_mm` at ``cfg.edge_mm``; inf (none) for
+    None and with ``camera_motion="depth"`` (its motion is estimated from the depth as
+    measured). None for a frame with too little depth (the next frame decides), unless
+    ``decide`` (then inf)."""
+    knee = cfg.compand_knee_mm
+    if knee is None or cfg.camera_motion == "depth":
+        return math.inf
+    if knee != "auto":
+        return float(knee)
+    if not enough_for_statistics(frame):
+        return math.inf if decide else None
+    return knee_mm(frame, cfg.edge_mm)
 
 
 def fix_video_statistics(
-    front: MotionFrontEnd, first_frames: np.ndarray, cfg: UPSRConfig
+    front: MotionFrontEnd, first_frames: np.ndarray, cfg: UPSRConfig, knee: float | None = None
 ) -> VideoStatistics:
-    """Fix every choice UP-SR makes once per video from its first N low-res frames (T, h, w).
+    """Fix every choice UP-SR makes once per video from its first N low-res frames (T, h, w),
+    companded beyond ``knee`` mm (:func:`video_knee_mm`; None: not companded).
 
     The front-end's depth range and noise estimate (:meth:`MotionFrontEnd.fix_statistics`);
     the trust noise (at least the temporal noise, :func:`upsr.method.noise.temporal_noise_mm`);
@@ -74,6 +98,7 @@ def fix_video_statistics(
     stds (:func:`upsr.method.noise.quantisation_step`); and whether the sensor mixes depths at
     edges (:func:`upsr.method.footprint.footprint_share`) for ``remove_mixed="auto"``.
     """
+    knee = math.inf if knee is None else knee
     front.fix_statistics(first_frames)
     spatial = front.noise_mm or 0.0
     if cfg.trust_noise_mm is not None:
@@ -87,7 +112,8 @@ def fix_video_statistics(
         trust_mm = max(spatial, temporal_noise_mm(first_frames, front.edge_mm))
     mixed = cfg.remove_mixed
     if mixed == "auto":
-        mixed = has_mixed_pixels(footprint_share(first_frames, front.edge_mm))
+        # (a property of the sensor: of the depth as measured)
+        mixed = has_mixed_pixels(footprint_share(expand(first_frames, knee), front.edge_mm))
     profile = trust_profile(first_frames, cfg, front.edge_mm)
     estimator = cfg.fusion_estimator
     # a given noise is a sample's noise; a profile gives σ(z)
@@ -109,7 +135,9 @@ def fix_video_statistics(
     # the final smoothing's range: at least a sample's noise (never the temporal differences,
     # which a moving camera's slanted surfaces inflate)
     front.smooth_at_least(reach_mm if d2 is None else min(reach_mm, sample_mm))
-    return VideoStatistics(estimator, trust_mm, reach_mm, bool(mixed), profile, front.depth_scale)
+    return VideoStatistics(
+        estimator, trust_mm, reach_mm, bool(mixed), profile, front.depth_scale, knee
+    )
 
 
 def noise_estimator(
@@ -176,8 +204,14 @@ def pinned_config(first_frames: np.ndarray, cfg: UPSRConfig) -> UPSRConfig:
     """
     if cfg.valid_range_mm is not None:  # (the frames as the engine will see them)
         first_frames = within_range(np.array(first_frames, np.float32), cfg.valid_range_mm)
+    knee: float | None = None
+    for t, frame in enumerate(first_frames):  # (as the engines decide it)
+        knee = video_knee_mm(frame, cfg, decide=t + 1 == len(first_frames))
+        if knee is not None:
+            break
+    knee = math.inf if knee is None else knee
     front = MotionFrontEnd(cfg, first_frames.shape[-1])
-    stats = fix_video_statistics(front, first_frames, cfg)
+    stats = fix_video_statistics(front, compand(first_frames, knee), cfg, knee)
     return dataclasses.replace(
         front.fixed_config,  # (its depth steps fixed too)
         depth_range_mm=front.depth_range_mm,
@@ -187,4 +221,5 @@ def pinned_config(first_frames: np.ndarray, cfg: UPSRConfig) -> UPSRConfig:
         reach_noise_mm=stats.reach_noise_mm,
         remove_mixed=stats.remove_mixed,
         trust_noise_profile=stats.trust_noise_profile or "constant",
+        compand_knee_mm=knee if math.isfinite(knee) else None,
     )

@@ -28,6 +28,7 @@ Complete windows are finished on ``workers`` threads side by side (same output).
 from __future__ import annotations
 
 import contextlib
+import math
 import threading
 import time
 from collections.abc import Iterable, Iterator
@@ -49,6 +50,7 @@ from upsr.method.camera_motion import (
     pose_samples,
     window_poses,
 )
+from upsr.method.companding import compand, expand
 from upsr.method.config import UPSRConfig
 from upsr.method.consistency import (
     maps_at_centres,
@@ -68,7 +70,7 @@ from upsr.method.registration import (
     sample_centres,
     to_output_grid,
 )
-from upsr.method.statistics import VideoStatistics, fix_video_statistics
+from upsr.method.statistics import VideoStatistics, fix_video_statistics, video_knee_mm
 from upsr.method.thin import ThinParts
 from upsr.method.trust import (
     abstain_lone_outliers,
@@ -203,6 +205,7 @@ class UPSR:
         if self._stats is not None:
             self._last_stats = self._stats
         self._stats = None
+        self._knee: float | None = None  # (video_knee_mm, with the first frame with depth)
         self._lowres: dict[int, np.ndarray] = {}
         self._clean: dict[int, tuple] = {}  # (_cleaned)
         self._pre: dict[int, np.ndarray] = {}
@@ -261,14 +264,19 @@ class UPSR:
             )
         self._any_valid = self._any_valid or bool((f > 0).any())
         front = self._front
-        self._lowres[t] = f
+        if self._knee is None:  # (companding: from the first frame with depth; those before too)
+            self._knee = video_knee_mm(f, cfg, decide=t + 1 == cfg.n_frames)
+            for k in self._lowres if self._knee is not None else ():
+                self._lowres[k] = compand(self._lowres[k], self._knee)
+                self._pre[k] = front.prefilter(self._lowres[k])
+        self._lowres[t] = f = compand(f, self._knee or math.inf)
         with self._timed("prefilter"):
             self._pre[t] = front.prefilter(f)
         self._count = t + 1
         if self._count == cfg.n_frames:
             # per-video statistics, fixed once from the first window (never per frame)
             first = np.stack([self._lowres[k] for k in sorted(self._lowres)])
-            self._stats = fix_video_statistics(front, first, cfg)
+            self._stats = fix_video_statistics(front, first, cfg, self._knee)
         if front.ready:
             for k in sorted(self._pre):
                 if k not in self._guide:
@@ -388,20 +396,14 @@ class UPSR:
                 thin=self._cleaned(t)[1] if stats.remove_mixed else None,
             )  # fmt: skip
         with self._timed("deblur"):
-            return finish_frame(
-                finish_fused(
-                    fused,
-                    self._front.fixed_config,  # type: ignore[union-attr]
-                    noise_profile=stats.trust_noise_profile,
-                ),
-                fused,
-                lowres[ref],
-                anchor,
-                cfg,
-                edge_mm=self._front.edge_mm,  # type: ignore[union-attr]
-                noise_mm=reach_noise,
-                measured=measured,
+            front = self._front
+            finished = finish_fused(
+                fused, front.fixed_config, noise_profile=stats.trust_noise_profile
             )
+            return expand(finish_frame(
+                finished, fused, lowres[ref], anchor, cfg, edge_mm=front.edge_mm,
+                noise_mm=reach_noise, measured=measured,
+            ), stats.knee_mm)  # fmt: skip
 
     def _unfollowed(
         self,

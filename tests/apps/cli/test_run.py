@@ -538,3 +538,21 @@ def test_run_reports_the_per_video_choices(
     line = [s for s in stderr.replace("\r", "\n").splitlines() if "fused by the" in s]
     assert len(line) == 1 and line[0].startswith("upsr: fused by the mean")
     assert "depth thresholds x0." in line[0] and "(a near scene)" in line[0]
+
+
+def test_run_says_where_a_far_kinect_video_is_companded(
+    capsys: pytest.CaptureFixture[str], tmp_path: Path
+) -> None:
+    """A Kinect's disparity levels beyond ~5.8 m (upsr.method.companding): said on the choices
+    line, in both modes; not for continuous depth (the test above)."""
+    from upsr.research.synth.degradation import kinect
+
+    wall = np.round(kinect(np.full((5, 16, 20), 7000.0), np.random.default_rng(0)))
+    src = tmp_path / "wall.npy"
+    np.save(src, wall.astype(np.uint16))
+    for extra in ((), ("--recursive",)):
+        out = tmp_path / f"o{len(extra)}.npy"
+        rc, _, stderr = run_cli(capsys, "run", src, "-o", out, "-r", 2, "-n", 3, *extra)
+        assert rc == 0, stderr
+        assert "disparity levels: depth companded beyond 5.7" in stderr
+        assert abs(np.median(np.load(out)[:, 4:-4, 4:-4]) - 7000.0) < 60.0

@@ -5,6 +5,7 @@ from __future__ import annotations
 import contextlib
 import dataclasses
 import itertools
+import math
 import sys
 import time
 import warnings
@@ -259,6 +260,8 @@ def _choices(stats: Any) -> str:
     line = f"fused by the {stats.estimator}, {noise}, {mixed}"
     if stats.depth_scale < 1:
         line += f", depth thresholds x{stats.depth_scale:.2f} (a near scene)"
+    if math.isfinite(stats.knee_mm):
+        line += f", disparity levels: depth companded beyond {stats.knee_mm / 1000:.2f} m"
     return line
 
 

@@ -1,0 +1,151 @@
+"""Depth quantised in disparity, companded beyond a knee (upsr.method.companding)."""
+
+import math
+
+import numpy as np
+import pytest
+
+import upsr
+from upsr.errors import InputError
+from upsr.method.companding import KNEE_STEPS, compand, expand, knee_mm, level_spacing
+from upsr.method.config import UPSRConfig
+from upsr.method.frontend import MotionFrontEnd
+from upsr.method.statistics import fix_video_statistics, pinned_config, video_knee_mm
+from upsr.research.synth.degradation import kinect
+from upsr.research.synth.realistic import degrade, make_realistic
+
+#: A Kinect's level step per mm²: 1/8 px of disparity at f·b = 580 px · 75 mm.
+KINECT_ALPHA = 1.0 / (8 * 580.0 * 75.0)
+
+
+def _kinect_wall(z_mm: float, shape=(9, 30, 40), seed: int = 0) -> np.ndarray:
+    """A static fronto-parallel wall through the Kinect model, whole mm as the camera gives."""
+    clean = np.full(shape, z_mm)
+    return np.round(kinect(clean, np.random.default_rng(seed), dropout_fraction=0.0))
+
+
+def _surface_rmse(est: np.ndarray, z_mm: float) -> float:
+    return float(np.sqrt(np.mean((est[:, 4:-4, 4:-4] - z_mm) ** 2)))
+
+
+@pytest.mark.parametrize("z_mm", [4000.0, 7000.0, 9000.0])
+def test_a_kinect_frames_level_step_is_found(z_mm):
+    alpha = level_spacing(_kinect_wall(z_mm)[0])
+    assert alpha == pytest.approx(KINECT_ALPHA, rel=0.05)
+
+
+def test_continuous_clean_and_whole_mm_depth_has_no_levels():
+    rng = np.random.default_rng(1)
+    wall = np.full((30, 40), 3000.0)
+    assert level_spacing(wall + rng.laplace(0, 10, wall.shape)) is None  # ToF-like
+    # whole mm with 10 mm of noise over 2-4 m: steps of 1 mm, not α·z²
+    ramp = np.linspace(2000, 4000, 40)[None, :] + rng.normal(0, 10, wall.shape)
+    assert knee_mm(np.round(ramp), 100.0) == math.inf
+    # a clean render of a few surfaces: no noise dithers them over levels
+    planes = np.repeat([1500.0, 2500.0, 4000.0, 7000.0, 9000.0], 8)[None, :] * np.ones((30, 1))
+    assert level_spacing(planes) is None
+    assert level_spacing(np.zeros((30, 40))) is None
+
+
+def test_the_knee_is_where_a_level_step_reaches_the_edge_threshold():
+    knee = knee_mm(_kinect_wall(7000.0)[0], 100.0)
+    expected = math.sqrt(100.0 / (KNEE_STEPS * KINECT_ALPHA))  # 5.76 m
+    assert knee == pytest.approx(expected, rel=0.03)
+    assert 5500 < knee < 6000
+    # nothing measured beyond it: no companding
+    assert knee_mm(_kinect_wall(3000.0)[0], 100.0) == math.inf
+
+
+def test_compand_and_expand_are_inverse_and_keep_the_depth_below_the_knee():
+    z = np.array([0.0, 500.0, 3000.0, 5000.0, 5000.5, 7000.0, 12000.0, 65535.0], np.float32)
+    u = compand(z, 5000.0)
+    assert u.dtype == np.float32
+    np.testing.assert_array_equal(u[:5], z[:5])  # 0 stays 0, the near depth as it is
+    assert np.all(np.diff(u) > 0) and u[-1] < 10000.0
+    np.testing.assert_allclose(expand(u, 5000.0), z, rtol=1e-5)
+    # a level step α·z² beyond the knee is one u-step everywhere
+    alpha = 100.0 / (KNEE_STEPS * 5000.0**2)
+    for depth in (6000.0, 9000.0, 14000.0):
+        step = alpha * depth**2
+        lo, hi = compand(np.array([depth, depth + step]), 5000.0)
+        # α·k² to first order in the step (exactly α·k²·z / (z + step))
+        assert hi - lo == pytest.approx(alpha * 5000.0**2 * depth / (depth + step), rel=1e-4)
+    # beyond the companded range (a deblurring overshoot) the depth is capped, never < 0
+    assert 0 < expand(np.array([9999.9, 20000.0], np.float32), 5000.0).max() <= 1e6
+    same = np.array([1.0, 2.0], np.float32)
+    assert compand(same, math.inf) is same and expand(same, math.inf) is same
+
+
+def test_the_video_knee_waits_for_depth_and_follows_the_config():
+    wall = _kinect_wall(7000.0)[0]
+    cfg = UPSRConfig(scale=2)
+    assert 5500 < video_knee_mm(wall, cfg) < 6000
+    empty = np.zeros_like(wall)
+    assert video_knee_mm(empty, cfg) is None  # the next frame decides
+    assert video_knee_mm(empty, cfg, decide=True) == math.inf
+    assert video_knee_mm(empty, UPSRConfig(scale=2, compand_knee_mm=4000.0)) == 4000.0
+    assert video_knee_mm(wall, UPSRConfig(scale=2, compand_knee_mm=None)) == math.inf
+    depth_motion = UPSRConfig(scale=2, camera_motion="depth", camera_intrinsics=(50, 50, 20, 15))
+    assert video_knee_mm(wall, depth_motion) == math.inf
+
+
+@pytest.mark.parametrize("bad", ["on", -5.0, 0.0, math.nan, True])
+def test_a_bad_knee_is_refused(bad):
+    with pytest.raises(InputError, match="compand_knee_mm"):
+        UPSRConfig(scale=2, compand_knee_mm=bad)
+
+
+@pytest.mark.parametrize("mode", ["windowed", "recursive"])
+def test_a_far_kinect_wall_is_one_surface_not_a_staircase_of_levels(mode):
+    """A static wall at 7 m, whose disparity levels lie 141 mm apart (over the 100 mm edge
+    threshold): better than the temporal mean of the raw frames (31 mm), where without the
+    companding its levels stayed surfaces of their own (24 mm windowed, 740 recursive, whose
+    state restarts at every level change: missing depth counts here)."""
+    z = 7000.0
+    low = _kinect_wall(z, shape=(9, 24, 32))
+    mean = low.mean(axis=0)
+    reference = _surface_rmse(np.repeat(np.repeat(mean[None], 2, 1), 2, 2), z)
+    est = upsr.super_resolve(low.astype(np.uint16), 2, 9, mode=mode)
+    off = upsr.super_resolve(low.astype(np.uint16), 2, 9, mode=mode, compand_knee_mm=None)
+    assert _surface_rmse(est, z) <= 0.5 * min(reference, _surface_rmse(off, z))
+    assert np.all(est[:, 4:-4, 4:-4] > 0)
+
+
+def test_continuous_depth_is_not_companded():
+    video = make_realistic("room", (28, 32), scale=2, n_frames=9, seed=0)
+    low = degrade(video, "laplace", np.random.default_rng(0), sigma_mm=10.0)
+    for mode in ("windowed", "recursive"):
+        engine = upsr.UPSR(2, 9, mode=mode)
+        out = np.stack(list(engine.process(low)))
+        assert engine.statistics.knee_mm == math.inf
+        same = upsr.super_resolve(low, 2, 9, mode=mode, compand_knee_mm=None)
+        np.testing.assert_array_equal(out, same)
+
+
+def test_the_statistics_report_and_pin_the_knee_and_judge_mixes_on_measured_depth():
+    low = _kinect_wall(7000.0)
+    cfg = UPSRConfig(scale=2, n_frames=3)
+    pinned = pinned_config(low[:3], cfg)
+    knee = pinned.compand_knee_mm
+    assert 5500 < knee < 6000
+    front = MotionFrontEnd(cfg, low.shape[-1])
+    stats = fix_video_statistics(front, compand(low[:3], knee), cfg, knee)
+    assert stats.knee_mm == knee and not stats.remove_mixed
+    # a later chunk run with the pinned config gives what the whole run gives
+    whole = upsr.super_resolve(low.astype(np.uint16), 2, config=cfg)
+    chunk = upsr.super_resolve(low[3:].astype(np.uint16), 2, config=pinned)
+    np.testing.assert_array_equal(chunk[1:-1], whole[4:-1])
+    engine = upsr.UPSR(2, 9, mode="recursive")
+    list(engine.process(low))
+    assert engine.statistics.knee_mm == pytest.approx(knee)
+    assert pinned_config(np.full_like(low, 2000.0), cfg).compand_knee_mm is None
+
+
+def test_a_clean_render_of_thin_legs_and_their_mixes_has_no_levels():
+    """Legs and their ToF mixes on a wall, noise-free: five depths 150-600 mm apart that step
+    like a coarse camera's levels (α = 7.9e-5 / mm, 11 % of the neighbours differ)."""
+    from tests.method.test_thin import R, _gap
+    from upsr.research.synth.degradation import tof_footprint
+
+    low = tof_footprint(_gap(), R)
+    assert level_spacing(low) is None and knee_mm(low, 100.0) == math.inf
