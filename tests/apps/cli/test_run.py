@@ -556,3 +556,9 @@ def test_run_says_where_a_far_kinect_video_is_companded(
         assert rc == 0, stderr
         assert "disparity levels: depth companded beyond 5.7" in stderr
         assert abs(np.median(np.load(out)[:, 4:-4, 4:-4]) - 7000.0) < 60.0
+    # --no-compand: the levels stay surfaces of their own (the wall a staircase)
+    out = tmp_path / "off.npy"
+    rc, _, stderr = run_cli(capsys, "run", src, "-o", out, "-r", 2, "-n", 3, "--no-compand")
+    assert rc == 0, stderr
+    assert "companded" not in stderr
+    assert not np.array_equal(np.load(out), np.load(tmp_path / "o0.npy"))

@@ -1,13 +1,14 @@
 """The options the ``upsr`` commands share, each defined once (typer ``Annotated`` aliases).
 
-* method options (``upsr run`` and ``upsr batch``): ``--scale``, ``--frames`` and the 19 options
+* method options (``upsr run`` and ``upsr batch``): ``--scale``, ``--frames`` and the options
   of :class:`upsr.method.config.UPSRConfig`, turned into a config by :func:`config_from_options`;
 * read options (every command that reads a video): ``--key``, ``--topic``, ``--input-format``,
   ``--depth-scale``, ``--intrinsics``;
 * units, identity and resources (``upsr run`` and ``upsr batch``): ``--input-depth-scale``,
   ``--output-depth-scale``, ``--sensor``, ``--strict-units``, ``--keep-names/--renumber``,
   ``--max-memory``;
-* ``--format`` choices (:class:`OutFormat`), ``--overwrite``, ``--quiet``.
+* ``--format`` choices (:class:`OutFormat`; the choices' types are
+  :mod:`upsr.apps.cli.choices`'s), ``--overwrite``, ``--quiet``.
 
 Importing this module does not import NumPy or the method (``upsr --version`` stays fast): the
 defaults shown in the help texts are written here and checked against
@@ -21,6 +22,19 @@ from enum import Enum
 from typing import TYPE_CHECKING, Annotated, Any
 
 import typer
+
+from upsr.apps.cli.choices import (
+    Blur,
+    CameraMotion,
+    Flow,
+    FlowPreset,
+    FusionEstimator,
+    InFormat,
+    NoiseModel,
+    OutFormat,
+    Sensor,
+    fmt,
+)
 
 if TYPE_CHECKING:
     from upsr.method.config import UPSRConfig
@@ -58,84 +72,6 @@ HELP_DEFAULTS: dict[str, Any] = {
     "trust_noise_profile": "auto",
 }
 _D = HELP_DEFAULTS
-
-
-# ---------------------------------------------------------------------------------------------
-# choices
-# ---------------------------------------------------------------------------------------------
-class InFormat(str, Enum):
-    """Input formats of :mod:`upsr.io` (``--input-format``)."""
-
-    npy = "npy"
-    npz = "npz"
-    png = "png"
-    tiff = "tiff"
-    exr = "exr"
-    rosbag = "rosbag"
-    nyu = "nyu"
-    pgm = "pgm"
-    tum = "tum"
-    sun = "sun"
-
-
-class OutFormat(str, Enum):
-    """Output formats (``upsr run --format``, ``upsr batch --format``)."""
-
-    npy = "npy"
-    npz = "npz"
-    png = "png"
-    tiff = "tiff"
-    exr = "exr"
-    rosbag = "rosbag"
-
-
-class Sensor(str, Enum):
-    """Sensors of :data:`upsr.io.units.SENSOR_RANGES_MM` (``--sensor``)."""
-
-    default = "default"
-    realsense = "realsense"
-    kinect = "kinect"
-    kinect2 = "kinect2"
-    tof = "tof"
-    lidar = "lidar"
-
-
-class FusionEstimator(str, Enum):
-    auto = "auto"
-    median = "median"
-    mean = "mean"
-
-
-class NoiseModel(str, Enum):
-    auto = "auto"
-    constant = "constant"
-
-
-class Blur(str, Enum):
-    none = "none"
-    box = "box"
-    gaussian = "gaussian"
-
-
-class Flow(str, Enum):
-    dis = "dis"
-    farneback = "farneback"
-
-
-class FlowPreset(str, Enum):
-    ultrafast = "ultrafast"
-    fast = "fast"
-    medium = "medium"
-
-
-class CameraMotion(str, Enum):
-    flow = "flow"
-    depth = "depth"
-
-
-def fmt(value: Enum | None) -> str | None:
-    """The string of a choice, None for none."""
-    return None if value is None else str(value.value)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -477,6 +413,15 @@ MixedRemovalOpt = Annotated[
         show_default=False,
     ),
 ]
+NoCompandOpt = Annotated[
+    bool,
+    typer.Option(
+        "--no-compand",
+        help="Never compand the depth of a camera that quantises disparity (structured light, "
+        "stereo) [default: beyond the depth where one level step reaches the edge step, "
+        "measured on the first frame with depth].",
+    ),
+]
 NoRegistrationCheckOpt = Annotated[
     bool,
     typer.Option(
@@ -544,6 +489,7 @@ def config_from_options(
     fusion_estimator: Enum | None = None,
     noise_model: Enum | None = None,
     mixed_removal: bool | None = None,
+    no_compand: bool = False,
     no_registration_check: bool = False,
     no_radial: bool = False,
     no_slopes: bool = False,
@@ -600,6 +546,8 @@ def config_from_options(
         options["fill_holes"] = True
     if mixed_removal is not None:
         options["remove_mixed"] = mixed_removal
+    if no_compand:
+        options["compand_knee_mm"] = None
     for off, name in ((no_registration_check, "check_registration"), (no_slopes, "follow_slopes"),
                       (no_radial, "radial_compensation"), (no_edge_votes, "edge_votes"),
                       (no_thin_parts, "thin_parts")):  # fmt: skip
@@ -661,6 +609,7 @@ METHOD_OPTIONS: tuple[tuple[str, Any, Any], ...] = (
     ("fusion_estimator", FusionEstimatorOpt, None),
     ("noise_model", NoiseModelOpt, None),
     ("mixed_removal", MixedRemovalOpt, None),
+    ("no_compand", NoCompandOpt, False),
     ("no_registration_check", NoRegistrationCheckOpt, False),
     ("no_radial", NoRadialOpt, False),
     ("no_slopes", NoSlopesOpt, False),
