@@ -29,6 +29,7 @@ from __future__ import annotations
 
 import math
 
+import numba as nb
 import numpy as np
 import numpy.typing as npt
 
@@ -122,16 +123,12 @@ def knee_mm(frame: npt.ArrayLike, edge_mm: float) -> float:
 
 def compand(depth: npt.ArrayLike, knee: float) -> np.ndarray:
     """Depth (mm, any shape, 0 = no measurement) companded beyond ``knee`` mm:
-    u = 2·z_k − z_k²/z there, z elsewhere (float32; the same array values where nothing lies
-    beyond the knee)."""
+    u = 2·z_k − z_k²/z there, z elsewhere (float32; the array itself for ``knee`` = inf)."""
     z = np.asarray(depth, np.float32)
     if not math.isfinite(knee):
         return z
-    far = z > knee
-    if not far.any():
-        return z
-    out = z.copy()
-    out[far] = (2.0 * knee - knee * knee / z[far].astype(np.float64)).astype(np.float32)
+    out = np.empty_like(z)
+    _compand_kernel(np.ascontiguousarray(z).reshape(-1), float(knee), out.reshape(-1))
     return out
 
 
@@ -142,12 +139,27 @@ def expand(companded: npt.ArrayLike, knee: float) -> np.ndarray:
     u = np.asarray(companded, np.float32)
     if not math.isfinite(knee):
         return u
-    far = u > knee
-    if not far.any():
-        return u
+    out = np.empty_like(u)
     top = 2.0 * knee - knee * knee / MAX_DEPTH_MM
-    out = u.copy()
-    out[far] = (knee * knee / (2.0 * knee - np.minimum(u[far].astype(np.float64), top))).astype(
-        np.float32
-    )
+    _expand_kernel(np.ascontiguousarray(u).reshape(-1), float(knee), top, out.reshape(-1))
     return out
+
+
+@nb.njit(cache=True, nogil=True, error_model="numpy")
+def _compand_kernel(z: np.ndarray, knee: float, out: np.ndarray) -> None:  # pragma: no cover
+    k = np.float32(knee)
+    two_k, k2 = np.float32(2.0 * knee), np.float32(knee * knee)
+    for i in range(z.size):  # (branch-free: both sides, one kept; 0 stays 0)
+        v = z[i]
+        out[i] = two_k - k2 / v if v > k else v
+
+
+@nb.njit(cache=True, nogil=True, error_model="numpy")
+def _expand_kernel(  # pragma: no cover
+    u: np.ndarray, knee: float, top: float, out: np.ndarray
+) -> None:
+    k = np.float32(knee)
+    two_k, k2, t = np.float32(2.0 * knee), np.float32(knee * knee), np.float32(top)
+    for i in range(u.size):
+        v = u[i]
+        out[i] = k2 / (two_k - min(v, t)) if v > k else v

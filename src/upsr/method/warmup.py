@@ -64,7 +64,8 @@ def warm_up(config: UPSRConfig, shape_px: tuple[int, int]) -> None:
 
     Runs :func:`warm_up_frames` through throw-away engines of ``config`` (the windowed or the
     recursive one, per ``config.mode``); with ``remove_mixed="auto"``, once without and once
-    with the removal of mixed pixels (whichever the real video turns out to need). Costs a
+    with the removal of mixed pixels (whichever the real video turns out to need); the depth
+    companded beyond 2.3 m (:mod:`upsr.method.companding`) unless ``compand_knee_mm`` is None. Costs a
     few frames' time; nothing is kept but what numba and OpenCV load.
 
     Parameters
@@ -80,8 +81,12 @@ def warm_up(config: UPSRConfig, shape_px: tuple[int, int]) -> None:
     frames = warm_up_frames(shape_px)
     removal = (False, True) if config.remove_mixed == "auto" else (config.remove_mixed,)
     for remove in removal:
-        # (the synthetic frames whatever range the video keeps: the kernels are the same)
-        cfg = dataclasses.replace(config, remove_mixed=remove, valid_range_mm=None)
+        # (the synthetic frames whatever range the video keeps: the kernels are the same; their
+        # far side companded, as a Kinect's beyond 5.8 m, unless the video never is)
+        knee = None if config.compand_knee_mm is None else 2300.0
+        cfg = dataclasses.replace(
+            config, remove_mixed=remove, valid_range_mm=None, compand_knee_mm=knee
+        )
         if cfg.mode == "recursive":
             engine = RecursiveUPSR(config=cfg, workers=0)
             for frame in frames:
