@@ -65,8 +65,8 @@ def warm_up(config: UPSRConfig, shape_px: tuple[int, int]) -> None:
     Runs :func:`warm_up_frames` through throw-away engines of ``config`` (the windowed or the
     recursive one, per ``config.mode``); with ``remove_mixed="auto"``, once without and once
     with the removal of mixed pixels (whichever the real video turns out to need); the depth
-    companded beyond 2.3 m (:mod:`upsr.method.companding`) unless ``compand_knee_mm`` is None. Costs a
-    few frames' time; nothing is kept but what numba and OpenCV load.
+    companded beyond 2.3 m (:mod:`upsr.method.companding`) unless ``compand_knee_mm`` is
+    None. Costs a few frames' time; nothing is kept but what numba and OpenCV load.
 
     Parameters
     ----------

@@ -57,6 +57,7 @@ def test_live_on_a_recording_equals_run_recursive(tmp_path, capsys):
     assert rc == 0, err
     assert "12 frames 48x40 -> 96x80" in stdout and "0 dropped" in stdout
     assert "frames/s" in err and "latency" in err and "dropped" in err
+    assert "upsr live: fused by the mean" in err  # the per-video choices, as run's
     assert preview.stat().st_size > 0
     frames = _frames()
     np.save(tmp_path / "in.npy", frames.astype(np.float32))

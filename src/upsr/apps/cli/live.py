@@ -298,6 +298,10 @@ def live(
     hint = drop_hint(done, source.dropped, cfg.flow_preset)
     if hint is not None and not quiet:
         typer.echo(hint, err=True)
+    if engine.statistics is not None and not quiet:  # (as upsr run --recursive says them)
+        from upsr.apps.cli.run import choices_line
+
+        typer.echo(f"upsr live: {choices_line(engine.statistics)}", err=True)
 
 
 #: Share of the frames dropped from which :func:`drop_hint` names the cheaper settings.

@@ -42,7 +42,7 @@ from upsr.apps.cli.options import (
 )
 from upsr.errors import InputError
 
-__all__ = ["register", "run"]
+__all__ = ["choices_line", "register", "run"]
 
 _RUN_EPILOG = """\b
 Input formats (by name; --input-format to force):
@@ -231,7 +231,7 @@ def run(
     _summary(info.shape, cfg, time.perf_counter() - start, output)
     stats = engine.statistics  # (of this video)
     if stats is not None and not quiet:
-        typer.echo(f"upsr: {_choices(stats)}", err=True)
+        typer.echo(f"upsr: {choices_line(stats)}", err=True)
 
 
 def _summary(shape: tuple[int, int, int], cfg: Any, elapsed: float, output: Path) -> None:
@@ -246,7 +246,7 @@ def _summary(shape: tuple[int, int, int], cfg: Any, elapsed: float, output: Path
     )
 
 
-def _choices(stats: Any) -> str:
+def choices_line(stats: Any) -> str:
     """The per-video choices of ``fusion_estimator``, the trust, the mixed-pixel test and the
     scale of the depth thresholds, in one line (``upsr.method.statistics.VideoStatistics``)."""
     profile = stats.trust_noise_profile
