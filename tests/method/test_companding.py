@@ -34,6 +34,37 @@ def test_a_kinect_frames_level_step_is_found(z_mm):
     assert alpha == pytest.approx(KINECT_ALPHA, rel=0.05)
 
 
+def _stereo(z_mm, focal_px: float, baseline_mm: float, step_px: float, steps: float = 0.0):
+    """A stereo camera's whole-mm depth of ``z_mm``: noise of the Kinect model (or of
+    ``steps`` level steps), disparity quantised in steps of ``step_px``."""
+    from upsr.research.synth.degradation import kinect_axial_sigma_mm, quantise_disparity
+
+    level = step_px / (focal_px * baseline_mm) * z_mm**2
+    sigma = steps * level if steps else kinect_axial_sigma_mm(z_mm)
+    noisy = z_mm + np.random.default_rng(0).normal(0, 1, z_mm.shape) * sigma
+    q = quantise_disparity(noisy, focal_px=focal_px, baseline_mm=baseline_mm, step_px=step_px)
+    return np.round(q)
+
+
+@pytest.mark.parametrize(
+    ("camera", "near_share"),
+    [
+        ((385.0, 50.0, 1 / 32, 0.0), 0.3),
+        ((580.0, 75.0, 1 / 8, 0.0), 0.6),
+        ((440.0, 75.0, 1.0, 0.6), 0.0),
+    ],
+)
+def test_stereo_levels_are_found_beside_near_whole_mm_depth(camera, near_share):
+    """A D435 (1/32 px) and a Kinect with part of the frame at 0.6 m, where whole mm round the
+    levels (1-2 mm steps), and an integer-disparity stereo camera (α = 3e-5 / mm, its noise
+    0.6 level steps)."""
+    f, b, step, steps = camera
+    alpha = step / (f * b)
+    z = np.full((60, 80), 1.3 * math.sqrt(100.0 / (KNEE_STEPS * alpha)))
+    z[:, : int(near_share * 80)] = 600.0
+    assert level_spacing(_stereo(z, f, b, step, steps)) == pytest.approx(alpha, rel=0.1)
+
+
 def test_continuous_clean_and_whole_mm_depth_has_no_levels():
     rng = np.random.default_rng(1)
     wall = np.full((30, 40), 3000.0)
@@ -45,6 +76,15 @@ def test_continuous_clean_and_whole_mm_depth_has_no_levels():
     planes = np.repeat([1500.0, 2500.0, 4000.0, 7000.0, 9000.0], 8)[None, :] * np.ones((30, 1))
     assert level_spacing(planes) is None
     assert level_spacing(np.zeros((30, 40))) is None
+    # a clean plane slanted along the rows: its columns step by α·z² exactly (1/z affine)
+    plane = np.ones((30, 1)) / np.linspace(1 / 3000, 1 / 9000, 64)[None, :]
+    assert level_spacing(plane) is None and level_spacing(np.round(plane)) is None
+    # a whole-mm ramp with little noise: steps alike at every depth, not growing as z²
+    ramp = 2000.0 * (1 + 0.5 * np.arange(160)[None, :] / 160) + rng.normal(0, 0.3, (120, 160))
+    assert level_spacing(np.round(ramp)) is None
+    # whole mm of Laplacian noise on walls 1-15 m: the steps beyond 2 mm are the tails'
+    for z0 in (1000.0, 2000.0, 4000.0, 15000.0):
+        assert level_spacing(np.round(z0 + rng.laplace(0, 10, (120, 160)))) is None
 
 
 def test_the_knee_is_where_a_level_step_reaches_the_edge_threshold():
@@ -52,8 +92,12 @@ def test_the_knee_is_where_a_level_step_reaches_the_edge_threshold():
     expected = math.sqrt(100.0 / (KNEE_STEPS * KINECT_ALPHA))  # 5.76 m
     assert knee == pytest.approx(expected, rel=0.03)
     assert 5500 < knee < 6000
-    # nothing measured beyond it: no companding
-    assert knee_mm(_kinect_wall(3000.0)[0], 100.0) == math.inf
+    # a near wall has the same knee (a camera may turn to a far one) and nothing beyond it
+    near = _kinect_wall(3000.0)
+    assert knee_mm(near[0], 100.0) == pytest.approx(knee, rel=0.05)
+    np.testing.assert_array_equal(
+        upsr.super_resolve(near, 2, 3), upsr.super_resolve(near, 2, 3, compand_knee_mm=None)
+    )
 
 
 def test_compand_and_expand_are_inverse_and_keep_the_depth_below_the_knee():
@@ -72,8 +116,21 @@ def test_compand_and_expand_are_inverse_and_keep_the_depth_below_the_knee():
         assert hi - lo == pytest.approx(alpha * 5000.0**2 * depth / (depth + step), rel=1e-4)
     # beyond the companded range (a deblurring overshoot) the depth is capped, never < 0
     assert 0 < expand(np.array([9999.9, 20000.0], np.float32), 5000.0).max() <= 1e6
+    assert expand(np.float32([2 * 5759.0]), 5759.0)[0] == 1e6  # (not 1e6 + float32 error)
     same = np.array([1.0, 2.0], np.float32)
     assert compand(same, math.inf) is same and expand(same, math.inf) is same
+
+
+def test_a_near_scenes_knee_follows_its_scaled_edge_step():
+    """62 % of the frame at 0.7 m: the edge step is scaled by the median depth (0.7), and the
+    knee with it, so that a far level step is one surface for the scaled step too."""
+    z = np.full((60, 80), 7500.0)
+    z[:, :50] = 700.0
+    frame = _stereo(z, 580.0, 75.0, 1 / 8)
+    knee = video_knee_mm(frame, UPSRConfig(scale=2))
+    assert knee == pytest.approx(math.sqrt(0.7 * 100.0 / (KNEE_STEPS * KINECT_ALPHA)), rel=0.05)
+    given = video_knee_mm(frame, UPSRConfig(scale=2, near_depth_mm=None))  # (as --edge-mm)
+    assert given == pytest.approx(math.sqrt(100.0 / (KNEE_STEPS * KINECT_ALPHA)), rel=0.05)
 
 
 def test_the_video_knee_waits_for_depth_and_follows_the_config():

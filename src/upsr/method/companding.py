@@ -40,6 +40,7 @@ __all__ = [
     "MAX_ALPHA",
     "MIN_LEVELS",
     "NOISY_SHARE",
+    "UNIT_STEPS",
     "compand",
     "expand",
     "knee_mm",
@@ -57,13 +58,25 @@ MIN_LEVELS = 4
 #: Share of the samples (each weighs on the step to the next level) whose step lies within
 #: ×[2/3, 3/2] of α·z²: a disparity-quantised frame has 0.997–1.0.
 CONSISTENT_SHARE = 0.8
-#: Share of the horizontal neighbour pairs that differ: a noisy frame (the Kinect scenes of
-#: ``benchmarks/outside_eval.py``: 0.58–0.86); a clean render's surfaces differ only at their
-#: edges (thin legs and their mixed pixels on a wall, 64 % of whose pixels are leg or mix: 0.11).
+#: Share of the neighbour pairs that differ, along the rows and along the columns (each): a
+#: noisy frame (the Kinect scenes of ``benchmarks/outside_eval.py``: 0.58–0.86); a clean
+#: render's surfaces differ only at their edges (thin legs and their mixed pixels on a wall,
+#: 64 % of whose pixels are leg or mix: 0.11), and a clean plane slanted along the rows, whose
+#: columns step by α·z² exactly, not at all along its columns.
 NOISY_SHARE = 0.3
-#: The coarsest level step of a camera, α per mm (20 mm at 1 m; a Kinect: 2.9 mm, 1/8 px of
-#: disparity at f·b = 580 px · 75 mm): coarser steps are a render's few surfaces.
-MAX_ALPHA = 2e-5
+#: The coarsest level step of a camera, α per mm (100 mm at 1 m: 1 px of disparity at
+#: f·b = 10⁴ px·mm; a Kinect: 2.9 mm, 1/8 px at f·b = 580 px · 75 mm; an integer-disparity
+#: stereo camera of f = 440 px, b = 75 mm: 30 mm).
+MAX_ALPHA = 1e-4
+#: Steps of fewer depth units (1 mm where every depth is whole mm, 0.1 mm where tenths) say
+#: nothing of the levels: near a camera its levels are finer than the units and the rounding
+#: sets the steps (a D435's 1/32 px at f·b = 385 px · 50 mm: 1.2 mm at 0.6 m).
+UNIT_STEPS = 3.0
+#: Least share of the samples whose step to the next level is kept: most where the depth is
+#: quantised in disparity (a D435 with 30 % of its frame at 0.6 m: 0.7; a Kinect with 62 % at
+#: 0.7 m: 0.38); few where whole mm of continuous noise step by 1 or 2 mm but in the sparse
+#: tails (0.2 let through a whole-mm 8 × 10 frame of a wall with σ = 30 mm).
+KEPT_SHARE = 0.3
 
 
 def level_spacing(frame: npt.ArrayLike) -> float | None:
@@ -71,11 +84,12 @@ def level_spacing(frame: npt.ArrayLike) -> float | None:
     in disparity, or None where its depths are not so quantised.
 
     α is the sample-weighted median of step / z² over the frame's distinct depths (each
-    step at the depth between its two levels). The frame is taken as quantised where it holds
-    at least :data:`MIN_LEVELS` distinct depths, at least :data:`CONSISTENT_SHARE` of the
-    samples step to the next level by α·z² within a factor 1.5, α is at most
-    :data:`MAX_ALPHA` and at least :data:`NOISY_SHARE` of its horizontal neighbour pairs
-    differ (noise dithers a surface over its levels; a clean render does not).
+    step at the depth between its two levels), of the steps of at least :data:`UNIT_STEPS`
+    depth units. The frame is taken as quantised where those steps join at least
+    :data:`MIN_LEVELS` distinct depths, at least :data:`CONSISTENT_SHARE` of their samples
+    step to the next level by α·z² within a factor 1.5, α is at most :data:`MAX_ALPHA` and at
+    least :data:`NOISY_SHARE` of its neighbour pairs differ along the rows and along the
+    columns (noise dithers a surface over its levels; a clean render does not).
 
     Parameters
     ----------
@@ -86,40 +100,72 @@ def level_spacing(frame: npt.ArrayLike) -> float | None:
     -------
     float or None
     """
-    f = np.asarray(frame, np.float64)
-    z = f[np.isfinite(f) & (f > 0)]
-    levels, counts = np.unique(z, return_counts=True)
+    f = np.nan_to_num(np.asarray(frame, np.float64))
+    levels, counts = np.unique(f[f > 0], return_counts=True)
+    z_count = counts[:-1].sum()
     if levels.size < MIN_LEVELS:
         return None
     step = np.diff(levels)
-    mid2 = (0.5 * (levels[1:] + levels[:-1])) ** 2
+    kept = step >= UNIT_STEPS * _unit(levels)  # (not set by the units' rounding)
+    if np.count_nonzero(kept) < MIN_LEVELS - 1 or counts[:-1][kept].sum() < KEPT_SHARE * z_count:
+        return None
+    step = step[kept]
+    mid2 = ((0.5 * (levels[1:] + levels[:-1])) ** 2)[kept]
     ratio = step / mid2
-    weight = counts[:-1].astype(np.float64)
+    weight = counts[:-1][kept].astype(np.float64)
     order = np.argsort(ratio)
     cum = np.cumsum(weight[order])
     alpha = float(ratio[order][np.searchsorted(cum, 0.5 * cum[-1])])
     fits = (step >= alpha * mid2 / 1.5) & (step <= 1.5 * alpha * mid2)
     if alpha > MAX_ALPHA or weight[fits].sum() < CONSISTENT_SHARE * weight.sum():
         return None
-    f = np.nan_to_num(f)
-    left, right = f[:, :-1], f[:, 1:]
-    pairs = (left > 0) & (right > 0)
-    differ = int((pairs & (left != right)).sum())
-    return alpha if differ >= NOISY_SHARE * max(int(pairs.sum()), 1) else None
+    if not _grows_as_z2(np.log(step[fits]), 0.5 * np.log(mid2[fits]), weight[fits]):
+        return None
+    for a, b in ((f[:, :-1], f[:, 1:]), (f[:-1], f[1:])):  # along the rows, the columns
+        pairs = (a > 0) & (b > 0)
+        if int((pairs & (a != b)).sum()) < NOISY_SHARE * max(int(pairs.sum()), 1):
+            return None
+    return alpha
+
+
+#: Where the fitting steps' depths span at least this ratio, the steps must grow as z^p with p
+#: within :data:`POWER_TOLERANCE` of 2 (disparity levels); a ramp of whole mm, or a plane's
+#: columns in depth, steps alike at every depth (p ≈ 0).
+POWER_SPAN = 1.3
+POWER_TOLERANCE = 0.75
+
+
+def _grows_as_z2(log_step: np.ndarray, log_z: np.ndarray, weight: np.ndarray) -> bool:
+    """Whether the steps grow as z² (weighted least squares of log step on log z), where the
+    levels span :data:`POWER_SPAN` or more; True over a narrower span (nothing to tell)."""
+    if log_z.max() - log_z.min() < math.log(POWER_SPAN):
+        return True
+    mz = np.average(log_z, weights=weight)
+    ms = np.average(log_step, weights=weight)
+    var = np.average((log_z - mz) ** 2, weights=weight)
+    power = np.average((log_z - mz) * (log_step - ms), weights=weight) / var
+    return abs(power - 2.0) <= POWER_TOLERANCE
+
+
+def _unit(levels: np.ndarray) -> float:
+    """1 (mm) where every depth is whole mm, 0.1 where tenths, else 0 (continuous)."""
+    for unit in (1.0, 0.1):
+        scaled = levels / unit
+        if np.all(np.abs(scaled - np.round(scaled)) <= 1e-3 * np.maximum(1.0, scaled * 1e-4)):
+            return unit
+    return 0.0
 
 
 def knee_mm(frame: npt.ArrayLike, edge_mm: float) -> float:
     """The depth (mm) beyond which a video's depth is companded, from its first frame with
     depth (h, w): where the level step α·z² (:func:`level_spacing`) reaches ``edge_mm`` /
-    :data:`KNEE_STEPS`; ``math.inf`` (no companding) where the frame is not quantised in
-    disparity or no depth of it lies beyond that."""
+    :data:`KNEE_STEPS` (whether or not the frame holds depth beyond it: a camera that turns
+    from a near wall to a far one); ``math.inf`` (no companding) where the frame is not
+    quantised in disparity."""
     alpha = level_spacing(frame)
     if alpha is None or not alpha > 0:
         return math.inf
-    knee = math.sqrt(edge_mm / (KNEE_STEPS * alpha))
-    f = np.asarray(frame, np.float64)
-    top = float(np.nanmax(f)) if f.size else 0.0
-    return knee if knee < top else math.inf
+    return math.sqrt(edge_mm / (KNEE_STEPS * alpha))
 
 
 def compand(depth: npt.ArrayLike, knee: float) -> np.ndarray:
@@ -161,6 +207,7 @@ def _expand_kernel(  # pragma: no cover
 ) -> None:
     k = np.float32(knee)
     two_k, k2, t = np.float32(2.0 * knee), np.float32(knee * knee), np.float32(top)
+    cap = np.float32(MAX_DEPTH_MM)  # (float32 cancellation near the top)
     for i in range(u.size):
         v = u[i]
-        out[i] = k2 / (two_k - min(v, t)) if v > k else v
+        out[i] = min(k2 / (two_k - min(v, t)), cap) if v > k else v

@@ -20,7 +20,7 @@ import numpy as np
 from upsr.method.companding import compand, expand, knee_mm
 from upsr.method.config import UPSRConfig
 from upsr.method.footprint import footprint_share, has_mixed_pixels
-from upsr.method.frontend import MotionFrontEnd, enough_for_statistics
+from upsr.method.frontend import MotionFrontEnd, depth_scale, enough_for_statistics
 from upsr.method.noise import (
     QUANTISED_STEPS,
     choose_estimator,
@@ -68,10 +68,11 @@ class VideoStatistics(NamedTuple):
 def video_knee_mm(frame: np.ndarray, cfg: UPSRConfig, *, decide: bool = False) -> float | None:
     """The companding knee (mm) of a video from its first frame with depth (h, w) mm
     (:func:`~upsr.method.frontend.enough_for_statistics`): ``cfg.compand_knee_mm`` where given,
-    for ``"auto"`` :func:`upsr.method.companding.knee_mm` at ``cfg.edge_mm``; inf (none) for
-    None and with ``camera_motion="depth"`` (its motion is estimated from the depth as
-    measured). None for a frame with too little depth (the next frame decides), unless
-    ``decide`` (then inf)."""
+    for ``"auto"`` :func:`upsr.method.companding.knee_mm` at the edge step the method will
+    compare depths with (``cfg.edge_mm``, scaled for a near scene by that frame's
+    :func:`~upsr.method.frontend.depth_scale`); inf (none) for None and, whatever is given,
+    with ``camera_motion="depth"`` (its motion is estimated from the depth as measured). None
+    for a frame with too little depth (the next frame decides), unless ``decide`` (then inf)."""
     knee = cfg.compand_knee_mm
     if knee is None or cfg.camera_motion == "depth":
         return math.inf
@@ -79,7 +80,7 @@ def video_knee_mm(frame: np.ndarray, cfg: UPSRConfig, *, decide: bool = False) -
         return float(knee)
     if not enough_for_statistics(frame):
         return math.inf if decide else None
-    return knee_mm(frame, cfg.edge_mm)
+    return knee_mm(frame, cfg.edge_mm * depth_scale(frame[None], cfg.near_depth_mm))
 
 
 def fix_video_statistics(

@@ -614,3 +614,25 @@ def test_a_camera_clock_stepping_back_does_not_end_the_stream(tmp_path, capsys, 
     assert rc == 0, err
     stamps = np.load(out)["timestamps"]
     assert len(stamps) == 12 and stamps[4] == stamps[3] - 200_000_000 + 33_333_333
+
+
+@needs_sdk
+def test_live_compands_a_far_kinect_recording_as_run_does(tmp_path, capsys):
+    """A wall at 7 m through the Kinect model, written by the SDK: live says the knee and
+    equals `upsr run --recursive`; --no-compand turns it off in both alike."""
+    from upsr.research.synth.degradation import kinect
+    from upsr.research.synth.recording import write_realsense_recording
+
+    wall = np.round(kinect(np.full((6, 20, 24), 7000.0), np.random.default_rng(1)))
+    rec = write_realsense_recording(tmp_path / "far.db3", wall, units_m=1e-3)
+    outs = {}
+    for extra in ((), ("--no-compand",)):
+        out, ref = tmp_path / f"live{len(extra)}.npy", tmp_path / f"run{len(extra)}.npy"
+        rc, _, err = run_cli(capsys, "live", rec, "--no-real-time", "-o", out, "-r", 2, *extra)
+        assert rc == 0, err
+        assert ("companded beyond 5.7" in err) == (not extra)
+        rc, _, err = run_cli(capsys, "run", rec, "-o", ref, "-r", 2, "--recursive", "-q", *extra)
+        assert rc == 0, err
+        np.testing.assert_array_equal(np.load(out), np.load(ref))
+        outs[extra] = np.load(out)
+    assert not np.array_equal(outs[()], outs[("--no-compand",)])

@@ -50,6 +50,7 @@ from upsr.apps.cli.options import (
     FlowPresetOpt,
     IterationsOpt,
     MaxMemoryOpt,
+    NoCompandOpt,
     OutFormat,
     ScaleOpt,
     ValidRangeOpt,
@@ -202,6 +203,7 @@ def live(
     stream: StreamOpt = None,
     valid_range: ValidRangeOpt = None,
     edge_mm: EdgeMmOpt = None,
+    no_compand: NoCompandOpt = False,
     max_memory: MaxMemoryOpt = None,
     overwrite: LiveOverwriteOpt = False,
     quiet: LiveQuietOpt = False,
@@ -230,6 +232,7 @@ def live(
         recursive=True,
         valid_range=valid_range,
         edge_mm=edge_mm,
+        no_compand=no_compand,
     )
     out_fmt = fmt(output_format)
     io.check_output_path([] if recording is None else [recording], output, overwrite, fmt=out_fmt)
