@@ -298,10 +298,17 @@ def live(
         + f") -> {output}"
         + (" (stopped by Ctrl-C)" if stats.get("stopped") else "")
     )
-    hint = drop_hint(done, source.dropped, cfg.flow_preset)
-    if hint is not None and not quiet:
+    if not quiet:
+        _advise(engine, done, source.dropped)
+
+
+def _advise(engine: Any, done: int, dropped: int) -> None:
+    """On stderr: the cheaper settings where frames were dropped (:func:`drop_hint`), and the
+    per-video choices as ``upsr run --recursive`` says them."""
+    hint = drop_hint(done, dropped, engine.config.flow_preset)
+    if hint is not None:
         typer.echo(hint, err=True)
-    if engine.statistics is not None and not quiet:  # (as upsr run --recursive says them)
+    if engine.statistics is not None:
         from upsr.apps.cli.run import choices_line
 
         typer.echo(f"upsr live: {choices_line(engine.statistics)}", err=True)
