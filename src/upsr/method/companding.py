@@ -19,10 +19,11 @@ companded, once per video, before everything the method does, and expanded back 
 which makes a level step beyond the knee the same u-step everywhere (q(z_k), just below the
 edge threshold: :data:`KNEE_STEPS`), makes a Kinect's noise (σ ∝ z²) about constant there, and
 is affine in the disparity 1/z (a plane stays a plane in u over the image). The knee is
-fitted on the video's first frame with depth (:func:`knee_mm`): the level steps between its
-distinct depths must follow α·z² (:func:`level_spacing`); on continuous depth (ToF, renders,
-whole-mm integers of a sensor that does not quantise disparity) there is no knee and nothing
-changes.
+fitted on the video's first frame with depth (:func:`knee_mm`; for the edge step the method
+uses, scaled for a near scene: :func:`upsr.method.statistics.video_knee_mm`): the level steps
+between its distinct depths must follow α·z² (:func:`level_spacing`); on continuous depth
+(ToF, renders, whole-mm integers of a sensor that does not quantise disparity) there is no
+knee, and below the knee nothing changes.
 """
 
 from __future__ import annotations

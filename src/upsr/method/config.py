@@ -375,8 +375,8 @@ class UPSRConfig:
         Beyond the paper. Depth quantised in disparity (structured light, stereo) is companded
         beyond this depth (mm), where one level step reaches the edge threshold, so that one
         level is one surface (:mod:`upsr.method.companding`). ``"auto"``: fitted on the first
-        frame with depth (none for continuous depth, and with ``camera_motion="depth"``);
-        None: never.
+        frame with depth (windowed: among the first N; none for continuous depth); None:
+        never; never with ``camera_motion="depth"``, whatever is given.
     valid_range_mm : (float, float) or None
         Beyond the paper. (min, max) mm: the frames' depths outside are no measurement (0),
         as a depth camera SDK's threshold filter makes them: a sensor's stray near or far
