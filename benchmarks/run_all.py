@@ -2,7 +2,8 @@
 Samba meshes are at ``--data``, default ``../shared/data``), speed beside a busy process,
 ``upsr live`` on SDK recordings played in real time (with pyrealsense2), the flow grid, the
 synthetic scenes, the realistic sensor scenes (``--out docs/results`` writes them to
-docs/results/realistic), the scenes built outside the rules' development (an audit), stray
+docs/results/realistic), the scenes built outside the rules' development (an audit), the
+companding of disparity-quantised depth (its knee's fit, its knee step), stray
 far values and ``--valid-range``, close range and
 ``--edge-mm``, thin parts on a ToF sensor, the deblurring iterations and speckle removal, and
 the Samba accuracy tables. Each benchmark prints its table and writes ``results.json`` under
@@ -18,6 +19,7 @@ from pathlib import Path
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 import close_range_eval
+import companding_eval
 import deblur_eval
 import flow_grid_eval
 import live_eval
@@ -57,6 +59,8 @@ def main() -> int:
     realistic_eval.main(["--out", str(out / "realistic")])
     print("\n== scenes built outside the rules' development (an audit) ==", flush=True)
     outside_eval.main(["--out", str(out / "outside")])
+    print("\n== the companding of depth quantised in disparity ==", flush=True)
+    companding_eval.main(["--out", str(out / "companding")])
     print("\n== a camera at close range and --edge-mm ==", flush=True)
     close_range_eval.main(["--out", str(out / "close_range")])
     print("\n== a sensor's stray far values and --valid-range ==", flush=True)

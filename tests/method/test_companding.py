@@ -206,3 +206,85 @@ def test_a_clean_render_of_thin_legs_and_their_mixes_has_no_levels():
 
     low = tof_footprint(_gap(), R)
     assert level_spacing(low) is None and knee_mm(low, 100.0) == math.inf
+
+
+def test_column_major_frames_are_companded_as_row_major_ones():
+    """Frames of a column-major array (MATLAB, h5py, a transposed view) pushed one by one:
+    the same output as their row-major copies (the kernels' flat views once wrote a copy)."""
+    z = _kinect_wall(7000.0, shape=(9, 24, 32))
+    knee = 5760.0
+    np.testing.assert_array_equal(
+        compand(z[0].T, knee), compand(np.ascontiguousarray(z[0].T), knee)
+    )
+    u = compand(z, knee)
+    np.testing.assert_array_equal(expand(u[0].T, knee), expand(np.ascontiguousarray(u[0].T), knee))
+    fortran = np.asfortranarray(z.transpose(0, 2, 1))
+    for mode in ("windowed", "recursive"):
+        out = [o for f in fortran for o in upsr.UPSR(2, 9, mode=mode).feed(f)]
+        ref = [o for f in np.ascontiguousarray(fortran) for o in upsr.UPSR(2, 9, mode=mode).feed(f)]
+        for a, b in zip(out, ref, strict=True):
+            np.testing.assert_array_equal(a, b)
+
+
+def _sparse_then_wall() -> np.ndarray:
+    """A far Kinect wall whose first frame holds a few far pixels only (too little depth to fix
+    the statistics or the knee on), the knee decided on the second."""
+    low = _kinect_wall(7000.0, shape=(12, 24, 32)).astype(np.float32)
+    low[0] = 0.0
+    low[0, 5, 5:9] = 9000.0
+    low[1:, 8:16, 10:20] = np.round(low[1:, 8:16, 10:20] * 0.4)  # a box 2.8 m away
+    return low
+
+
+@pytest.mark.parametrize("mode", ["windowed", "recursive"])
+def test_frames_before_the_knee_is_decided_are_companded_as_if_it_was_given(mode):
+    low = _sparse_then_wall()
+    engine = upsr.UPSR(2, 9, mode=mode)
+    out = np.stack(list(engine.process(low)))
+    knee = engine.statistics.knee_mm
+    assert 5500 < knee < 6000
+    np.testing.assert_array_equal(
+        out, upsr.super_resolve(low, 2, 9, mode=mode, compand_knee_mm=knee)
+    )
+
+
+def test_a_pinned_chunk_equals_the_whole_run_with_the_flow_images_ready_from_the_start():
+    """The depth range and noise given: the first frame's flow image is made at once, before
+    the knee; it is made again with the frames companded (a pinned chunk, as ``upsr batch``
+    runs, differed by up to 7 m)."""
+    low = _sparse_then_wall()
+    cfg = UPSRConfig(scale=2, n_frames=3, depth_range_mm=(500.0, 12000.0), noise_mm=30.0)
+    whole = upsr.super_resolve(low, 2, config=cfg)
+    np.testing.assert_array_equal(
+        whole, upsr.super_resolve(low, 2, config=pinned_config(low[:3], cfg))
+    )
+
+
+def test_a_camera_turning_from_a_near_wall_to_a_far_one_is_companded():
+    z = np.full((16, 24, 32), 7500.0)
+    z[:4] = 3000.0
+    low = np.round(kinect(z, np.random.default_rng(0), dropout_fraction=0.0))
+    for mode in ("windowed", "recursive"):
+        auto = upsr.super_resolve(low, 2, 9, mode=mode)
+        off = upsr.super_resolve(low, 2, 9, mode=mode, compand_knee_mm=None)
+        err = [np.sqrt(np.mean((o[10:, 4:-4, 4:-4] - 7500.0) ** 2)) for o in (auto, off)]
+        assert err[0] < 0.5 * err[1], (mode, err)
+
+
+def test_mixed_pixels_are_judged_on_the_depth_as_measured(monkeypatch):
+    """Whether the sensor mixes depths at edges is the sensor's: the footprint test reads the
+    frames expanded back (windowed) or as measured (recursive), never companded."""
+    from upsr.method import recursive, statistics
+
+    seen = []
+    share, counts = statistics.footprint_share, recursive.footprint_counts
+    monkeypatch.setattr(
+        statistics, "footprint_share", lambda f, e: seen.append(f.max()) or share(f, e)
+    )
+    monkeypatch.setattr(
+        recursive, "footprint_counts", lambda f, e: seen.append(f.max()) or counts(f, e)
+    )
+    low = _kinect_wall(7000.0, shape=(9, 24, 32))
+    for mode in ("windowed", "recursive"):
+        list(upsr.UPSR(2, 9, mode=mode).process(low))
+    assert len(seen) == 1 + 9 and min(seen) == pytest.approx(low.max(), abs=1.0)

@@ -37,10 +37,14 @@ import numpy.typing as npt
 from upsr.method.validation import MAX_DEPTH_MM
 
 __all__ = [
+    "CONSISTENT_SHARE",
+    "KEPT_SHARE",
     "KNEE_STEPS",
     "MAX_ALPHA",
     "MIN_LEVELS",
     "NOISY_SHARE",
+    "POWER_SPAN",
+    "POWER_TOLERANCE",
     "UNIT_STEPS",
     "compand",
     "expand",
@@ -49,10 +53,11 @@ __all__ = [
 ]
 
 #: The edge threshold is this many level steps at the knee (and, in u, beyond it): two
-#: neighbouring levels are one surface, two levels apart are two. Chosen on
-#: ``benchmarks/outside_eval.py`` (the Kinect walls, corridor, hand and slanted scenes) beside
-#: 1.2 and 1.5 (the corridor's far edges merged: its windowed edge accuracy 81.4 → 80.4 and
-#: 78.2 %; the walls alike).
+#: neighbouring levels are one surface, two levels apart are two. Chosen on the Kinect scenes
+#: of ``benchmarks/outside_eval.py`` beside 1.2 and 1.5 (``benchmarks/companding_eval.py``: the
+#: corridor's far edges merge, its windowed edge accuracy 81.4 → 80.5 and 78.3 %, the slanted
+#: scene's 76.4 → 74.6 and 73.8 %; the Kinect walls' surface rmse 0.1–5.7 mm lower, most on
+#: the walls at 4–5 m slanted 35°).
 KNEE_STEPS = 1.05
 #: Fewest distinct depths whose steps can show a level spacing.
 MIN_LEVELS = 4
@@ -78,6 +83,11 @@ UNIT_STEPS = 3.0
 #: 0.7 m: 0.38); few where whole mm of continuous noise step by 1 or 2 mm but in the sparse
 #: tails (0.2 let through a whole-mm 8 × 10 frame of a wall with σ = 30 mm).
 KEPT_SHARE = 0.3
+#: Where the fitting steps' depths span at least this ratio, the steps must grow as z^p with p
+#: within :data:`POWER_TOLERANCE` of 2 (disparity levels); a ramp of whole mm, or a plane's
+#: columns in depth, steps alike at every depth (p ≈ 0).
+POWER_SPAN = 1.3
+POWER_TOLERANCE = 0.75
 
 
 def level_spacing(frame: npt.ArrayLike) -> float | None:
@@ -87,10 +97,12 @@ def level_spacing(frame: npt.ArrayLike) -> float | None:
     α is the sample-weighted median of step / z² over the frame's distinct depths (each
     step at the depth between its two levels), of the steps of at least :data:`UNIT_STEPS`
     depth units. The frame is taken as quantised where those steps join at least
-    :data:`MIN_LEVELS` distinct depths, at least :data:`CONSISTENT_SHARE` of their samples
-    step to the next level by α·z² within a factor 1.5, α is at most :data:`MAX_ALPHA` and at
-    least :data:`NOISY_SHARE` of its neighbour pairs differ along the rows and along the
-    columns (noise dithers a surface over its levels; a clean render does not).
+    :data:`MIN_LEVELS` distinct depths and :data:`KEPT_SHARE` of the samples, at least
+    :data:`CONSISTENT_SHARE` of their samples step to the next level by α·z² within a factor
+    1.5, those steps grow as z^p with p within :data:`POWER_TOLERANCE` of 2 where their depths
+    span :data:`POWER_SPAN` or more, α is at most :data:`MAX_ALPHA`, and at least
+    :data:`NOISY_SHARE` of the neighbour pairs differ along the rows and along the columns
+    (noise dithers a surface over its levels; a clean render does not).
 
     Parameters
     ----------
@@ -129,13 +141,6 @@ def level_spacing(frame: npt.ArrayLike) -> float | None:
     return alpha
 
 
-#: Where the fitting steps' depths span at least this ratio, the steps must grow as z^p with p
-#: within :data:`POWER_TOLERANCE` of 2 (disparity levels); a ramp of whole mm, or a plane's
-#: columns in depth, steps alike at every depth (p ≈ 0).
-POWER_SPAN = 1.3
-POWER_TOLERANCE = 0.75
-
-
 def _grows_as_z2(log_step: np.ndarray, log_z: np.ndarray, weight: np.ndarray) -> bool:
     """Whether the steps grow as z² (weighted least squares of log step on log z), where the
     levels span :data:`POWER_SPAN` or more; True over a narrower span (nothing to tell)."""
@@ -158,11 +163,23 @@ def _unit(levels: np.ndarray) -> float:
 
 
 def knee_mm(frame: npt.ArrayLike, edge_mm: float) -> float:
-    """The depth (mm) beyond which a video's depth is companded, from its first frame with
-    depth (h, w): where the level step α·z² (:func:`level_spacing`) reaches ``edge_mm`` /
-    :data:`KNEE_STEPS` (whether or not the frame holds depth beyond it: a camera that turns
-    from a near wall to a far one); ``math.inf`` (no companding) where the frame is not
-    quantised in disparity."""
+    """The depth beyond which a video's depth is companded, from its first frame with depth:
+    where the level step α·z² (:func:`level_spacing`) reaches ``edge_mm`` /
+    :data:`KNEE_STEPS`, whether or not the frame holds depth beyond it (a camera that turns
+    from a near wall to a far one).
+
+    Parameters
+    ----------
+    frame : array_like (h, w)
+        Depth (mm), 0 or NaN = no measurement.
+    edge_mm : float
+        The edge step the method compares depths with (mm).
+
+    Returns
+    -------
+    float: z_k (mm); ``math.inf`` (no companding) where the frame is not quantised in
+    disparity.
+    """
     alpha = level_spacing(frame)
     if alpha is None or not alpha > 0:
         return math.inf
@@ -170,26 +187,52 @@ def knee_mm(frame: npt.ArrayLike, edge_mm: float) -> float:
 
 
 def compand(depth: npt.ArrayLike, knee: float) -> np.ndarray:
-    """Depth (mm, any shape, 0 = no measurement) companded beyond ``knee`` mm:
-    u = 2·z_k − z_k²/z there, z elsewhere (float32; the array itself for ``knee`` = inf)."""
+    """Depth companded beyond a knee: u = 2·z_k − z_k²/z beyond it, z elsewhere.
+
+    Parameters
+    ----------
+    depth : array_like (any shape)
+        Depth (mm), 0 or NaN = no measurement (kept).
+    knee : float
+        z_k (mm); ``math.inf``: nothing is companded.
+
+    Returns
+    -------
+    ndarray float32, C-ordered, same shape (for ``knee`` = inf: ``depth`` as float32, the
+    array itself where it is one)
+    """
     z = np.asarray(depth, np.float32)
     if not math.isfinite(knee):
         return z
-    out = np.empty_like(z)
-    _compand_kernel(np.ascontiguousarray(z).reshape(-1), float(knee), out.reshape(-1))
+    z = np.ascontiguousarray(z)
+    out = np.empty(z.shape, np.float32)  # (C order: its flat view is the kernel's output)
+    _compand_kernel(z.reshape(-1), float(knee), out.reshape(-1))
     return out
 
 
 def expand(companded: npt.ArrayLike, knee: float) -> np.ndarray:
-    """The inverse of :func:`compand` (float32): z = z_k² / (2·z_k − u) beyond the knee, at most
+    """The inverse of :func:`compand`: z = z_k² / (2·z_k − u) beyond the knee.
+
+    Parameters
+    ----------
+    companded : array_like (any shape)
+        u (mm in :func:`compand`'s units), 0 = no measurement (kept).
+    knee : float
+        z_k (mm); ``math.inf``: nothing is expanded.
+
+    Returns
+    -------
+    ndarray float32, C-ordered, same shape: depth (mm), at most
     :data:`~upsr.method.validation.MAX_DEPTH_MM` (a deblurring step beyond the companded
-    range's end)."""
+    range's end).
+    """
     u = np.asarray(companded, np.float32)
     if not math.isfinite(knee):
         return u
-    out = np.empty_like(u)
+    u = np.ascontiguousarray(u)
+    out = np.empty(u.shape, np.float32)
     top = 2.0 * knee - knee * knee / MAX_DEPTH_MM
-    _expand_kernel(np.ascontiguousarray(u).reshape(-1), float(knee), top, out.reshape(-1))
+    _expand_kernel(u.reshape(-1), float(knee), top, out.reshape(-1))
     return out
 
 
@@ -197,7 +240,7 @@ def expand(companded: npt.ArrayLike, knee: float) -> np.ndarray:
 def _compand_kernel(z: np.ndarray, knee: float, out: np.ndarray) -> None:  # pragma: no cover
     k = np.float32(knee)
     two_k, k2 = np.float32(2.0 * knee), np.float32(knee * knee)
-    for i in range(z.size):  # (branch-free: both sides, one kept; 0 stays 0)
+    for i in range(z.size):
         v = z[i]
         out[i] = two_k - k2 / v if v > k else v
 

@@ -61,7 +61,7 @@ class VideoStatistics(NamedTuple):
     #: The factor of the depth thresholds in mm (< 1: a scene nearer than ``near_depth_mm``).
     depth_scale: float = 1.0
     #: The depth (mm) beyond which the depth is companded (:mod:`upsr.method.companding`;
-    #: inf: nowhere).
+    #: inf: nowhere). Beyond it the noises and the profile above are in companded mm.
     knee_mm: float = math.inf
 
 

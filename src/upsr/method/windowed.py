@@ -269,6 +269,7 @@ class UPSR:
             for k in self._lowres if self._knee is not None else ():
                 self._lowres[k] = compand(self._lowres[k], self._knee)
                 self._pre[k] = front.prefilter(self._lowres[k])
+                self._guide.pop(k, None)  # (made again below, and its flows)
         self._lowres[t] = f = compand(f, self._knee or math.inf)
         with self._timed("prefilter"):
             self._pre[t] = front.prefilter(f)
