@@ -171,7 +171,8 @@ def kernel_ms() -> dict[str, float]:
 
 def markdown(res: dict[str, Any]) -> str:
     lines = ["# The companding of depth quantised in disparity", "",
-             "`benchmarks/companding_eval.py`. Knees fitted at the 100 mm edge step.", "",
+             f"`benchmarks/companding_eval.py` at {res['commit']}. Knees fitted at the 100 mm "
+             "edge step.", "",
              "## Continuous depth: false knees", "", "| frames | false knees | of |",
              "|---|---:|---:|"]  # fmt: skip
     for label, (bad, n) in res["false_knees"].items():
@@ -204,7 +205,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     p.add_argument("--quick", action="store_true", help="no KNEE_STEPS runs")
     args = p.parse_args(argv)
     t0 = time.perf_counter()
+    from outside_eval import _commit
+
     res: dict[str, Any] = {
+        "commit": _commit(),
         "false_knees": knee_counts(continuous_frames(), want=False),
         "missed_knees": knee_counts(quantised_frames(), want=True),
         "knee_steps": [] if args.quick else knee_steps((1.05, 1.2, 1.5)),
