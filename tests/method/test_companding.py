@@ -123,23 +123,28 @@ def test_compand_and_expand_are_inverse_and_keep_the_depth_below_the_knee():
 
 def test_a_near_scenes_knee_follows_its_scaled_edge_step():
     """62 % of the frame at 0.7 m: the edge step is scaled by the median depth (0.7), and the
-    knee with it, so that a far level step is one surface for the scaled step too."""
+    knee with it, so that a far level step is one surface for the scaled step too; the scale
+    is that of all the frames given (the windowed engine's first N, as its thresholds')."""
     z = np.full((60, 80), 7500.0)
     z[:, :50] = 700.0
     frame = _stereo(z, 580.0, 75.0, 1 / 8)
-    knee = video_knee_mm(frame, UPSRConfig(scale=2))
+    knee = video_knee_mm(frame[None], UPSRConfig(scale=2))
     assert knee == pytest.approx(math.sqrt(0.7 * 100.0 / (KNEE_STEPS * KINECT_ALPHA)), rel=0.05)
-    given = video_knee_mm(frame, UPSRConfig(scale=2, near_depth_mm=None))  # (as --edge-mm)
+    given = video_knee_mm(frame[None], UPSRConfig(scale=2, near_depth_mm=None))  # (--edge-mm)
     assert given == pytest.approx(math.sqrt(100.0 / (KNEE_STEPS * KINECT_ALPHA)), rel=0.05)
+    # a first frame all far, then the camera turns to the near scene: the frames' scale
+    far = _stereo(np.full((60, 80), 7500.0), 580.0, 75.0, 1 / 8)
+    turned = video_knee_mm(np.stack([far] + [frame] * 8), UPSRConfig(scale=2))
+    assert turned == pytest.approx(knee, rel=0.05)
 
 
 def test_the_video_knee_waits_for_depth_and_follows_the_config():
-    wall = _kinect_wall(7000.0)[0]
+    wall = _kinect_wall(7000.0)[:3]
     cfg = UPSRConfig(scale=2)
     assert 5500 < video_knee_mm(wall, cfg) < 6000
     empty = np.zeros_like(wall)
-    assert video_knee_mm(empty, cfg) is None  # the next frame decides
-    assert video_knee_mm(empty, cfg, decide=True) == math.inf
+    assert video_knee_mm(np.concatenate([empty, wall]), cfg) == video_knee_mm(wall, cfg)
+    assert video_knee_mm(empty, cfg) == math.inf
     assert video_knee_mm(empty, UPSRConfig(scale=2, compand_knee_mm=4000.0)) == 4000.0
     assert video_knee_mm(wall, UPSRConfig(scale=2, compand_knee_mm=None)) == math.inf
     depth_motion = UPSRConfig(scale=2, camera_motion="depth", camera_intrinsics=(50, 50, 20, 15))

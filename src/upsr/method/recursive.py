@@ -390,7 +390,7 @@ class RecursiveUPSR(TwoStagePipeline):
             return (None, f)
         first_with_depth = self._front is None
         if first_with_depth:  # (companding of depth quantised in disparity, from this frame)
-            self._knee = video_knee_mm(f, cfg)  # (a frame with depth: decided)
+            self._knee = video_knee_mm(f[None], cfg)
         raw, f = f, compand(f, self._knee)
         if first_with_depth:
             self._fix_statistics(f)

@@ -1,7 +1,7 @@
 """The choices UP-SR makes once per video, from its first N frames (beyond the paper).
 
 The windowed engine fixes them with the N-th frame, before its first window (the companding of
-depth quantised in disparity with its first frame with depth: :func:`video_knee_mm`), and never
+depth quantised in disparity first: :func:`video_knee_mm`), and never
 changes them (a chunk of a video run with :func:`pinned_config` gives exactly what the whole
 run gives): the front-end's depth range and noise
 (:class:`~upsr.method.frontend.MotionFrontEnd`), the trust's noise and its profile over
@@ -65,22 +65,28 @@ class VideoStatistics(NamedTuple):
     knee_mm: float = math.inf
 
 
-def video_knee_mm(frame: np.ndarray, cfg: UPSRConfig, *, decide: bool = False) -> float | None:
-    """The companding knee (mm) of a video from its first frame with depth (h, w) mm
-    (:func:`~upsr.method.frontend.enough_for_statistics`): ``cfg.compand_knee_mm`` where given,
-    for ``"auto"`` :func:`upsr.method.companding.knee_mm` at the edge step the method will
-    compare depths with (``cfg.edge_mm``, scaled for a near scene by that frame's
-    :func:`~upsr.method.frontend.depth_scale`); inf (none) for None and, whatever is given,
-    with ``camera_motion="depth"`` (its motion is estimated from the depth as measured). None
-    for a frame with too little depth (the next frame decides), unless ``decide`` (then inf)."""
+def video_knee_mm(first_frames: np.ndarray, cfg: UPSRConfig) -> float:
+    """The companding knee (mm) of a video from its first frames (T, h, w) mm.
+
+    ``cfg.compand_knee_mm`` where given; for ``"auto"``, :func:`upsr.method.companding.knee_mm`
+    of the first of the frames with depth (:func:`~upsr.method.frontend.enough_for_statistics`)
+    at the edge step the method compares depths with: ``cfg.edge_mm`` scaled for a near scene
+    by the frames' :func:`~upsr.method.frontend.depth_scale` (the windowed engine's first N
+    frames, the recursive engine's first frame with depth: as each scales its thresholds; the
+    same on companded frames, whose median below 1 m is not companded). inf (none) where no
+    frame has depth, for None and, whatever is given, with ``camera_motion="depth"`` (its
+    motion is estimated from the depth as measured).
+    """
     knee = cfg.compand_knee_mm
     if knee is None or cfg.camera_motion == "depth":
         return math.inf
     if knee != "auto":
-        return float(knee)
-    if not enough_for_statistics(frame):
-        return math.inf if decide else None
-    return knee_mm(frame, cfg.edge_mm * depth_scale(frame[None], cfg.near_depth_mm))
+        return float(knee)  # type: ignore[arg-type]
+    for frame in first_frames:
+        if enough_for_statistics(frame):
+            scale = depth_scale(first_frames, cfg.near_depth_mm)
+            return knee_mm(frame, cfg.edge_mm * scale)
+    return math.inf
 
 
 def fix_video_statistics(
@@ -205,12 +211,7 @@ def pinned_config(first_frames: np.ndarray, cfg: UPSRConfig) -> UPSRConfig:
     """
     if cfg.valid_range_mm is not None:  # (the frames as the engine will see them)
         first_frames = within_range(np.array(first_frames, np.float32), cfg.valid_range_mm)
-    knee: float | None = None
-    for t, frame in enumerate(first_frames):  # (as the engines decide it)
-        knee = video_knee_mm(frame, cfg, decide=t + 1 == len(first_frames))
-        if knee is not None:
-            break
-    knee = math.inf if knee is None else knee
+    knee = video_knee_mm(first_frames, cfg)  # (as the windowed engine decides it)
     front = MotionFrontEnd(cfg, first_frames.shape[-1])
     stats = fix_video_statistics(front, compand(first_frames, knee), cfg, knee)
     return dataclasses.replace(

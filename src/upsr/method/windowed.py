@@ -205,7 +205,7 @@ class UPSR:
         if self._stats is not None:
             self._last_stats = self._stats
         self._stats = None
-        self._knee: float | None = None  # (video_knee_mm, with the first frame with depth)
+        self._knee: float | None = None  # (video_knee_mm, with the N-th frame)
         self._lowres: dict[int, np.ndarray] = {}
         self._clean: dict[int, tuple] = {}  # (_cleaned)
         self._pre: dict[int, np.ndarray] = {}
@@ -264,19 +264,20 @@ class UPSR:
             )
         self._any_valid = self._any_valid or bool((f > 0).any())
         front = self._front
-        if self._knee is None:  # (companding: from the first frame with depth; those before too)
-            self._knee = video_knee_mm(f, cfg, decide=t + 1 == cfg.n_frames)
-            for k in self._lowres if self._knee is not None else ():
-                self._lowres[k] = compand(self._lowres[k], self._knee)
-                self._pre[k] = front.prefilter(self._lowres[k])
-                self._guide.pop(k, None)  # (made again below, and its flows)
-        self._lowres[t] = f = compand(f, self._knee or math.inf)
+        self._lowres[t] = f = compand(f, self._knee or math.inf)  # (decided with the N-th)
         with self._timed("prefilter"):
             self._pre[t] = front.prefilter(f)
         self._count = t + 1
         if self._count == cfg.n_frames:
-            # per-video statistics, fixed once from the first window (never per frame)
+            # per-video statistics, fixed once from the first window (never per frame), the
+            # companding first: the first N frames companded, their flow images made again
             first = np.stack([self._lowres[k] for k in sorted(self._lowres)])
+            self._knee = video_knee_mm(first, cfg)
+            for k in self._lowres if math.isfinite(self._knee) else ():
+                self._lowres[k] = compand(self._lowres[k], self._knee)
+                self._pre[k] = front.prefilter(self._lowres[k])
+                self._guide.pop(k, None)  # (and its flows)
+            first = compand(first, self._knee)
             self._stats = fix_video_statistics(front, first, cfg, self._knee)
         if front.ready:
             for k in sorted(self._pre):
