@@ -2,7 +2,7 @@
 
 import numpy as np
 
-from upsr.method.sorting import median_beyond
+from upsr.method.sorting import median_beyond, weighted_median
 
 
 def test_median_beyond_decides_as_the_median_does():
@@ -42,3 +42,11 @@ def test_the_small_medians_are_the_median_ties_included():
             if m <= 25:
                 assert np.float32(_small_median(values.copy(), m)) == want
             assert np.float32(_select_median(values.copy(), m)) == want
+
+
+def test_the_weighted_median_is_the_lower_one_where_half_the_weight_is_reached():
+    values = np.array([5.0, 1.0, 3.0, 2.0])
+    assert weighted_median(values, np.array([1, 1, 1, 1])) == 2.0  # (the lower of 2 and 3)
+    assert weighted_median(values, np.array([1.0, 0.5, 0.5, 3.0])) == 2.0
+    assert weighted_median(values, np.array([9, 1, 1, 1])) == 5.0
+    assert weighted_median(np.array([7.0]), np.array([2])) == 7.0

@@ -34,6 +34,7 @@ import numba as nb
 import numpy as np
 import numpy.typing as npt
 
+from upsr.method.sorting import weighted_median
 from upsr.method.validation import MAX_DEPTH_MM
 
 __all__ = [
@@ -126,9 +127,7 @@ def level_spacing(frame: npt.ArrayLike) -> float | None:
     mid2 = ((0.5 * (levels[1:] + levels[:-1])) ** 2)[kept]
     ratio = step / mid2
     weight = counts[:-1][kept].astype(np.float64)
-    order = np.argsort(ratio)
-    cum = np.cumsum(weight[order])
-    alpha = float(ratio[order][np.searchsorted(cum, 0.5 * cum[-1])])
+    alpha = weighted_median(ratio, weight)
     fits = (step >= alpha * mid2 / 1.5) & (step <= 1.5 * alpha * mid2)
     if alpha > MAX_ALPHA or weight[fits].sum() < CONSISTENT_SHARE * weight.sum():
         return None

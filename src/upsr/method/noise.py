@@ -30,6 +30,7 @@ import numpy as np
 import numpy.typing as npt
 
 from upsr.errors import InputError
+from upsr.method.sorting import weighted_median
 
 __all__ = [
     "NOISE_FREE_MM",
@@ -462,9 +463,7 @@ def quantisation_step(
     below = levels[:-1]
     sigma = noise_at_depth(below, *profile) if profile is not None else float(sigma_mm)
     ratio = step / np.maximum(sigma, 0.5)
-    order = np.argsort(ratio)
-    cum = np.cumsum(counts[:-1][order])  # each sample weighs once (the top level: none)
-    return float(ratio[order][np.searchsorted(cum, 0.5 * cum[-1])])
+    return weighted_median(ratio, counts[:-1])  # each sample weighs once (the top level: none)
 
 
 def choose_estimator(tail: float, *, quantised: bool = False) -> str:

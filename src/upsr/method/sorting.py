@@ -1,6 +1,7 @@
 """Sorting networks and medians of sorted samples, the building blocks of the fusion's
 per-pixel estimates (:mod:`upsr.method.fusion`), and the median of a few values by rank (the
-anchor, the radial offsets, the slopes' symmetric neighbourhoods)."""
+anchor, the radial offsets, the slopes' symmetric neighbourhoods); the weighted median of a
+video's statistics."""
 
 from __future__ import annotations
 
@@ -11,7 +12,7 @@ import numpy as np
 
 from upsr._numba import SAFE_FASTMATH
 
-__all__ = ["median_beyond", "sorting_network"]
+__all__ = ["median_beyond", "sorting_network", "weighted_median"]
 
 
 @nb.njit(cache=True, nogil=True, inline="always")
@@ -177,3 +178,13 @@ def median_beyond(values: np.ndarray, limit: float) -> bool:
     if above > n or below > n:
         return True
     return abs(float(np.median(values))) > limit
+
+
+def weighted_median(values: np.ndarray, weights: np.ndarray) -> float:
+    """The lower weighted median of ``values`` (1-D, at least one): the smallest value at which
+    the cumulative weight of the values up to it reaches half the total (the depth levels'
+    steps, each weighing its samples: :func:`upsr.method.noise.quantisation_step`,
+    :func:`upsr.method.companding.level_spacing`)."""
+    order = np.argsort(values)
+    cum = np.cumsum(weights[order])
+    return float(values[order][np.searchsorted(cum, 0.5 * cum[-1])])
