@@ -191,7 +191,7 @@ def test_the_statistics_report_and_pin_the_knee_and_judge_mixes_on_measured_dept
     knee = pinned.compand_knee_mm
     assert 5500 < knee < 6000
     front = MotionFrontEnd(cfg, low.shape[-1])
-    stats = fix_video_statistics(front, compand(low[:3], knee), cfg, knee)
+    stats = fix_video_statistics(front, low[:3], cfg, knee)
     assert stats.knee_mm == knee and not stats.remove_mixed
     # a later chunk run with the pinned config gives what the whole run gives
     whole = upsr.super_resolve(low.astype(np.uint16), 2, config=cfg)

@@ -17,7 +17,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from upsr.method.companding import compand, expand, knee_mm
+from upsr.method.companding import compand, knee_mm
 from upsr.method.config import UPSRConfig
 from upsr.method.footprint import footprint_share, has_mixed_pixels
 from upsr.method.frontend import MotionFrontEnd, depth_scale, enough_for_statistics
@@ -92,8 +92,9 @@ def video_knee_mm(first_frames: np.ndarray, cfg: UPSRConfig) -> float:
 def fix_video_statistics(
     front: MotionFrontEnd, first_frames: np.ndarray, cfg: UPSRConfig, knee: float | None = None
 ) -> VideoStatistics:
-    """Fix every choice UP-SR makes once per video from its first N low-res frames (T, h, w),
-    companded beyond ``knee`` mm (:func:`video_knee_mm`; None: not companded).
+    """Fix every choice UP-SR makes once per video from its first N low-res frames (T, h, w)
+    as measured, companded beyond ``knee`` mm (:func:`video_knee_mm`; None: not companded)
+    for all but the sensor's mixing.
 
     The front-end's depth range and noise estimate (:meth:`MotionFrontEnd.fix_statistics`);
     the trust noise (at least the temporal noise, :func:`upsr.method.noise.temporal_noise_mm`);
@@ -105,7 +106,7 @@ def fix_video_statistics(
     stds (:func:`upsr.method.noise.quantisation_step`); and whether the sensor mixes depths at
     edges (:func:`upsr.method.footprint.footprint_share`) for ``remove_mixed="auto"``.
     """
-    knee = math.inf if knee is None else knee
+    measured, first_frames = first_frames, compand(first_frames, math.inf if knee is None else knee)
     front.fix_statistics(first_frames)
     spatial = front.noise_mm or 0.0
     if cfg.trust_noise_mm is not None:
@@ -120,7 +121,7 @@ def fix_video_statistics(
     mixed = cfg.remove_mixed
     if mixed == "auto":
         # (a property of the sensor: of the depth as measured)
-        mixed = has_mixed_pixels(footprint_share(expand(first_frames, knee), front.edge_mm))
+        mixed = has_mixed_pixels(footprint_share(measured, front.edge_mm))
     profile = trust_profile(first_frames, cfg, front.edge_mm)
     estimator = cfg.fusion_estimator
     # a given noise is a sample's noise; a profile gives σ(z)
@@ -143,8 +144,9 @@ def fix_video_statistics(
     # which a moving camera's slanted surfaces inflate)
     front.smooth_at_least(reach_mm if d2 is None else min(reach_mm, sample_mm))
     return VideoStatistics(
-        estimator, trust_mm, reach_mm, bool(mixed), profile, front.depth_scale, knee
-    )
+        estimator, trust_mm, reach_mm, bool(mixed), profile, front.depth_scale,
+        math.inf if knee is None else knee,
+    )  # fmt: skip
 
 
 def noise_estimator(
@@ -213,7 +215,7 @@ def pinned_config(first_frames: np.ndarray, cfg: UPSRConfig) -> UPSRConfig:
         first_frames = within_range(np.array(first_frames, np.float32), cfg.valid_range_mm)
     knee = video_knee_mm(first_frames, cfg)  # (as the windowed engine decides it)
     front = MotionFrontEnd(cfg, first_frames.shape[-1])
-    stats = fix_video_statistics(front, compand(first_frames, knee), cfg, knee)
+    stats = fix_video_statistics(front, first_frames, cfg, knee)
     return dataclasses.replace(
         front.fixed_config,  # (its depth steps fixed too)
         depth_range_mm=front.depth_range_mm,

@@ -277,8 +277,7 @@ class UPSR:
                 self._lowres[k] = compand(self._lowres[k], self._knee)
                 self._pre[k] = front.prefilter(self._lowres[k])
                 self._guide.pop(k, None)  # (and its flows)
-            first = compand(first, self._knee)
-            self._stats = fix_video_statistics(front, first, cfg, self._knee)
+            self._stats = fix_video_statistics(front, first, cfg, self._knee)  # (as measured)
         if front.ready:
             for k in sorted(self._pre):
                 if k not in self._guide:
