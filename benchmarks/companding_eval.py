@@ -29,6 +29,7 @@ from __future__ import annotations
 
 import argparse
 import collections
+import dataclasses
 import itertools
 import json
 import math
@@ -143,10 +144,8 @@ def knee_steps(values: Sequence[float]) -> list[dict[str, Any]]:
                 for case in cases:
                     sensors = [s for s in case.sensors if s.kind == "kinect"]
                     for sensor in sensors:
-                        for row in outside_eval.run_case(
-                            outside_eval.Case(case.name, case.build, (sensor,), case.toward_wall,
-                                              case.kinect_wall), 0, time.perf_counter(),
-                        ):  # fmt: skip
+                        one = dataclasses.replace(case, sensors=(sensor,))
+                        for row in outside_eval.run_case(one, 0, time.perf_counter()):
                             if row["method"] in ("upsr", "upsr_recursive"):
                                 rows.append({"knee_steps": steps, **row})
     finally:
@@ -170,6 +169,8 @@ def kernel_ms() -> dict[str, float]:
 
 
 def markdown(res: dict[str, Any]) -> str:
+    from realistic_eval import _fmt
+
     lines = ["# The companding of depth quantised in disparity", "",
              f"`benchmarks/companding_eval.py` at {res['commit']}. Knees fitted at the 100 mm "
              "edge step.", "",
@@ -185,12 +186,7 @@ def markdown(res: dict[str, Any]) -> str:
               "| KNEE_STEPS | scene | method | rmse | surface rmse | edge accuracy % |",
               "|---:|---|---|---:|---:|---:|"]  # fmt: skip
     for r in res["knee_steps"]:
-        edge = r["edge_accuracy"]
-        edge_s = (
-            "–"
-            if edge is None or (isinstance(edge, float) and math.isnan(edge))
-            else f"{100 * edge:.1f}"
-        )
+        edge_s = _fmt(r["edge_accuracy"], "edge_accuracy")
         lines.append(f"| {r['knee_steps']:g} | {r['scene']} | {r['method']} | {r['rmse']:.1f} | "
                      f"{r['surface_rmse']:.1f} | {edge_s} |")  # fmt: skip
     k = res["kernels_ms"]

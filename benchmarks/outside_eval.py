@@ -92,7 +92,7 @@ from outside_scenes import (
     walker,
 )
 from realistic_eval import COLUMNS as REALISTIC_COLUMNS
-from realistic_eval import UPSR_METHODS, _sensor_sigma, score, write_results
+from realistic_eval import UPSR_METHODS, _fmt, _sensor_sigma, score, write_results
 
 __all__ = ["SCENES", "failures", "main"]
 
@@ -318,16 +318,6 @@ def run_case(case: Case, seed: int, t_start: float) -> list[dict[str, Any]]:
 # --------------------------------------------------------------------------------------------
 # Output
 # --------------------------------------------------------------------------------------------
-
-
-def _fmt(v: Any, col: str) -> str:
-    if not _ok(v):
-        return "–"
-    if col in ("edge_accuracy", "flying_pixels", "missing", "invented"):
-        return f"{100 * v:.1f}"
-    if col == "seconds":
-        return f"{v:.2f}"
-    return f"{v:.1f}"
 
 
 def markdown(rows: list[dict[str, Any]], config: dict[str, Any]) -> str:
