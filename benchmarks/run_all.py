@@ -3,7 +3,8 @@ Samba meshes are at ``--data``, default ``../shared/data``), speed beside a busy
 ``upsr live`` on SDK recordings played in real time (with pyrealsense2), the flow grid, the
 synthetic scenes, the realistic sensor scenes (``--out docs/results`` writes them to
 docs/results/realistic), the scenes built outside the rules' development (an audit), the
-companding of disparity-quantised depth (its knee's fit, its knee step), stray
+companding of disparity-quantised depth (its knee's fit, its knee step), whether the
+sensor mixes depths at edges (the mixed-pixel removal's decision), stray
 far values and ``--valid-range``, close range and
 ``--edge-mm``, thin parts on a ToF sensor, the deblurring iterations and speckle removal, and
 the Samba accuracy tables. Each benchmark prints its table and writes ``results.json`` under
@@ -22,6 +23,7 @@ import close_range_eval
 import companding_eval
 import deblur_eval
 import flow_grid_eval
+import footprint_eval
 import live_eval
 import load_eval
 import memory_eval
@@ -61,6 +63,8 @@ def main() -> int:
     outside_eval.main(["--out", str(out / "outside")])
     print("\n== the companding of depth quantised in disparity ==", flush=True)
     companding_eval.main(["--out", str(out / "companding")])
+    print("\n== whether the sensor mixes depths at edges (remove_mixed=auto) ==", flush=True)
+    footprint_eval.main(["--out", str(out / "footprint")])
     print("\n== a camera at close range and --edge-mm ==", flush=True)
     close_range_eval.main(["--out", str(out / "close_range")])
     print("\n== a sensor's stray far values and --valid-range ==", flush=True)

@@ -10,7 +10,12 @@ from upsr.errors import InputError
 from upsr.method.companding import KNEE_STEPS, compand, expand, knee_mm, level_spacing
 from upsr.method.config import UPSRConfig
 from upsr.method.frontend import MotionFrontEnd
-from upsr.method.statistics import fix_video_statistics, pinned_config, video_knee_mm
+from upsr.method.statistics import (
+    fix_video_statistics,
+    pinned_config,
+    video_knee_mm,
+    video_level_spacing,
+)
 from upsr.research.synth.degradation import kinect
 from upsr.research.synth.realistic import degrade, make_realistic
 
@@ -121,6 +126,11 @@ def test_compand_and_expand_are_inverse_and_keep_the_depth_below_the_knee():
     assert compand(same, math.inf) is same and expand(same, math.inf) is same
 
 
+def _knee(frames, cfg):
+    """The engines' knee: from the video's level spacing, then the config."""
+    return video_knee_mm(frames, cfg, video_level_spacing(frames))
+
+
 def test_a_near_scenes_knee_follows_its_scaled_edge_step():
     """62 % of the frame at 0.7 m: the edge step is scaled by the median depth (0.7), and the
     knee with it, so that a far level step is one surface for the scaled step too; the scale
@@ -128,27 +138,29 @@ def test_a_near_scenes_knee_follows_its_scaled_edge_step():
     z = np.full((60, 80), 7500.0)
     z[:, :50] = 700.0
     frame = _stereo(z, 580.0, 75.0, 1 / 8)
-    knee = video_knee_mm(frame[None], UPSRConfig(scale=2))
+    knee = _knee(frame[None], UPSRConfig(scale=2))
     assert knee == pytest.approx(math.sqrt(0.7 * 100.0 / (KNEE_STEPS * KINECT_ALPHA)), rel=0.05)
-    given = video_knee_mm(frame[None], UPSRConfig(scale=2, near_depth_mm=None))  # (--edge-mm)
+    given = _knee(frame[None], UPSRConfig(scale=2, near_depth_mm=None))  # (--edge-mm)
     assert given == pytest.approx(math.sqrt(100.0 / (KNEE_STEPS * KINECT_ALPHA)), rel=0.05)
     # a first frame all far, then the camera turns to the near scene: the frames' scale
     far = _stereo(np.full((60, 80), 7500.0), 580.0, 75.0, 1 / 8)
-    turned = video_knee_mm(np.stack([far] + [frame] * 8), UPSRConfig(scale=2))
+    turned = _knee(np.stack([far] + [frame] * 8), UPSRConfig(scale=2))
     assert turned == pytest.approx(knee, rel=0.05)
 
 
 def test_the_video_knee_waits_for_depth_and_follows_the_config():
     wall = _kinect_wall(7000.0)[:3]
     cfg = UPSRConfig(scale=2)
-    assert 5500 < video_knee_mm(wall, cfg) < 6000
+    assert 5500 < _knee(wall, cfg) < 6000
     empty = np.zeros_like(wall)
-    assert video_knee_mm(np.concatenate([empty, wall]), cfg) == video_knee_mm(wall, cfg)
-    assert video_knee_mm(empty, cfg) == math.inf
-    assert video_knee_mm(empty, UPSRConfig(scale=2, compand_knee_mm=4000.0)) == 4000.0
-    assert video_knee_mm(wall, UPSRConfig(scale=2, compand_knee_mm=None)) == math.inf
+    assert _knee(np.concatenate([empty, wall]), cfg) == _knee(wall, cfg)
+    assert _knee(empty, cfg) == math.inf
+    assert video_level_spacing(empty) is None
+    assert video_level_spacing(np.concatenate([empty, wall])) == video_level_spacing(wall) > 0
+    assert _knee(empty, UPSRConfig(scale=2, compand_knee_mm=4000.0)) == 4000.0
+    assert _knee(wall, UPSRConfig(scale=2, compand_knee_mm=None)) == math.inf
     depth_motion = UPSRConfig(scale=2, camera_motion="depth", camera_intrinsics=(50, 50, 20, 15))
-    assert video_knee_mm(wall, depth_motion) == math.inf
+    assert _knee(wall, depth_motion) == math.inf
 
 
 @pytest.mark.parametrize("bad", ["on", -5.0, 0.0, math.nan, True])
@@ -278,7 +290,8 @@ def test_a_camera_turning_from_a_near_wall_to_a_far_one_is_companded():
 
 def test_mixed_pixels_are_judged_on_the_depth_as_measured(monkeypatch):
     """Whether the sensor mixes depths at edges is the sensor's: the footprint test reads the
-    frames expanded back (windowed) or as measured (recursive), never companded."""
+    frames as measured, never companded (a knee given for depth not quantised in disparity);
+    a sensor whose depth is quantised in disparity samples points: no footprint test."""
     from upsr.method import recursive, statistics
 
     seen = []
@@ -289,7 +302,11 @@ def test_mixed_pixels_are_judged_on_the_depth_as_measured(monkeypatch):
     monkeypatch.setattr(
         recursive, "footprint_counts", lambda f, e: seen.append(f.max()) or counts(f, e)
     )
-    low = _kinect_wall(7000.0, shape=(9, 24, 32))
+    low = 7000.0 + np.random.default_rng(0).normal(0.0, 20.0, (9, 24, 32)).astype(np.float32)
     for mode in ("windowed", "recursive"):
-        list(upsr.UPSR(2, 9, mode=mode).process(low))
-    assert len(seen) == 1 + 9 and min(seen) == pytest.approx(low.max(), abs=1.0)
+        list(upsr.UPSR(2, 9, mode=mode, compand_knee_mm=4000.0).process(low))
+    assert len(seen) == 1 + 9 and min(seen) > 7000.0  # (companded at 4 m: 5.7 m)
+    seen.clear()
+    for mode in ("windowed", "recursive"):
+        list(upsr.UPSR(2, 9, mode=mode).process(_kinect_wall(7000.0, shape=(9, 24, 32))))
+    assert seen == []

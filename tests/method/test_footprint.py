@@ -70,3 +70,27 @@ def test_the_decision_from_the_frames_so_far_turns_off_only_clearly():
     assert not has_mixed_pixels(share) and has_mixed_pixels(share, was=True)
     assert not has_mixed_pixels(MIXED_SHARE - 1.5 * MIXED_SHARE_HYSTERESIS, was=True)
     assert has_mixed_pixels(MIXED_SHARE)
+
+
+def test_a_thin_part_seen_by_a_footprint_is_no_flat_surface_beside_an_edge():
+    """A ToF sensor sees a part 1–2 px wide as a band of mixes itself, with no mix beside it:
+    its sides are not counted as edges between flat surfaces (a table's 1.2 px legs and a
+    propeller's 1.5 px blades read 0.22 and 0.32 against 0.5, their mixes kept: 37.5 % and
+    8.5 % flying pixels, ``benchmarks/outside_eval.py``); a wide part's edges still are."""
+    from upsr.method.footprint import footprint_counts, footprint_share, has_mixed_pixels
+    from upsr.research.synth.degradation import tof_footprint
+
+    r = 4
+    hr = np.full((1, 24 * r, 40 * r), WALL, np.float32)
+    hr[:, :, 30 * r + 1 : 36 * r + 1] = 1000.0  # a wide part: two edges that mix
+    for j in (6, 14, 22):
+        hr[:, :, j * r + 1 : j * r + 7] = 1000.0  # three legs 1.5 px wide: two pixels ¾ leg
+    tof = tof_footprint(hr, r)
+    assert has_mixed_pixels(footprint_share(tof, 100.0))
+    # the wide part's two straight edges (each weighs √24 in all), mixed as expected
+    between, expected = footprint_counts(tof, 100.0)
+    assert between == pytest.approx(2 * np.sqrt(24))
+    assert expected == pytest.approx(between * (1.0 - 2.0 * 100.0 / abs(WALL - 1000.0)))
+    # a point sampler's thin parts (pure, 2 px wide) are no evidence either way
+    point = hr[:, r // 2 :: r, r // 2 :: r]
+    assert footprint_share(point, 100.0) == 0.0

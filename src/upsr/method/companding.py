@@ -49,6 +49,7 @@ __all__ = [
     "UNIT_STEPS",
     "compand",
     "expand",
+    "knee_at_spacing",
     "knee_mm",
     "level_spacing",
 ]
@@ -179,7 +180,12 @@ def knee_mm(frame: npt.ArrayLike, edge_mm: float) -> float:
     float: z_k (mm); ``math.inf`` (no companding) where the frame is not quantised in
     disparity.
     """
-    alpha = level_spacing(frame)
+    return knee_at_spacing(level_spacing(frame), edge_mm)
+
+
+def knee_at_spacing(alpha: float | None, edge_mm: float) -> float:
+    """:func:`knee_mm` from a frame's :func:`level_spacing` α (1/mm; None: not quantised in
+    disparity, ``math.inf``)."""
     if alpha is None or not alpha > 0:
         return math.inf
     return math.sqrt(edge_mm / (KNEE_STEPS * alpha))

@@ -93,11 +93,20 @@ def footprint_counts(frames: npt.ArrayLike, edge_mm: float) -> tuple[float, floa
         if n < 5:
             continue
         c, a, v, b, e = (np.take(z, range(o, n - 4 + o), axis=axis) for o in range(5))
+        # the pixels beyond the run's ends (0 past the frame's border)
+        pad = [(0, 0)] * 3
+        pad[axis] = (1, 1)
+        zp = np.pad(z, pad)
+        before, after = (np.take(zp, range(o, n - 4 + o), axis=axis) for o in (0, 6))
         with np.errstate(invalid="ignore", divide="ignore"):
             ok = (c > 0) & (a > 0) & (v > 0) & (b > 0) & (e > 0)
             step = np.abs(b - a)
             outer = np.maximum(np.abs(c - a), np.abs(e - b))
             ok &= (step > 3 * edge) & (outer <= edge) & (outer <= FLAT_END_SHARE * step)
+            # an end is no band of two pixels on the other surface: a thin part 1–2 px wide
+            # seen by a footprint sensor is a band of mixes itself, with no mix beside it
+            ok &= ~((before > 0) & (np.abs(before - b) <= edge))
+            ok &= ~((after > 0) & (np.abs(after - a) <= edge))
             mid = ok & (v - np.minimum(a, b) > edge) & (np.maximum(a, b) - v > edge)
             # a footprint across the edge at a uniform place mixes farther than edge_mm
             # from both surfaces with probability 1 − 2·edge_mm / step

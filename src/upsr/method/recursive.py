@@ -143,6 +143,7 @@ from upsr.method.statistics import (
     noise_estimator,
     trust_profile,
     video_knee_mm,
+    video_level_spacing,
 )
 from upsr.method.thin import ThinParts
 from upsr.method.trust import reference_anchor
@@ -259,6 +260,7 @@ class RecursiveUPSR(TwoStagePipeline):
         self._estimator = "mean" if cfg.fusion_estimator == "auto" else cfg.fusion_estimator
         self._remove_mixed = cfg.remove_mixed is True
         self._mixes = np.zeros(2)  # footprint_counts of the frames so far (remove_mixed="auto")
+        self._triangulates = False  # depth quantised in disparity: no mixes (sensor_mixes)
         self._any_valid = False  # (before the statistics; a video may end in empty frames)
         self._heavy = False  # heavy-tailed noise (from the first frame)
 
@@ -390,14 +392,16 @@ class RecursiveUPSR(TwoStagePipeline):
             return (None, f)
         first_with_depth = self._front is None
         if first_with_depth:  # (companding of depth quantised in disparity, from this frame)
-            self._knee = video_knee_mm(f[None], cfg)
+            spacing = video_level_spacing(f[None])
+            self._knee = video_knee_mm(f[None], cfg, spacing)
+            self._triangulates = spacing is not None
         raw, f = f, compand(f, self._knee)
         if first_with_depth:
             self._fix_statistics(f)
             self._start = t
         front = self._front
-        if cfg.remove_mixed == "auto" and t - self._start < cfg.n_frames:
-            # does the sensor mix? The first N frames pooled as they arrive (one: too few edges)
+        if cfg.remove_mixed == "auto" and not self._triangulates and t - self._start < cfg.n_frames:
+            # does the sensor mix (sensor_mixes)? The first N frames pooled as they arrive
             self._mixes += footprint_counts(raw, front.edge_mm)  # (the sensor's, as measured)
             share = _share_of(*self._mixes)
             self._remove_mixed = has_mixed_pixels(share, was=self._remove_mixed)

@@ -17,7 +17,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from upsr.method.companding import compand, knee_mm
+from upsr.method.companding import compand, knee_at_spacing, level_spacing
 from upsr.method.config import UPSRConfig
 from upsr.method.footprint import footprint_share, has_mixed_pixels
 from upsr.method.frontend import MotionFrontEnd, depth_scale, enough_for_statistics
@@ -39,8 +39,10 @@ __all__ = [
     "fix_video_statistics",
     "noise_estimator",
     "pinned_config",
+    "sensor_mixes",
     "trust_profile",
     "video_knee_mm",
+    "video_level_spacing",
 ]
 
 
@@ -65,36 +67,64 @@ class VideoStatistics(NamedTuple):
     knee_mm: float = math.inf
 
 
-def video_knee_mm(first_frames: np.ndarray, cfg: UPSRConfig) -> float:
+def video_level_spacing(first_frames: np.ndarray) -> float | None:
+    """The disparity quantisation of a video's sensor: the level step α (1/mm, q(z) = α·z²,
+    :func:`upsr.method.companding.level_spacing`) of the first of its first frames (T, h, w)
+    mm as measured that has depth (:func:`~upsr.method.frontend.enough_for_statistics`);
+    None where that frame is not quantised in disparity or no frame has depth."""
+    for frame in first_frames:
+        if enough_for_statistics(frame):
+            return level_spacing(frame)
+    return None
+
+
+def video_knee_mm(first_frames: np.ndarray, cfg: UPSRConfig, spacing: float | None) -> float:
     """The companding knee (mm) of a video from its first frames (T, h, w) mm.
 
-    ``cfg.compand_knee_mm`` where given; for ``"auto"``, :func:`upsr.method.companding.knee_mm`
-    of the first of the frames with depth (:func:`~upsr.method.frontend.enough_for_statistics`)
-    at the edge step the method compares depths with: ``cfg.edge_mm`` scaled for a near scene
-    by the frames' :func:`~upsr.method.frontend.depth_scale` (the windowed engine's first N
-    frames, the recursive engine's first frame with depth: as each scales its thresholds; the
-    same on companded frames, whose median below 1 m is not companded). inf (none) where no
-    frame has depth, for None and, whatever is given, with ``camera_motion="depth"`` (its
-    motion is estimated from the depth as measured).
+    ``cfg.compand_knee_mm`` where given; for ``"auto"``, the depth where the level step of
+    the video's ``spacing`` (:func:`video_level_spacing`) reaches the edge step the method
+    compares depths with (:func:`upsr.method.companding.knee_mm`): ``cfg.edge_mm`` scaled for
+    a near scene by the frames' :func:`~upsr.method.frontend.depth_scale` (the windowed
+    engine's first N frames, the recursive engine's first frame with depth: as each scales its
+    thresholds; the same on companded frames, whose median below 1 m is not companded). inf
+    (none) where ``spacing`` is None, for None and, whatever is given, with
+    ``camera_motion="depth"`` (its motion is estimated from the depth as measured).
     """
     knee = cfg.compand_knee_mm
     if knee is None or cfg.camera_motion == "depth":
         return math.inf
     if knee != "auto":
         return float(knee)  # type: ignore[arg-type]
-    for frame in first_frames:
-        if enough_for_statistics(frame):
-            scale = depth_scale(first_frames, cfg.near_depth_mm)
-            return knee_mm(frame, cfg.edge_mm * scale)
-    return math.inf
+    if spacing is None:
+        return math.inf
+    scale = depth_scale(first_frames, cfg.near_depth_mm)
+    return knee_at_spacing(spacing, cfg.edge_mm * scale)
+
+
+def sensor_mixes(first_frames: np.ndarray, edge_mm: float, spacing: float | None) -> bool:
+    """``remove_mixed="auto"``: whether a video's sensor mixes depths at edges, from its first
+    frames (T, h, w) as measured: a share of mixes at its edges
+    (:func:`upsr.method.footprint.footprint_share`) that a footprint gives
+    (:func:`~upsr.method.footprint.has_mixed_pixels`), unless its depth is quantised in
+    disparity (``spacing`` not None, :func:`video_level_spacing`): a sensor that triangulates
+    (structured light, stereo) samples points, and the Kinect's noise beyond 4 m puts pixels
+    between the surfaces of its far edges (a 14 m corridor pooled 0.48–0.52 over its first
+    frames, ``benchmarks/outside_eval.py --seed 1``; its edge accuracy 81.8 → 77.0 % with its
+    "mixes" removed)."""
+    return spacing is None and has_mixed_pixels(footprint_share(first_frames, edge_mm))
 
 
 def fix_video_statistics(
-    front: MotionFrontEnd, first_frames: np.ndarray, cfg: UPSRConfig, knee: float | None = None
+    front: MotionFrontEnd,
+    first_frames: np.ndarray,
+    cfg: UPSRConfig,
+    knee: float | None = None,
+    spacing: float | None = None,
 ) -> VideoStatistics:
     """Fix every choice UP-SR makes once per video from its first N low-res frames (T, h, w)
     as measured, companded beyond ``knee`` mm (:func:`video_knee_mm`; None: not companded)
-    for all but the sensor's mixing.
+    for all but the sensor's mixing (:func:`sensor_mixes`, with the video's disparity
+    quantisation ``spacing``, :func:`video_level_spacing`; None: not quantised so).
 
     The front-end's depth range and noise estimate (:meth:`MotionFrontEnd.fix_statistics`);
     the trust noise (at least the temporal noise, :func:`upsr.method.noise.temporal_noise_mm`);
@@ -121,7 +151,7 @@ def fix_video_statistics(
     mixed = cfg.remove_mixed
     if mixed == "auto":
         # (a property of the sensor: of the depth as measured)
-        mixed = has_mixed_pixels(footprint_share(measured, front.edge_mm))
+        mixed = sensor_mixes(measured, front.edge_mm, spacing)
     profile = trust_profile(first_frames, cfg, front.edge_mm)
     estimator = cfg.fusion_estimator
     # a given noise is a sample's noise; a profile gives σ(z)
@@ -213,9 +243,10 @@ def pinned_config(first_frames: np.ndarray, cfg: UPSRConfig) -> UPSRConfig:
     """
     if cfg.valid_range_mm is not None:  # (the frames as the engine will see them)
         first_frames = within_range(np.array(first_frames, np.float32), cfg.valid_range_mm)
-    knee = video_knee_mm(first_frames, cfg)  # (as the windowed engine decides it)
+    spacing = video_level_spacing(first_frames)  # (as the windowed engine decides them)
+    knee = video_knee_mm(first_frames, cfg, spacing)
     front = MotionFrontEnd(cfg, first_frames.shape[-1])
-    stats = fix_video_statistics(front, first_frames, cfg, knee)
+    stats = fix_video_statistics(front, first_frames, cfg, knee, spacing)
     return dataclasses.replace(
         front.fixed_config,  # (its depth steps fixed too)
         depth_range_mm=front.depth_range_mm,

@@ -70,14 +70,14 @@ from upsr.method.registration import (
     sample_centres,
     to_output_grid,
 )
-from upsr.method.statistics import VideoStatistics, fix_video_statistics, video_knee_mm
-from upsr.method.thin import ThinParts
-from upsr.method.trust import (
-    abstain_lone_outliers,
-    far_offsets,
-    radial_offsets,
-    reference_anchor,
+from upsr.method.statistics import (
+    VideoStatistics,
+    fix_video_statistics,
+    video_knee_mm,
+    video_level_spacing,
 )
+from upsr.method.thin import ThinParts
+from upsr.method.trust import abstain_lone_outliers, far_offsets, radial_offsets, reference_anchor
 from upsr.method.validation import as_depth_frame, as_depth_video, no_valid_depth
 
 __all__ = [
@@ -272,12 +272,13 @@ class UPSR:
             # per-video statistics, fixed once from the first window (never per frame), the
             # companding first: the first N frames companded, their flow images made again
             first = np.stack([self._lowres[k] for k in sorted(self._lowres)])
-            self._knee = video_knee_mm(first, cfg)
+            spacing = video_level_spacing(first)
+            self._knee = video_knee_mm(first, cfg, spacing)
             for k in self._lowres if math.isfinite(self._knee) else ():
                 self._lowres[k] = compand(self._lowres[k], self._knee)
                 self._pre[k] = front.prefilter(self._lowres[k])
                 self._guide.pop(k, None)  # (and its flows)
-            self._stats = fix_video_statistics(front, first, cfg, self._knee)  # (as measured)
+            self._stats = fix_video_statistics(front, first, cfg, self._knee, spacing)
         if front.ready:
             for k in sorted(self._pre):
                 if k not in self._guide:
