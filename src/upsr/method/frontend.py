@@ -40,7 +40,24 @@ from upsr.method.motion import (
 from upsr.method.noise import estimate_noise_mm
 from upsr.method.upsampling import upsample_nearest
 
-__all__ = ["MIN_STATISTICS_PAIRS", "MotionFrontEnd", "depth_scale", "enough_for_statistics"]
+__all__ = [
+    "DRIFT_AGREEING_SHARE",
+    "DRIFT_SIGNIFICANCE",
+    "DRIFT_STEP_PX",
+    "MIN_STATISTICS_PAIRS",
+    "MotionFrontEnd",
+    "depth_scale",
+    "enough_for_statistics",
+]
+
+#: :meth:`MotionFrontEnd.depth_drift_mm` reads every this-many-th pixel of each axis.
+DRIFT_STEP_PX = 4
+#: ... keeps a drift beyond this many standard errors of its median, ...
+DRIFT_SIGNIFICANCE = 4.0
+#: ... and finds a drift where at least this share of the pixels measured in both frames
+#: changed by it within half the edge threshold (a camera approaching a wall, not a scene
+#: whose parts change depth each their own way).
+DRIFT_AGREEING_SHARE = 0.5
 
 #: :func:`enough_for_statistics`: the pairs of neighbouring measurements (along rows and
 #: columns) a frame needs before the recursive mode fixes the video's statistics from it (or
@@ -230,6 +247,55 @@ class MotionFrontEnd:
         if self.depth_range_mm is None:
             raise RuntimeError("fix_statistics() first: the depth range is not fixed yet")
         return depth_to_u8(prefiltered_mm, *self.depth_range_mm)
+
+    # -- depth drift (beyond the paper) ---------------------------------------------------------
+    def depth_drift_mm(self, first_mm: np.ndarray, second_mm: np.ndarray) -> float:
+        """How much nearer or farther the whole scene came from one prefiltered frame to the
+        next (mm, second − first), in whole levels of the 8-bit guide; 0 where it did not.
+
+        A camera moving along its axis changes the depth of every pixel alike. The flow reads
+        8-bit depth as brightness, and on a slanted surface a change of depth looks like a
+        motion along its slope: the flow explained part of the approach away, the samples it
+        registered were taken at other points of the slope, and the radial offsets measured
+        on them fell short (a camera 25 mm per frame toward a wall yawed 25°, σ = 30 mm:
+        50 mm between two frames measured as 35; the recursive state lagged, +1.9 mm of
+        surface bias). The recursive mode estimates its flow on the frame brought back by
+        the drift (:meth:`shifted`); the windowed mode, whose windows lie on both sides of
+        the reference, does not (measured: a moving camera's room lost 1.9 % of moving-surface
+        rmse, docs/notes/depth-rules.md). The drift is the median change of depth at a
+        pixel (every :data:`DRIFT_STEP_PX`-th of each axis, measured in both frames, a
+        quarter of the frame at least), kept where it is at most ``edge_mm``, beyond
+        :data:`DRIFT_SIGNIFICANCE` standard errors (from the changes' spread), and
+        :data:`DRIFT_AGREEING_SHARE` of those pixels changed by it within half of
+        ``edge_mm``; rounded to whole levels of the guide (below half a level, 0: a static
+        scene's flows stay as they were)."""
+        step = DRIFT_STEP_PX
+        a, b = first_mm[::step, ::step], second_mm[::step, ::step]
+        both = (a > 0) & (b > 0)
+        if self.depth_range_mm is None or both.sum() < max(0.25 * a.size, 1):
+            return 0.0
+        change = b[both] - a[both]
+        drift = float(np.median(change))
+        spread = np.abs(change - drift)
+        if not abs(drift) <= self.edge_mm:
+            return 0.0
+        if np.mean(spread <= 0.5 * self.edge_mm) < DRIFT_AGREEING_SHARE:
+            return 0.0
+        # significant: beyond DRIFT_SIGNIFICANCE standard errors of the median (noise alone
+        # moves the median of a small or noisy frame)
+        if not abs(drift) > DRIFT_SIGNIFICANCE * 1.2533 * 1.4826 * float(
+            np.median(spread)
+        ) / np.sqrt(change.size):
+            return 0.0
+        near, far = self.depth_range_mm
+        level = (far - near) / 254.0
+        return float(level * round(drift / level)) if level > 0 else 0.0
+
+    def shifted(self, prefiltered_mm: np.ndarray, drift_mm: float) -> tuple[np.ndarray, np.ndarray]:
+        """A prefiltered frame brought back by a depth drift (its measured pixels minus
+        ``drift_mm``), and its guide."""
+        d = np.where(prefiltered_mm > 0, prefiltered_mm - np.float32(drift_mm), np.float32(0.0))
+        return d, self.guide(d)
 
     # -- flows ---------------------------------------------------------------------------------
     def consecutive_flow(

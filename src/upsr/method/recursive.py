@@ -324,6 +324,10 @@ class RecursiveUPSR(TwoStagePipeline):
             if self._depth is None
             else (resample_nearest(self._depth, pre.shape), STATE_NOISE_FACTOR)
         )
+        # (the frame brought back by the scene's depth drift: MotionFrontEnd.depth_drift_mm)
+        drift = front.depth_drift_mm(self._prev_pre, pre)
+        if drift != 0.0:
+            pre, guide = front.shifted(pre, drift)
         # (the flow of its holes judged by their pattern: the state's rim did not leak into a
         # hole that every frame has; recursive notes)
         return front.consecutive_flow(
