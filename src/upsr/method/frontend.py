@@ -52,7 +52,8 @@ __all__ = [
 
 #: :meth:`MotionFrontEnd.depth_drift_mm` reads every this-many-th pixel of each axis.
 DRIFT_STEP_PX = 4
-#: ... keeps a drift beyond this many standard errors of its median, ...
+#: ... keeps a drift beyond the changes' median deviation from it and beyond this many
+#: standard errors of its median, ...
 DRIFT_SIGNIFICANCE = 4.0
 #: ... and finds a drift where at least this share of the pixels measured in both frames
 #: changed by it within half the edge threshold (a camera approaching a wall, not a scene
@@ -251,7 +252,7 @@ class MotionFrontEnd:
     # -- depth drift (beyond the paper) ---------------------------------------------------------
     def depth_drift_mm(self, first_mm: np.ndarray, second_mm: np.ndarray) -> float:
         """How much nearer or farther the whole scene came from one prefiltered frame to the
-        next (mm, second − first), in whole levels of the 8-bit guide; 0 where it did not.
+        next (mm, second − first); 0 where it did not.
 
         A camera moving along its axis changes the depth of every pixel alike. The flow reads
         8-bit depth as brightness, and on a slanted surface a change of depth looks like a
@@ -264,11 +265,13 @@ class MotionFrontEnd:
         the reference, does not (measured: a moving camera's room lost 1.9 % of moving-surface
         rmse, docs/notes/depth-rules.md). The drift is the median change of depth at a
         pixel (every :data:`DRIFT_STEP_PX`-th of each axis, measured in both frames, a
-        quarter of the frame at least), kept where it is at most ``edge_mm``, beyond
-        :data:`DRIFT_SIGNIFICANCE` standard errors (from the changes' spread), and
-        :data:`DRIFT_AGREEING_SHARE` of those pixels changed by it within half of
-        ``edge_mm``; rounded to whole levels of the guide (below half a level, 0: a static
-        scene's flows stay as they were)."""
+        quarter of the frame at least), kept where it is at most ``edge_mm``, beyond the
+        changes' median deviation from it (a camera moving sideways and turning in a room:
+        its pixels change each their own way, and a drift there made the recursive room's
+        surfaces up to 5 % worse) and :data:`DRIFT_SIGNIFICANCE` standard errors of the
+        median, and :data:`DRIFT_AGREEING_SHARE` of those pixels changed by it within half of
+        ``edge_mm``; and at least half a level of the guide (below, 0: a static scene's
+        flows stay as they were)."""
         step = DRIFT_STEP_PX
         a, b = first_mm[::step, ::step], second_mm[::step, ::step]
         both = (a > 0) & (b > 0)
@@ -281,15 +284,15 @@ class MotionFrontEnd:
             return 0.0
         if np.mean(spread <= 0.5 * self.edge_mm) < DRIFT_AGREEING_SHARE:
             return 0.0
-        # significant: beyond DRIFT_SIGNIFICANCE standard errors of the median (noise alone
-        # moves the median of a small or noisy frame)
-        if not abs(drift) > DRIFT_SIGNIFICANCE * 1.2533 * 1.4826 * float(
-            np.median(spread)
-        ) / np.sqrt(change.size):
+        # the scene's common change: beyond the changes' median deviation from it (a camera
+        # moving sideways and turning in a room changes its pixels each their own way) and
+        # beyond DRIFT_SIGNIFICANCE standard errors of the median (noise alone moves the
+        # median of a small or noisy frame)
+        mad = float(np.median(spread))
+        if not abs(drift) > mad * max(1.0, DRIFT_SIGNIFICANCE * 1.8581 / np.sqrt(change.size)):
             return 0.0
         near, far = self.depth_range_mm
-        level = (far - near) / 254.0
-        return float(level * round(drift / level)) if level > 0 else 0.0
+        return drift if abs(drift) >= 0.5 * (far - near) / 254.0 else 0.0
 
     def shifted(self, prefiltered_mm: np.ndarray, drift_mm: float) -> tuple[np.ndarray, np.ndarray]:
         """A prefiltered frame brought back by a depth drift (its measured pixels minus
