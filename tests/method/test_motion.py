@@ -43,6 +43,21 @@ def test_fixed_mapping():
     assert depth_range(np.zeros((2, 2))) == (0.0, 10000.0)
 
 
+def test_the_mapping_rounds_as_its_float64_expression():
+    """255 − (clip(d, near, far) − near) · 254 / (far − near) in float64, half to even; 0 for
+    no depth and NaN; any shape and memory order."""
+    rng = np.random.default_rng(0)
+    near, far = 1234.5, 4321.0
+    d = rng.uniform(-100.0, 5000.0, (3, 37, 41)).astype(np.float32)
+    d[0, 0, :10] = (near + (np.arange(10) + 0.5) * (far - near) / 254.0).astype(np.float32)
+    d[1, 2, 3] = np.nan
+    x = np.clip(d.astype(np.float64), near, far)
+    want = np.where(d > 0, np.rint(255.0 - (x - near) * 254.0 / (far - near)), 0.0)
+    np.testing.assert_array_equal(depth_to_u8(d, near, far), want.astype(np.uint8))
+    np.testing.assert_array_equal(depth_to_u8(d[:, ::2, 1::3], near, far), want[:, ::2, 1::3])
+    assert depth_to_u8(d, np.float32(near), far).dtype == np.uint8
+
+
 @pytest.mark.parametrize("name", ["dis", "farneback"])
 def test_flow_static_is_zero_and_shift_is_found(name):
     flow = make_flow_backend(name, "medium")
