@@ -31,7 +31,6 @@ import argparse
 import collections
 import dataclasses
 import itertools
-import json
 import math
 import statistics
 import sys
@@ -201,7 +200,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     p.add_argument("--quick", action="store_true", help="no KNEE_STEPS runs")
     args = p.parse_args(argv)
     t0 = time.perf_counter()
-    from outside_eval import _commit
+    from outside_eval import _commit, write_report
 
     res: dict[str, Any] = {
         "commit": _commit(),
@@ -210,13 +209,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         "knee_steps": [] if args.quick else knee_steps((1.05, 1.2, 1.5)),
         "kernels_ms": kernel_ms(),
     }
-    out = Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
-    (out / "results.json").write_text(json.dumps(res, indent=1, default=float))
-    text = markdown(res)
-    (out / "results.md").write_text(text)
-    print(text)
-    print(f"total {time.perf_counter() - t0:.0f} s; wrote {out}/results.json and results.md")
+    write_report(Path(args.out), res, markdown(res), t0)
     return 0
 
 

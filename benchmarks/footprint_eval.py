@@ -28,7 +28,6 @@ Example::
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 import time
 import zlib
@@ -167,7 +166,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     p.add_argument("--quick", action="store_true", help="64×56 only, seeds 0–1; outside seed 0")
     args = p.parse_args(argv)
     t0 = time.perf_counter()
-    from outside_eval import _commit
+    from outside_eval import _commit, write_report
 
     res: dict[str, Any] = {"commit": _commit(), "quick": args.quick}
     for part, videos in (
@@ -177,13 +176,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         rows = run(videos)
         res[part] = {**summary(rows), "rows": rows}
         print(f"{part}: {len(rows)} videos ({time.perf_counter() - t0:.0f} s)", flush=True)
-    out = Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
-    (out / "results.json").write_text(json.dumps(res, indent=1))
-    text = markdown(res)
-    (out / "results.md").write_text(text)
-    print(text)
-    print(f"total {time.perf_counter() - t0:.0f} s; wrote {out}/results.json and results.md")
+    write_report(Path(args.out), res, markdown(res), t0)
     return 0
 
 

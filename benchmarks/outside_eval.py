@@ -61,6 +61,7 @@ from __future__ import annotations
 
 import argparse
 import functools
+import json
 import math
 import sys
 import time
@@ -392,6 +393,16 @@ def _commit() -> str:
         capture_output=True, text=True, check=False,
     )  # fmt: skip
     return done.stdout.strip() or "?"
+
+
+def write_report(out: Path, res: dict[str, Any], text: str, started: float) -> None:
+    """``res`` as ``out``/results.json and ``text`` as results.md; print both's end (a
+    benchmark started at ``started``, ``time.perf_counter()``)."""
+    out.mkdir(parents=True, exist_ok=True)
+    (out / "results.json").write_text(json.dumps(res, indent=1, default=float))
+    (out / "results.md").write_text(text)
+    print(text)
+    print(f"total {time.perf_counter() - started:.0f} s; wrote {out}/results.json and results.md")
 
 
 def main(argv: Sequence[str] | None = None) -> int:
