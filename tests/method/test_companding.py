@@ -156,7 +156,8 @@ def test_the_video_knee_waits_for_depth_and_follows_the_config():
     assert _knee(np.concatenate([empty, wall]), cfg) == _knee(wall, cfg)
     assert _knee(empty, cfg) == math.inf
     assert video_level_spacing(empty) is None
-    assert video_level_spacing(np.concatenate([empty, wall])) == video_level_spacing(wall) > 0
+    assert video_level_spacing(np.concatenate([empty, wall])) == video_level_spacing(wall)
+    assert video_level_spacing(wall).alpha > 0
     assert _knee(empty, UPSRConfig(scale=2, compand_knee_mm=4000.0)) == 4000.0
     assert _knee(wall, UPSRConfig(scale=2, compand_knee_mm=None)) == math.inf
     depth_motion = UPSRConfig(scale=2, camera_motion="depth", camera_intrinsics=(50, 50, 20, 15))
@@ -307,6 +308,34 @@ def test_mixed_pixels_are_judged_on_the_depth_as_measured(monkeypatch):
         list(upsr.UPSR(2, 9, mode=mode, compand_knee_mm=4000.0).process(low))
     assert len(seen) == 1 + 9 and min(seen) > 7000.0  # (companded at 4 m: 5.7 m)
     seen.clear()
+    clean = np.full((9, 24, 32), 7000.0)
+    clean[:, 8:16, 8:16] = 3000.0  # (a box: levels from 3 to 7 m, steps seen to grow as z²)
+    kinect_box = np.round(kinect(clean, np.random.default_rng(0), dropout_fraction=0.0))
     for mode in ("windowed", "recursive"):
-        list(upsr.UPSR(2, 9, mode=mode).process(_kinect_wall(7000.0, shape=(9, 24, 32))))
+        list(upsr.UPSR(2, 9, mode=mode).process(kinect_box))
     assert seen == []
+
+
+def test_depth_in_equal_units_over_a_narrow_range_is_no_triangulating_sensor():
+    """A ToF camera's depth in 4 mm units over 2.0–2.45 m fits a level step α too, but the
+    steps are not seen to grow as z² (a span under POWER_SPAN): its mixes are still judged
+    (the removal had been turned off at a footprint share of 0.98)."""
+    from upsr.method.statistics import sensor_mixes
+    from upsr.research.synth.degradation import tof_footprint
+
+    r = 4
+    hr = np.full((9, 24 * r, 32 * r), 2450.0, np.float32)
+    for k in range(9):
+        hr[k, :, : 12 * r + k] = 2000.0
+        hr[k, 10 * r + k : 14 * r + k, 20 * r :] = 2000.0
+    tof = tof_footprint(hr, r) + np.random.default_rng(0).normal(0, 6, (9, 24, 32))
+    units = (4 * np.round(tof / 4)).astype(np.float32)
+    spacing = video_level_spacing(units)
+    assert spacing is not None and not spacing.confirmed
+    assert sensor_mixes(units, 100.0, spacing)
+    cfg = UPSRConfig(scale=r, n_frames=9)
+    assert pinned_config(units, cfg).remove_mixed
+    engine = upsr.UPSR(r, 9, mode="recursive")
+    for frame in units:
+        engine.push(frame)
+    assert engine.statistics.remove_mixed

@@ -29,6 +29,7 @@ knee, and below the knee nothing changes.
 from __future__ import annotations
 
 import math
+from typing import NamedTuple
 
 import numba as nb
 import numpy as np
@@ -47,10 +48,12 @@ __all__ = [
     "POWER_SPAN",
     "POWER_TOLERANCE",
     "UNIT_STEPS",
+    "LevelSpacing",
     "compand",
     "expand",
     "knee_at_spacing",
     "knee_mm",
+    "level_fit",
     "level_spacing",
 ]
 
@@ -92,9 +95,33 @@ POWER_SPAN = 1.3
 POWER_TOLERANCE = 0.75
 
 
+class LevelSpacing(NamedTuple):
+    """A frame's disparity levels (:func:`level_fit`)."""
+
+    #: α (1/mm) of the level step q(z) = α·z².
+    alpha: float
+    #: The farthest over the nearest depth of the level steps α was fitted on.
+    span: float
+
+    @property
+    def confirmed(self) -> bool:
+        """Whether the steps were seen to grow as z² (over a span of :data:`POWER_SPAN` or
+        more): over a narrow span depth in equal units of a few mm (a ToF camera's 4 mm)
+        fits an α too."""
+        return self.span >= POWER_SPAN
+
+
 def level_spacing(frame: npt.ArrayLike) -> float | None:
-    """α (1/mm) of the level step q(z) = α·z² between the distinct depths of a frame quantised
-    in disparity, or None where its depths are not so quantised.
+    """α (1/mm) of :func:`level_fit`, or None where the frame's depths are not quantised in
+    disparity."""
+    fit = level_fit(frame)
+    return None if fit is None else fit.alpha
+
+
+def level_fit(frame: npt.ArrayLike) -> LevelSpacing | None:
+    """The level step q(z) = α·z² between the distinct depths of a frame quantised in
+    disparity, and the span of depths it was fitted over; None where its depths are not so
+    quantised.
 
     α is the sample-weighted median of step / z² over the frame's distinct depths (each
     step at the depth between its two levels), of the steps of at least :data:`UNIT_STEPS`
@@ -113,7 +140,7 @@ def level_spacing(frame: npt.ArrayLike) -> float | None:
 
     Returns
     -------
-    float or None
+    LevelSpacing or None
     """
     f = np.nan_to_num(np.asarray(frame, np.float64))
     levels, counts = np.unique(f[f > 0], return_counts=True)
@@ -138,7 +165,8 @@ def level_spacing(frame: npt.ArrayLike) -> float | None:
         pairs = (a > 0) & (b > 0)
         if int((pairs & (a != b)).sum()) < NOISY_SHARE * max(int(pairs.sum()), 1):
             return None
-    return alpha
+    z = np.sqrt(mid2[fits])
+    return LevelSpacing(float(alpha), float(z.max() / z.min()))
 
 
 def _grows_as_z2(log_step: np.ndarray, log_z: np.ndarray, weight: np.ndarray) -> bool:

@@ -398,7 +398,7 @@ class RecursiveUPSR(TwoStagePipeline):
         if first_with_depth:  # (companding of depth quantised in disparity, from this frame)
             spacing = video_level_spacing(f[None])
             self._knee = video_knee_mm(f[None], cfg, spacing)
-            self._triangulates = spacing is not None
+            self._triangulates = spacing is not None and spacing.confirmed
         raw, f = f, compand(f, self._knee)
         if first_with_depth:
             self._fix_statistics(f)

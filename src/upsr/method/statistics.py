@@ -17,7 +17,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from upsr.method.companding import compand, knee_at_spacing, level_spacing
+from upsr.method.companding import LevelSpacing, compand, knee_at_spacing, level_fit
 from upsr.method.config import UPSRConfig
 from upsr.method.footprint import footprint_share, has_mixed_pixels
 from upsr.method.frontend import MotionFrontEnd, depth_scale, enough_for_statistics
@@ -67,18 +67,19 @@ class VideoStatistics(NamedTuple):
     knee_mm: float = math.inf
 
 
-def video_level_spacing(first_frames: np.ndarray) -> float | None:
-    """The disparity quantisation of a video's sensor: the level step α (1/mm, q(z) = α·z²,
-    :func:`upsr.method.companding.level_spacing`) of the first of its first frames (T, h, w)
-    mm as measured that has depth (:func:`~upsr.method.frontend.enough_for_statistics`);
-    None where that frame is not quantised in disparity or no frame has depth."""
+def video_level_spacing(first_frames: np.ndarray) -> LevelSpacing | None:
+    """The disparity quantisation of a video's sensor: the level step α (1/mm, q(z) = α·z²)
+    and the span of depths it was fitted over (:func:`upsr.method.companding.level_fit`), of
+    the first of its first frames (T, h, w) mm as measured that has depth
+    (:func:`~upsr.method.frontend.enough_for_statistics`); None where that frame is not
+    quantised in disparity or no frame has depth."""
     for frame in first_frames:
         if enough_for_statistics(frame):
-            return level_spacing(frame)
+            return level_fit(frame)
     return None
 
 
-def video_knee_mm(first_frames: np.ndarray, cfg: UPSRConfig, spacing: float | None) -> float:
+def video_knee_mm(first_frames: np.ndarray, cfg: UPSRConfig, spacing: LevelSpacing | None) -> float:
     """The companding knee (mm) of a video from its first frames (T, h, w) mm.
 
     ``cfg.compand_knee_mm`` where given; for ``"auto"``, the depth where the level step of
@@ -98,20 +99,24 @@ def video_knee_mm(first_frames: np.ndarray, cfg: UPSRConfig, spacing: float | No
     if spacing is None:
         return math.inf
     scale = depth_scale(first_frames, cfg.near_depth_mm)
-    return knee_at_spacing(spacing, cfg.edge_mm * scale)
+    return knee_at_spacing(spacing.alpha, cfg.edge_mm * scale)
 
 
-def sensor_mixes(first_frames: np.ndarray, edge_mm: float, spacing: float | None) -> bool:
+def sensor_mixes(first_frames: np.ndarray, edge_mm: float, spacing: LevelSpacing | None) -> bool:
     """``remove_mixed="auto"``: whether a video's sensor mixes depths at edges, from its first
     frames (T, h, w) as measured: a share of mixes at its edges
     (:func:`upsr.method.footprint.footprint_share`) that a footprint gives
     (:func:`~upsr.method.footprint.has_mixed_pixels`), unless its depth is quantised in
-    disparity (``spacing`` not None, :func:`video_level_spacing`): a sensor that triangulates
+    disparity (``spacing``, :func:`video_level_spacing`, its steps seen to grow as z²:
+    ``LevelSpacing.confirmed``; over a narrow range a ToF camera's depth in 4 mm units fits
+    an α too, and had kept its mixes at a share of 0.98): a sensor that triangulates
     (structured light, stereo) samples points, and the Kinect's noise beyond 4 m puts pixels
     between the surfaces of its far edges (a 14 m corridor pooled 0.48–0.52 over its first
     frames, ``benchmarks/outside_eval.py --seed 1``; its edge accuracy 81.8 → 77.0 % with its
     "mixes" removed)."""
-    return spacing is None and has_mixed_pixels(footprint_share(first_frames, edge_mm))
+    if spacing is not None and spacing.confirmed:
+        return False
+    return has_mixed_pixels(footprint_share(first_frames, edge_mm))
 
 
 def fix_video_statistics(
@@ -119,7 +124,7 @@ def fix_video_statistics(
     first_frames: np.ndarray,
     cfg: UPSRConfig,
     knee: float | None = None,
-    spacing: float | None = None,
+    spacing: LevelSpacing | None = None,
 ) -> VideoStatistics:
     """Fix every choice UP-SR makes once per video from its first N low-res frames (T, h, w)
     as measured, companded beyond ``knee`` mm (:func:`video_knee_mm`; None: not companded)
