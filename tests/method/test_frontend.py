@@ -160,6 +160,11 @@ def test_the_depth_drift_is_the_scenes_common_change():
     back, guide = front.shifted(holes, drift)
     assert np.all(back[0, :4] == 0) and np.allclose(back[1:], pre[1][1:] - drift)
     assert np.array_equal(guide, front.guide(back))
+    assert front.shifted(np.array([[5.0, 2000.0]], np.float32), 10.0)[0].tolist() == [[0, 1990]]
+    # integer frames as floats; a frame of a few pixels tells no drift
+    ints = [np.round(p).astype(np.uint16) for p in pre]
+    assert front.depth_drift_mm(*ints) == pytest.approx(drift, abs=1.0)
+    assert front.depth_drift_mm(pre[0][:12, :12], pre[1][:12, :12]) == 0.0  # 9 samples
 
 
 def test_a_depth_drift_is_not_taken_for_motion_along_a_slope():

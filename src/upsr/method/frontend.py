@@ -42,6 +42,7 @@ from upsr.method.upsampling import upsample_nearest
 
 __all__ = [
     "DRIFT_AGREEING_SHARE",
+    "DRIFT_MIN_SAMPLES",
     "DRIFT_SIGNIFICANCE",
     "DRIFT_STEP_PX",
     "MIN_STATISTICS_PAIRS",
@@ -52,6 +53,9 @@ __all__ = [
 
 #: :meth:`MotionFrontEnd.depth_drift_mm` reads every this-many-th pixel of each axis.
 DRIFT_STEP_PX = 4
+#: ... from at least this many pixels measured in both frames (a frame of 4×4 pixels has one
+#: sample: its noise was a drift) ...
+DRIFT_MIN_SAMPLES = 16
 #: ... keeps a drift beyond the changes' median deviation from it and beyond this many
 #: standard errors of its median, ...
 DRIFT_SIGNIFICANCE = 4.0
@@ -273,9 +277,9 @@ class MotionFrontEnd:
         ``edge_mm``; and at least half a level of the guide (below, 0: a static scene's
         flows stay as they were)."""
         step = DRIFT_STEP_PX
-        a, b = first_mm[::step, ::step], second_mm[::step, ::step]
+        a, b = (np.asarray(f, np.float32)[::step, ::step] for f in (first_mm, second_mm))
         both = (a > 0) & (b > 0)
-        if self.depth_range_mm is None or both.sum() < max(0.25 * a.size, 1):
+        if self.depth_range_mm is None or both.sum() < max(0.25 * a.size, DRIFT_MIN_SAMPLES):
             return 0.0
         change = b[both] - a[both]
         drift = float(np.median(change))
@@ -297,7 +301,8 @@ class MotionFrontEnd:
     def shifted(self, prefiltered_mm: np.ndarray, drift_mm: float) -> tuple[np.ndarray, np.ndarray]:
         """A prefiltered frame brought back by a depth drift (its measured pixels minus
         ``drift_mm``), and its guide."""
-        d = np.where(prefiltered_mm > 0, prefiltered_mm - np.float32(drift_mm), np.float32(0.0))
+        d = np.asarray(prefiltered_mm, np.float32) - np.float32(drift_mm)
+        d[~((prefiltered_mm > 0) & (d > 0))] = 0.0  # (none where nothing or nothing is left)
         return d, self.guide(d)
 
     # -- flows ---------------------------------------------------------------------------------
