@@ -159,21 +159,20 @@ def level_fit(frame: npt.ArrayLike) -> LevelSpacing | None:
     fits = (step >= alpha * mid2 / 1.5) & (step <= 1.5 * alpha * mid2)
     if alpha > MAX_ALPHA or weight[fits].sum() < CONSISTENT_SHARE * weight.sum():
         return None
-    if not _grows_as_z2(np.log(step[fits]), 0.5 * np.log(mid2[fits]), weight[fits]):
+    z = np.sqrt(mid2[fits])
+    fit = LevelSpacing(float(alpha), float(z.max() / z.min()))
+    if fit.confirmed and not _grows_as_z2(np.log(step[fits]), np.log(z), weight[fits]):
         return None
     for a, b in ((f[:, :-1], f[:, 1:]), (f[:-1], f[1:])):  # along the rows, the columns
         pairs = (a > 0) & (b > 0)
         if int((pairs & (a != b)).sum()) < NOISY_SHARE * max(int(pairs.sum()), 1):
             return None
-    z = np.sqrt(mid2[fits])
-    return LevelSpacing(float(alpha), float(z.max() / z.min()))
+    return fit
 
 
 def _grows_as_z2(log_step: np.ndarray, log_z: np.ndarray, weight: np.ndarray) -> bool:
-    """Whether the steps grow as z² (weighted least squares of log step on log z), where the
-    levels span :data:`POWER_SPAN` or more; True over a narrower span (nothing to tell)."""
-    if log_z.max() - log_z.min() < math.log(POWER_SPAN):
-        return True
+    """Whether the steps grow as z² (weighted least squares of log step on log z; asked
+    where the levels span :data:`POWER_SPAN` or more, ``LevelSpacing.confirmed``)."""
     mz = np.average(log_z, weights=weight)
     ms = np.average(log_step, weights=weight)
     var = np.average((log_z - mz) ** 2, weights=weight)

@@ -141,6 +141,7 @@ from upsr.method.statistics import (
     VideoStatistics,
     first_frame_noise_mm,
     noise_estimator,
+    triangulates,
     trust_profile,
     video_knee_mm,
     video_level_spacing,
@@ -398,7 +399,7 @@ class RecursiveUPSR(TwoStagePipeline):
         if first_with_depth:  # (companding of depth quantised in disparity, from this frame)
             spacing = video_level_spacing(f[None])
             self._knee = video_knee_mm(f[None], cfg, spacing)
-            self._triangulates = spacing is not None and spacing.confirmed
+            self._triangulates = triangulates(spacing)
         raw, f = f, compand(f, self._knee)
         if first_with_depth:
             self._fix_statistics(f)

@@ -40,6 +40,7 @@ __all__ = [
     "noise_estimator",
     "pinned_config",
     "sensor_mixes",
+    "triangulates",
     "trust_profile",
     "video_knee_mm",
     "video_level_spacing",
@@ -102,6 +103,13 @@ def video_knee_mm(first_frames: np.ndarray, cfg: UPSRConfig, spacing: LevelSpaci
     return knee_at_spacing(spacing.alpha, cfg.edge_mm * scale)
 
 
+def triangulates(spacing: LevelSpacing | None) -> bool:
+    """Whether a video's sensor triangulates (structured light, stereo): its depth quantised
+    in disparity (:func:`video_level_spacing`), the steps seen to grow as z²
+    (``LevelSpacing.confirmed``)."""
+    return spacing is not None and spacing.confirmed
+
+
 def sensor_mixes(first_frames: np.ndarray, edge_mm: float, spacing: LevelSpacing | None) -> bool:
     """``remove_mixed="auto"``: whether a video's sensor mixes depths at edges, from its first
     frames (T, h, w) as measured: a share of mixes at its edges
@@ -114,9 +122,7 @@ def sensor_mixes(first_frames: np.ndarray, edge_mm: float, spacing: LevelSpacing
     between the surfaces of its far edges (a 14 m corridor pooled 0.48–0.52 over its first
     frames, ``benchmarks/outside_eval.py --seed 1``; its edge accuracy 81.8 → 77.0 % with its
     "mixes" removed)."""
-    if spacing is not None and spacing.confirmed:
-        return False
-    return has_mixed_pixels(footprint_share(first_frames, edge_mm))
+    return not triangulates(spacing) and has_mixed_pixels(footprint_share(first_frames, edge_mm))
 
 
 def fix_video_statistics(
