@@ -326,6 +326,59 @@ def test_a_frame_that_reaches_a_thin_part_at_one_pixel_only_did_not_follow_it():
     assert not lost[1, :, 2].any()  # the left column: frame 1 followed it
 
 
+def test_map_spread_is_how_far_a_blocks_motion_strays_from_its_centres():
+    from upsr.method.consistency import map_spread
+
+    h, w, s = 4, 5, 3
+    maps = np.zeros((2, h * s, w * s, 2), np.float32)
+    maps[0] = (2.5, -7.0)  # a translation: every node of a block moves as its centre
+    maps[1, ..., 0] = np.arange(w * s, dtype=np.float32)  # stretched: 1 flow px per node
+    spread = map_spread(maps, (h, w))
+    assert spread.shape == (2, h, w) and spread.dtype == np.float32
+    np.testing.assert_array_equal(spread[0], 0.0)
+    # the centre node of a block of 3 is its middle one: one node either side, 1/3 low-res px
+    np.testing.assert_allclose(spread[1], 1.0 / s, rtol=1e-6)
+    np.testing.assert_array_equal(map_spread(maps[:, ::s, ::s], (h, w)), 0.0)  # s = 1
+
+
+def test_a_frame_whose_motion_stretches_across_a_thin_part_did_not_follow_it():
+    """The bar of the test above, registered exactly by frames 0–5; frame 6's motion reaches
+    the bar's centres as exactly but stretches across its blocks (a rotating blade: DIS
+    blends the part's motion with the wall's at its sides), so its samples of the blocks'
+    sides land elsewhere: it did not follow the bar there, and abstains (the outside
+    propeller at r = 2 lost 0.7 points of edge accuracy against nearest's to such frames)."""
+    from upsr.method.alternatives import thin_fronts
+    from upsr.method.consistency import FOLLOWED_MAX_SPREAD_PX, thin_parts_followed
+
+    r, n, ref = 4, 7, 3
+    low, _truth = _bar_frames(range(-3, 4))
+    maps = np.zeros((n, low.shape[1] * r, low.shape[2] * r, 2), np.float32)
+    maps[..., 0] = np.arange(-3, 4, dtype=np.float32)[:, None, None]
+    anchor, tol = low[ref], np.full(low.shape[1:], 30.0, np.float32)
+    fronts = thin_fronts(anchor, tol, 100.0)
+    reg = registered_samples(low, maps, r)
+
+    def followed_by(maps):
+        return thin_parts_followed(reg, anchor, tol, fronts, ref, edge_mm=100.0, maps=maps)
+
+    followed, before = followed_by(maps)
+    assert followed[:, 6:8].all() and not before[6].any()
+    # across the bar's blocks the columns move apart: node q of a block (its centre node
+    # r // 2 as before) by (q − r // 2) steps, FOLLOWED_MAX_SPREAD_PX + 0.2 low-res px at most
+    step = (FOLLOWED_MAX_SPREAD_PX + 0.2) * r / (r // 2)
+    stretch = np.tile((np.arange(r) - r // 2) * np.float32(step), 2)
+    maps[6, :, 6 * r : 8 * r, 0] += stretch
+    np.testing.assert_array_equal(registered_samples(low, maps, r), reg)
+    followed, lost = followed_by(maps)
+    assert followed[:, 6:8].all()  # five of the six others still follow it
+    assert lost[6][:, 6:8].all()
+    np.testing.assert_array_equal(lost[:6], before[:6])  # (the others as before)
+    # a stretch within the limit is a turn the block shares: followed as before
+    maps[6, :, 6 * r : 8 * r, 0] -= stretch * np.float32(0.3 / (FOLLOWED_MAX_SPREAD_PX + 0.2))
+    _, lost = followed_by(maps)
+    assert not lost[6].any()
+
+
 def test_enclosed_holes_are_holes_inside_measured_surroundings():
     from upsr.method.consistency import enclosed_holes
 

@@ -27,6 +27,8 @@ while the other frames still show the wall.
 
 from __future__ import annotations
 
+import math
+
 import cv2
 import numba as nb
 import numpy as np
@@ -38,6 +40,7 @@ from upsr.method.validation import check_ref, nan_as_zero
 __all__ = [
     "ENCLOSED_RADIUS_PX",
     "ENCLOSED_SHARE",
+    "FOLLOWED_MAX_SPREAD_PX",
     "FOLLOWED_SHARE",
     "HOLE_REACH_PX",
     "MISMATCH_FRACTION",
@@ -45,6 +48,7 @@ __all__ = [
     "clear_stale_fills",
     "enclosed_holes",
     "hole_backgrounds",
+    "map_spread",
     "maps_at_centres",
     "misregistered",
     "registered_samples",
@@ -75,6 +79,11 @@ MISMATCH_FRACTION = 0.2
 #: Least share of a window's other frames that followed a thin part in front for the surface
 #: behind it to compete there (:func:`thin_parts_followed`).
 FOLLOWED_SHARE = 0.5
+#: Largest spread (low-res px) of a frame's motion over a thin part's block
+#: (:func:`map_spread`) for that frame to follow the part there: a flow that stretches across
+#: the part (a rotating blade whose centre it follows) moves the block's sides elsewhere
+#: (the outside propeller at r = 2, σ = 10: rmse 101.3 → 98.5 mm against nearest's 99.2).
+FOLLOWED_MAX_SPREAD_PX = 0.5
 
 
 @nb.njit(cache=True, nogil=True)
@@ -125,6 +134,59 @@ def maps_at_centres(maps: npt.ArrayLike, lowres_shape: tuple[int, int]) -> np.nd
     xg = np.clip(((np.arange(w) + 0.5) * (gw / w)).astype(np.int64), 0, gw - 1)
     # (the nodes first, then float64: the whole map is never converted)
     return np.take(np.take(m, yg, axis=1), xg, axis=2).astype(np.float64)
+
+
+@nb.njit(cache=True, nogil=True, inline="always")
+def _spread_at(maps, k, i, j, h, w):  # pragma: no cover - numba
+    """:func:`map_spread` of frame k at low-res pixel (i, j) of an (h, w) frame."""
+    gh, gw = maps.shape[1], maps.shape[2]
+    s_y = gh / h
+    s_x = gw / w
+    yg = min(max(int((i + 0.5) * s_y), 0), gh - 1)
+    xg = min(max(int((j + 0.5) * s_x), 0), gw - 1)
+    cx = maps[k, yg, xg, 0]
+    cy = maps[k, yg, xg, 1]
+    worst = 0.0
+    for a in range(int(i * s_y), max(min(int((i + 1) * s_y), gh), int(i * s_y) + 1)):
+        for b in range(int(j * s_x), max(min(int((j + 1) * s_x), gw), int(j * s_x) + 1)):
+            dx = (maps[k, a, b, 0] - cx) / s_x
+            dy = (maps[k, a, b, 1] - cy) / s_y
+            worst = max(worst, dx * dx + dy * dy)
+    return math.sqrt(worst)
+
+
+@nb.njit(cache=True, nogil=True, parallel=True)
+def _spread_kernel(maps, h, w, out):  # pragma: no cover - numba
+    n = maps.shape[0]
+    for ki in nb.prange(n * h):
+        for j in range(w):
+            out[ki // h, ki % h, j] = _spread_at(maps, ki // h, ki % h, j, h, w)
+
+
+def map_spread(maps: npt.ArrayLike, lowres_shape: tuple[int, int]) -> np.ndarray:
+    """How far each frame's motion over a low-res pixel's block strays from its motion at the
+    pixel's centre (the flow-grid node :func:`registered_samples` reads): the largest
+    distance, in low-res px, between the map at any flow-grid node of the block and at that
+    node. A motion the block shares (a translation, a slow turn) spreads by a fraction of a
+    pixel; a flow that stretches across a thin part the frame reaches only at its centre
+    (a rotating blade) by more.
+
+    Parameters
+    ----------
+    maps : array_like (N, s·h, s·w, 2)
+        Motion from the reference to each frame on the flow grid (flow px).
+    lowres_shape : (int, int)
+        (h, w).
+
+    Returns
+    -------
+    ndarray float32 (N, h, w): 0 where the flow grid is the low-res grid (s = 1).
+    """
+    mp = np.ascontiguousarray(maps, np.float32)
+    h, w = lowres_shape
+    out = np.empty((mp.shape[0], h, w), np.float32)
+    _spread_kernel(mp, int(h), int(w), out)
+    return out
 
 
 def registered_samples(lowres: npt.ArrayLike, maps: npt.ArrayLike, scale: int) -> np.ndarray:
@@ -283,6 +345,7 @@ def thin_parts_followed(
     offsets: npt.ArrayLike | None = None,
     min_trusted: int = 1,
     share: float = FOLLOWED_SHARE,
+    maps: npt.ArrayLike | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Which thin parts in front the motion followed, and the frames that did not follow them.
 
@@ -320,6 +383,10 @@ def thin_parts_followed(
         Fewest samples on the part's surface, the reference's included.
     share : float
         Least share of the other frames in frame that followed the part.
+    maps : array_like (N, s·h, s·w, 2), optional
+        The window's motion on the flow grid: a frame whose motion spreads over the block of
+        the part's pixel (or of a neighbour along it) by more than
+        :data:`FOLLOWED_MAX_SPREAD_PX` (:func:`map_spread`) did not follow it there.
 
     Returns
     -------
@@ -338,26 +405,34 @@ def thin_parts_followed(
     if offsets is not None:
         offs = np.ascontiguousarray(offsets, np.float32).reshape(reg.shape)
     fronts = np.ascontiguousarray(fronts, np.bool_).reshape(anc.shape)
+    mp = np.zeros((reg.shape[0], 0, 0, 2), np.float32)  # (none: no spread)
+    if maps is not None:
+        mp = np.ascontiguousarray(maps, np.float32)
     followed = np.zeros(anc.shape, np.bool_)
     lost = np.zeros(reg.shape, np.bool_)
     _followed_kernel(
-        np.ascontiguousarray(reg), offs, anc, tol, fronts, int(ref), float(edge_mm),
+        np.ascontiguousarray(reg), offs, mp, anc, tol, fronts, int(ref), float(edge_mm),
         int(min_trusted), float(share), followed, lost,
     )  # fmt: skip
     return followed, lost
 
 
 @nb.njit(cache=True, nogil=True, inline="always")
-def _follows(reg, offs, anc, tol, k, ref, i, j):  # pragma: no cover - numba
-    """(in frame, on the part's surface) for frame k's registered sample at (i, j)."""
+def _follows(reg, offs, maps, anc, tol, k, ref, i, j):  # pragma: no cover - numba
+    """(in frame, on the part's surface) for frame k's registered sample at (i, j), its
+    motion (``maps``, or none: (N, 0, 0, 2)) spreading over the pixel's block by at most
+    :data:`FOLLOWED_MAX_SPREAD_PX`."""
     v = reg[k, i, j] - offs[k, i, j]
     inside = k != ref and not np.isnan(v)
-    return inside, inside and v > 0 and abs(v - anc[i, j]) <= tol[i, j]
+    own = inside and v > 0 and abs(v - anc[i, j]) <= tol[i, j]
+    if own and maps.shape[1] > 0:
+        own = _spread_at(maps, k, i, j, reg.shape[1], reg.shape[2]) <= FOLLOWED_MAX_SPREAD_PX
+    return inside, own
 
 
 @nb.njit(cache=True, nogil=True)
 def _followed_kernel(
-    reg, offs, anc, tol, fronts, ref, edge, min_trusted, share, followed, lost
+    reg, offs, maps, anc, tol, fronts, ref, edge, min_trusted, share, followed, lost
 ):  # pragma: no cover - numba
     n, h, w = reg.shape
     along = np.empty((8, 2), np.int64)
@@ -385,10 +460,10 @@ def _followed_kernel(
             n_in = 0
             n_own = 0
             for k in range(n):
-                inside, own = _follows(reg, offs, anc, tol, k, ref, i, j)
+                inside, own = _follows(reg, offs, maps, anc, tol, k, ref, i, j)
                 for q in range(m):
                     a, b = along[q, 0], along[q, 1]
-                    q_in, q_own = _follows(reg, offs, anc, tol, k, ref, a, b)
+                    q_in, q_own = _follows(reg, offs, maps, anc, tol, k, ref, a, b)
                     own = own and (q_own or not q_in)
                 n_in += inside
                 n_own += own

@@ -14,8 +14,7 @@ For each reference frame t0 (every frame of the video):
    median (eq. 28), in one compiled pass on the r·h × r·w grid that reads the samples from the
    low-res frames (:func:`upsr.method.fusion.register_and_fuse`);
 7. L1 + BTV deblurring (eq. 29–30), then (beyond the paper) an edge-preserving smoothing of
-   each surface that turns the staircase of dense upsampling into ramps,
-   :mod:`upsr.method.deblurring`.
+   each surface (the staircase of dense upsampling into ramps), :mod:`upsr.method.deblurring`.
 
 Windows: N frames with the reference in the middle (``(N-1)//2`` before it); near the ends of a
 video the window is shifted inwards so that it still holds N frames. Each consecutive flow (both
@@ -339,7 +338,7 @@ class UPSR:
                     )  # fmt: skip
                 if cfg.check_registration:
                     untrusted, followed = self._unfollowed(
-                        registered, lowres[ref], ref, anchor, tolerance, offsets
+                        registered, maps, lowres[ref], ref, anchor, tolerance, offsets
                     )
                 if offsets is not None:
                     # an offset near the edge threshold (within which it is measured) is
@@ -410,6 +409,7 @@ class UPSR:
     def _unfollowed(
         self,
         registered: np.ndarray,
+        maps: np.ndarray,
         reference: np.ndarray,
         ref: int,
         anchor: np.ndarray | None,
@@ -425,9 +425,9 @@ class UPSR:
             return untrusted, None
         # there the frames that did not follow the part abstain, the surfaces around compete
         followed, lost = thin_parts_followed(
-            registered, anchor, tolerance,
-            thin_fronts(anchor, tolerance, edge, border_strips=True), ref,
-            edge_mm=edge, offsets=offsets, min_trusted=self.config.min_trusted_samples,
+            registered, anchor, tolerance, thin_fronts(anchor, tolerance, edge, border_strips=True),
+            ref, edge_mm=edge, offsets=offsets, min_trusted=self.config.min_trusted_samples,
+            maps=maps,
         )  # fmt: skip
         return untrusted | lost, followed
 

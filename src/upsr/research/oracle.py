@@ -298,7 +298,7 @@ def _checked_stack(
             followed, lost = thin_parts_followed(
                 reg, anchor, tol, thin_fronts(anchor, tol, edge_mm, border_strips=True), ref,
                 edge_mm=edge_mm,
-                offsets=offsets, min_trusted=cfg.min_trusted_samples,
+                offsets=offsets, min_trusted=cfg.min_trusted_samples, maps=maps,
             )  # fmt: skip
             bad |= lost
     if offsets is not None:
