@@ -25,6 +25,7 @@ from upsr.method.registration import _registered_state_kernel, flow_positions
 from upsr.method.trust import (
     NO_WEAK_OFFSETS,
     OFFSET_GRID,
+    _offset_at,
     _offset_kernel,
     _sigma_and_power,
     _with_wide_offsets,
@@ -310,11 +311,24 @@ def _state_offsets(
     return _recentred(off[0], registered, args[1:], radius_px)
 
 
+@nb.njit(cache=True, nogil=True)
+def _again_kernel(shifted, meas, anchor, edge, sigma, power, radius, signif, ys, xs, out):
+    # pragma: no cover - numba
+    """``_offset_at`` of the ``shifted`` state at the pixels (ys[q], xs[q]) only, into out[q]."""
+    buf = np.empty((2 * radius + 1) ** 2, np.float32)
+    for q in range(ys.size):
+        out[q] = _offset_at(
+            shifted, meas, anchor, 0, ys[q], xs[q], edge, sigma, power, radius, 1, buf, signif,
+            np.inf,
+        )[0]  # fmt: skip
+
+
 def _recentred(off: np.ndarray, registered: np.ndarray, args: tuple, radius_px: int) -> np.ndarray:
     """``off`` (h, w) where it lies within half the edge threshold; beyond it (``far_offsets``:
     the windowed mode's samples abstain there), ``off`` plus the median of the differences
-    measured again on the state less ``off`` (``args``: ``_offset_kernel``'s after its
-    first). An offset is measured from the differences within the edge threshold of 0,
+    measured again on the state less ``off``, at those pixels only (``args``:
+    ``_offset_kernel``'s after its first; kept beyond :data:`RECENTRE_SIGNIFICANCE` standard
+    errors). An offset is measured from the differences within the edge threshold of 0,
     which cuts off the far half of their spread once it nears the threshold, so it fell
     short: a ball 100 mm nearer per frame (``benchmarks/outside_eval.py``, Laplace σ = 30)
     had the state 20 mm behind it on every frame, its moving surface 25.2 mm against the
@@ -322,18 +336,15 @@ def _recentred(off: np.ndarray, registered: np.ndarray, args: tuple, radius_px: 
     far = far_offsets(off, args[3])
     if not far.any():
         return off
-    again = np.empty((1, *off.shape), np.float32)
+    ys, xs = np.nonzero(far)
     shifted = np.where(registered > 0, registered - off, registered)[None]
-    _offset_kernel(
-        shifted,
-        *args,
-        np.full_like(again, RECENTRE_SIGNIFICANCE),
-        radius_px,
-        again,
-        *OFFSET_GRID,
-        *NO_WEAK_OFFSETS,
-    )
-    return np.where(far, off + again[0], off)
+    again = np.empty(ys.size, np.float32)
+    meas, anchor, _, edge, sigma, power = args
+    signif = np.full((1, *off.shape), RECENTRE_SIGNIFICANCE, np.float32)
+    _again_kernel(shifted, meas, anchor, edge, sigma, power, radius_px, signif, ys, xs, again)
+    out = off.copy()
+    out[ys, xs] += again
+    return out
 
 
 def _offsets_and_caps(
