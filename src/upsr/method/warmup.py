@@ -29,8 +29,9 @@ WARM_UP_FRAMES = 3
 
 def warm_up_frames(shape_px: tuple[int, int], n_frames: int = WARM_UP_FRAMES) -> np.ndarray:
     """Synthetic depth frames (mm) of ``shape_px``: a slanted wall 2–2.6 m away, a box 1 m
-    in front of it moving one pixel per frame, Laplacian noise of σ = 10 mm and 1 % of the
-    pixels without depth (0), from a fixed seed.
+    in front of it moving one pixel per frame and 60 mm nearer (the recursive mode measures
+    such an offset twice), Laplacian noise of σ = 10 mm and 1 % of the pixels without depth
+    (0), from a fixed seed.
 
     Parameters
     ----------
@@ -52,7 +53,7 @@ def warm_up_frames(shape_px: tuple[int, int], n_frames: int = WARM_UP_FRAMES) ->
     for t in range(n_frames):
         z = 2000.0 + 600.0 * xs / w + 100.0 * ys / h
         y0, x0 = h // 3, w // 4 + t
-        z[y0 : y0 + max(h // 3, 1), x0 : x0 + max(w // 4, 1)] -= 1000.0
+        z[y0 : y0 + max(h // 3, 1), x0 : x0 + max(w // 4, 1)] -= 1000.0 + 60.0 * t
         z += rng.laplace(0.0, 10.0 / np.sqrt(2.0), z.shape).astype(np.float32)
         z[rng.random(z.shape) < 0.01] = 0.0
         out[t] = z
