@@ -106,3 +106,24 @@ def test_steep_noise_profiles_neither_diverge_nor_write_micrometres():
     assert (out > 0).all()
     assert np.abs(out[:, 32:] - 12000.0).max() < 100.0
     assert np.abs(out[:, :28] - 1000.0).max() < 10.0
+
+
+def test_a_plane_sloping_across_the_border_is_not_pulled_inwards():
+    """The staircase of a plane's r×r blocks (70 mm per block down, 5 across, r = 4): cut off
+    by the border, every BTV pair of a border block pulled it towards the inside, the first
+    and last rows of blocks 4.9 mm (8.0 at the corners) after the 15 steps. On the image
+    extended by its odd reflection about the outermost blocks' centres, where the step
+    across the border exceeds 4 β₀ (the 70 mm one, not the 5 mm one), the pairs are balanced
+    there too: those rows keep their means; the columns keep the one-sided border (1.7 mm)."""
+    ys, xs = np.mgrid[0:12, 0:14].astype(np.float32)
+    low = 1800.0 + 70.0 * ys + 5.0 * xs
+    z = np.repeat(np.repeat(low, 4, axis=0), 4, axis=1)
+    x = deblur(z, DeblurConfig(smooth_sigma_mm=None, step_mm=10.0), scale=4)
+    assert x.shape == z.shape
+    means = x.reshape(12, 4, 14, 4).mean(axis=(1, 3))
+    np.testing.assert_allclose(means[:, 1:-1], low[:, 1:-1], atol=0.6, rtol=0)
+    np.testing.assert_allclose(np.abs(means - low)[:, [0, -1]], 1.69, atol=0.05)
+    # an image smaller than a block and P in one direction: no margin there, still in place
+    for shape in ((5, 3), (3, 9)):
+        flat = np.full(shape, 1500.0, np.float32)
+        np.testing.assert_allclose(deblur(flat, DeblurConfig(), scale=4), flat, atol=0.01)

@@ -240,10 +240,10 @@ def test_a_pixel_where_its_surface_bends_steeply_keeps_its_depth_for_the_slopes(
 
 
 def test_the_rims_of_a_surface_keep_their_anchor():
-    """Beside a depth edge, a pixel without depth or the border of the image, the anchor is
-    left as it is (a curved body's silhouette: its one-sided median keeps the slopes of the
-    blocks beside it gentler, as the body's blocks are); inside a surface without steep bends
-    the symmetric median is the anchor."""
+    """Beside a depth edge or a pixel without depth the anchor is left as it is (a curved
+    body's silhouette: its one-sided median keeps the slopes of the blocks beside it gentler,
+    as the body's blocks are); inside a surface without steep bends the symmetric median is
+    the anchor. (Along the image's border, whose surfaces go on beyond it, the next test.)"""
     from upsr.method.slopes import plane_anchor
     from upsr.method.trust import reference_anchor
 
@@ -254,9 +254,46 @@ def test_the_rims_of_a_surface_keep_their_anchor():
     # one-sided beside the edge and the hole
     assert anchor[4, 6] == pytest.approx(low[4, 6] - 20.0)
     assert anchor[4, 3] == pytest.approx(low[4, 3] + 20.0)
-    np.testing.assert_array_equal(plane_anchor(low, anchor, 100.0), anchor)
+    inner = (slice(1, -1), slice(1, -1))
+    np.testing.assert_array_equal(plane_anchor(low, anchor, 100.0)[inner], anchor[inner])
     with pytest.raises(ValueError, match="shape"):
         plane_anchor(low, anchor[:-1], 100.0)
+
+
+def test_a_surface_sloping_across_the_border_keeps_its_slope_there():
+    """The 3×3 anchor of a border pixel is one-sided: on a floor rising 70 mm per low-res
+    row it leans half a row inwards, and the last blocks' slope came out at half the floor's
+    (the last block 15–37 mm off at r = 4). Along the border the anchor is the median of the
+    pixel and its two neighbours there (a centrally symmetric neighbourhood), where that
+    lies more than σ from it: the border keeps its depth, the blocks their slope. The
+    corners (no symmetric pair), a border pixel beside a hole and a lean within σ (a flat
+    surface: the median of 6 is the less noisy) keep the anchor."""
+    from upsr.method.slopes import plane_anchor, plane_slopes
+    from upsr.method.trust import reference_anchor
+
+    ys, xs = np.mgrid[0:8, 0:9].astype(np.float32)
+    low = 1800.0 + 70.0 * ys + 5.0 * xs
+    anchor = reference_anchor(low, 1.0, 3.0, 100.0)[0]
+    assert anchor[7, 4] == pytest.approx(low[7, 4] - 35.0)  # leans inwards
+    plane = plane_anchor(low, anchor, 100.0, 10.0)
+    np.testing.assert_allclose(plane[[0, -1], 1:-1], low[[0, -1], 1:-1])
+    corners = ([0, 0, -1, -1], [0, -1, 0, -1])
+    np.testing.assert_array_equal(plane[corners], anchor[corners])
+    # across the left and right borders the lean (2.5 mm) is within σ
+    np.testing.assert_array_equal(plane[:, [0, -1]], anchor[:, [0, -1]])
+    sy = plane_slopes(low, anchor, 100.0, 10.0)[0]
+    np.testing.assert_allclose(sy[:, 1:-1], 70.0, atol=1e-3)
+    up = np.repeat(np.repeat(low, 4, axis=0), 4, axis=1)
+    out = follow_slopes(up, anchor, sigma_mm=10.0, edge_mm=100.0, frame=low)
+    # (the 5 mm across a block is within 2σ: the blocks keep their own trend along x)
+    truth = 1800.0 + 70.0 * (np.arange(32) - 1.5) / 4.0 + 5.0 * 4
+    np.testing.assert_allclose(out[:, 17], truth, atol=1e-2)
+    # a lean within σ: the anchor
+    np.testing.assert_array_equal(plane_anchor(low, anchor, 100.0, 40.0)[[0, -1]], anchor[[0, -1]])
+    holed = low.copy()
+    holed[6, 0] = 0.0
+    a2 = reference_anchor(holed, 1.0, 3.0, 100.0)[0]
+    assert plane_anchor(holed, a2, 100.0)[7, 1] == a2[7, 1]
 
 
 def test_a_block_never_follows_its_slope_through_the_camera():

@@ -521,7 +521,7 @@ class RecursiveUPSR(TwoStagePipeline):
             # (a moving slope's state: fewer frames; a slope's state that strays: fewer still)
             s = flow.shape[1] / meas.shape[1]
             caps = moving_caps(caps, flow, cfg.n_frames, grid_scale=s, centres=centres)
-            slopes = plane_slopes(meas, anchor, self._front.edge_mm)  # type: ignore[union-attr]
+            slopes = plane_slopes(meas, anchor, self._front.edge_mm, noise)  # type: ignore[union-attr]
             sloped = sloped_pixels(
                 anchor, slopes, noise, noise_profile=self._profile,
                 significance=INNOVATION_SLOPE_SIGNIFICANCE,

@@ -453,7 +453,7 @@ def follow_slopes(
         sy, sx = surface_slopes(a, edge_mm)
     else:
         m = nan_as_zero(frame)
-        sy, sx = plane_slopes(m, a, edge_mm) if slopes is None else slopes
+        sy, sx = plane_slopes(m, a, edge_mm, sigma_mm) if slopes is None else slopes
         my, mx = surface_slopes(np.where(m > 0, m, np.float32(0.0)), edge_mm)
         if measured is not None:
             full = nan_as_zero(measured)
@@ -473,15 +473,47 @@ def follow_slopes(
     return z
 
 
+@nb.njit(cache=True, nogil=True, inline="always")
+def _border_anchor(z, i, j, c, edge, gate, buf):  # pragma: no cover - numba
+    """The anchor ``c`` of a pixel on the image's border (not a corner) over its centrally
+    symmetric neighbourhood there, the median of itself and its two neighbours along the
+    border, where all its neighbours in the image are measured, those two lie within ``edge``
+    of ``c`` and that median lies more than ``gate`` from ``c``; else ``c``. (The 3×3 anchor
+    there is one-sided: on a slope across the border it leans half a pixel's step inwards;
+    on a flat surface the median of 6 is the less noisy one.)"""
+    h, w = z.shape
+    for di in range(-1, 2):
+        for dj in range(-1, 2):
+            a, b = i + di, j + dj
+            if 0 <= a < h and 0 <= b < w and not (z[a, b] > 0):
+                return c
+    along_rows = i == 0 or i == h - 1
+    if along_rows == (j == 0 or j == w - 1):  # a corner: no symmetric pair
+        return c
+    di, dj = (0, 1) if along_rows else (1, 0)
+    u = z[i - di, j - dj]
+    v = z[i + di, j + dj]
+    if abs(u - c) > edge or abs(v - c) > edge or abs(z[i, j] - c) > edge:
+        return c
+    buf[0] = u
+    buf[1] = z[i, j]
+    buf[2] = v
+    b = _small_median(buf, 3)
+    return b if abs(b - c) > gate else c
+
+
 @nb.njit(cache=True, nogil=True, parallel=True)
-def _plane_kernel(z, anchor, ends, edge, out):  # pragma: no cover - numba
+def _plane_kernel(z, anchor, ends, edge, gate, out):  # pragma: no cover - numba
     h, w = z.shape
     for i in nb.prange(h):
         buf = np.empty(9, np.float32)
         for j in range(w):
             c = anchor[i, j]
             out[i, j] = c
-            if not (c > 0) or ends[i, j] or i == 0 or j == 0 or i == h - 1 or j == w - 1:
+            if not (c > 0) or ends[i, j]:
+                continue
+            if i == 0 or j == 0 or i == h - 1 or j == w - 1:
+                out[i, j] = _border_anchor(z, i, j, c, edge, gate, buf)
                 continue
             inside = True  # all 8 neighbours measured
             bent = False  # one beyond the edge threshold: the anchor is one-sided
@@ -507,7 +539,9 @@ def _plane_kernel(z, anchor, ends, edge, out):  # pragma: no cover - numba
                 out[i, j] = _small_median(buf, m)
 
 
-def plane_anchor(frame: npt.ArrayLike, anchor: npt.ArrayLike, edge_mm: float) -> np.ndarray:
+def plane_anchor(
+    frame: npt.ArrayLike, anchor: npt.ArrayLike, edge_mm: float, sigma_mm: float = 0.0
+) -> np.ndarray:
     """The anchor, with each pixel inside its surface taken over a symmetric neighbourhood.
 
     The anchor (:func:`upsr.method.trust.reference_anchor`) is the median of the 3×3
@@ -531,11 +565,19 @@ def plane_anchor(frame: npt.ArrayLike, anchor: npt.ArrayLike, edge_mm: float) ->
         Its anchor (mm, 0 = none).
     edge_mm : float
         Depth step that separates two surfaces.
+    sigma_mm : float
+        Noise std (mm). On the image's border (its surfaces go on beyond it) the 3×3 anchor
+        is one-sided too: on a slope across the border it leans half a pixel's step
+        inwards. There the anchor is the median of the pixel and its two neighbours along
+        the border, where all its neighbours are measured and that median lies more than
+        ``sigma_mm`` from the anchor (on a flat surface the anchor's median of 6 is the less
+        noisy one; the corners keep theirs).
 
     Returns
     -------
     ndarray float32 (h, w): the anchor, re-centred on the pixels inside their surface (all
-    8 neighbours measured, no end of a depth edge, :func:`edge_ends`); 0 where it is 0.
+    8 neighbours measured, no end of a depth edge, :func:`edge_ends`) and where the border
+    leans; 0 where it is 0.
 
     Examples
     --------
@@ -552,7 +594,8 @@ def plane_anchor(frame: npt.ArrayLike, anchor: npt.ArrayLike, edge_mm: float) ->
         raise ValueError(f"frame {z.shape} and anchor {a.shape} differ in shape")
     ends = edge_ends(z, edge_mm)
     out = np.empty(z.shape, np.float32)
-    _plane_kernel(np.ascontiguousarray(z), np.ascontiguousarray(a), ends, float(edge_mm), out)
+    gate = max(float(sigma_mm), 0.0)
+    _plane_kernel(np.ascontiguousarray(z), np.ascontiguousarray(a), ends, float(edge_mm), gate, out)
     return out
 
 
@@ -602,12 +645,14 @@ def edge_ends(depth_mm: npt.ArrayLike, edge_mm: float) -> np.ndarray:
 
 
 def plane_slopes(
-    frame: npt.ArrayLike, anchor: npt.ArrayLike, edge_mm: float
+    frame: npt.ArrayLike, anchor: npt.ArrayLike, edge_mm: float, sigma_mm: float = 0.0
 ) -> tuple[np.ndarray, np.ndarray]:
     """(slope_y, slope_x) of :func:`surface_slopes` on the :func:`plane_anchor` of ``frame``
     and its ``anchor`` (h, w, mm, 0 = none): the slopes :func:`follow_slopes` gives the blocks
-    (before the frame's own steep slopes)."""
-    return surface_slopes(plane_anchor(nan_as_zero(frame), nan_as_zero(anchor), edge_mm), edge_mm)
+    (before the frame's own steep slopes); ``sigma_mm``: the noise std (mm) of
+    :func:`plane_anchor`'s border rule."""
+    plane = plane_anchor(nan_as_zero(frame), nan_as_zero(anchor), edge_mm, sigma_mm)
+    return surface_slopes(plane, edge_mm)
 
 
 def sloped_pixels(
