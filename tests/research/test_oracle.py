@@ -109,6 +109,25 @@ def test_btv_subgradient_matches_kernel(radius, edge_mm):
     np.testing.assert_allclose(ref, btv_subgradient(x, guide, **kw), atol=1e-4, rtol=0)
 
 
+@pytest.mark.parametrize("scale", [1, 2, 4])
+def test_deblur_matches_kernel_on_a_surface_sloping_across_the_border(scale):
+    """The descent on the image extended by its odd reflection (a floor stepping 60 mm per
+    row, beyond 4 β₀): the reference and the kernel extend it alike."""
+    rng = np.random.default_rng(scale)
+    ys, xs = np.mgrid[0:24, 0:28].astype(np.float32)
+    z = 1500.0 + 60.0 * ys + 2.0 * xs + rng.normal(0.0, 3.0, ys.shape).astype(np.float32)
+    z[rng.random(z.shape) < 0.05] = 0.0
+    cfg = DeblurConfig(iterations=10, smooth_sigma_mm=None)
+    expected = deblur(z, cfg, scale=scale)
+    actual = deblur_numpy(z, cfg, scale=scale)
+    np.testing.assert_array_equal(actual == 0, z == 0)
+    err = np.abs(actual - expected)
+    assert np.mean(err > 0.05) < 0.03 and err.max() < 1.0
+    if scale > 1:  # (at r = 1 the noise estimate of this image is 23 mm: a step of 4 β₀)
+        # the border rows moved as the inside ones (no inward pull of the slope)
+        assert abs(float(np.median((actual - z)[[0, -1]][z[[0, -1]] > 0]))) < 1.0
+
+
 @pytest.mark.parametrize(
     ("smooth", "profile"), [(None, None), (30.0, None), (None, (2.0, 2.0)), (30.0, (2.0, 1.5))]
 )

@@ -475,12 +475,10 @@ def follow_slopes(
 
 @nb.njit(cache=True, nogil=True, inline="always")
 def _border_anchor(z, i, j, c, edge, gate, buf):  # pragma: no cover - numba
-    """The anchor ``c`` of a pixel on the image's border (not a corner) over its centrally
-    symmetric neighbourhood there, the median of itself and its two neighbours along the
-    border, where all its neighbours in the image are measured, those two lie within ``edge``
-    of ``c`` and that median lies more than ``gate`` from ``c``; else ``c``. (The 3×3 anchor
-    there is one-sided: on a slope across the border it leans half a pixel's step inwards;
-    on a flat surface the median of 6 is the less noisy one.)"""
+    """The anchor ``c`` of a pixel on the image's border (not a corner): the median of itself
+    and its two neighbours along the border where all its neighbours are measured, those two
+    lie within ``edge`` of ``c`` and that median lies more than ``gate`` from ``c``; else
+    ``c`` (:func:`plane_anchor`)."""
     h, w = z.shape
     for di in range(-1, 2):
         for dj in range(-1, 2):
@@ -567,11 +565,11 @@ def plane_anchor(
         Depth step that separates two surfaces.
     sigma_mm : float
         Noise std (mm). On the image's border (its surfaces go on beyond it) the 3×3 anchor
-        is one-sided too: on a slope across the border it leans half a pixel's step
-        inwards. There the anchor is the median of the pixel and its two neighbours along
-        the border, where all its neighbours are measured and that median lies more than
-        ``sigma_mm`` from the anchor (on a flat surface the anchor's median of 6 is the less
-        noisy one; the corners keep theirs).
+        is one-sided too: on a slope across the border it leans half a pixel's step inwards.
+        There the anchor is the median of the pixel and its two neighbours along the border
+        where all its neighbours are measured and that median lies more than ``sigma_mm``
+        from the anchor (on a flat surface the median of 6 is the less noisy; the corners
+        keep theirs).
 
     Returns
     -------
@@ -594,8 +592,8 @@ def plane_anchor(
         raise ValueError(f"frame {z.shape} and anchor {a.shape} differ in shape")
     ends = edge_ends(z, edge_mm)
     out = np.empty(z.shape, np.float32)
-    gate = max(float(sigma_mm), 0.0)
-    _plane_kernel(np.ascontiguousarray(z), np.ascontiguousarray(a), ends, float(edge_mm), gate, out)
+    gate, edge = max(float(sigma_mm), 0.0), float(edge_mm)
+    _plane_kernel(np.ascontiguousarray(z), np.ascontiguousarray(a), ends, edge, gate, out)
     return out
 
 
@@ -649,8 +647,7 @@ def plane_slopes(
 ) -> tuple[np.ndarray, np.ndarray]:
     """(slope_y, slope_x) of :func:`surface_slopes` on the :func:`plane_anchor` of ``frame``
     and its ``anchor`` (h, w, mm, 0 = none): the slopes :func:`follow_slopes` gives the blocks
-    (before the frame's own steep slopes); ``sigma_mm``: the noise std (mm) of
-    :func:`plane_anchor`'s border rule."""
+    (before the frame's own steep slopes); ``sigma_mm``: :func:`plane_anchor`'s."""
     plane = plane_anchor(nan_as_zero(frame), nan_as_zero(anchor), edge_mm, sigma_mm)
     return surface_slopes(plane, edge_mm)
 

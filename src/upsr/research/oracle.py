@@ -25,6 +25,7 @@ import numpy as np
 import numpy.typing as npt
 
 from upsr.method.config import DeblurConfig, UPSRConfig
+from upsr.method.deblurring import REFLECTION_SIGNIFICANCE
 from upsr.method.noise import noise_at_depth
 from upsr.method.smoothing import smooth_surfaces
 from upsr.research._oracle_consistency import misregistered_numpy, registered_samples_numpy
@@ -459,6 +460,33 @@ def btv_subgradient_numpy(
     return out
 
 
+def _reflected_numpy(z: np.ndarray, margin: int, scale: int, gate: float) -> np.ndarray:
+    """:func:`upsr.method.deblurring._reflected` in plain NumPy: ``z`` extended by ``margin``
+    px (at most H − r, W − r) of its odd reflection 2·c − z(mirror) about the centres c of
+    its outermost r×r blocks, where both have depth, |c − z(mirror)| > ``gate`` and the
+    result is > 0 (else 0); the rows first, then the columns of their result."""
+
+    def rows(a: np.ndarray) -> np.ndarray:
+        h = a.shape[0]
+        m = max(min(margin, h - scale), 0)
+        lo, hi = (scale - 1) // 2, scale // 2
+        out = np.zeros((h + 2 * m, a.shape[1]), np.float32)
+        out[m : m + h] = a
+        for centre, mirror_of, row_of in (
+            ((a[lo], a[hi]), lambda k: a[scale - 1 + k], lambda k: m - k),
+            ((a[h - 1 - lo], a[h - 1 - hi]), lambda k: a[h - scale - k], lambda k: m + h - 1 + k),
+        ):
+            c = 0.5 * (centre[0] + centre[1])
+            for k in range(1, m + 1):
+                mirror = mirror_of(k)
+                v = 2.0 * c - mirror
+                ok = (centre[0] > 0) & (centre[1] > 0) & (mirror > 0) & (np.abs(c - mirror) > gate)
+                out[row_of(k)] = np.where(ok & (v > 0), v, 0.0)
+        return out
+
+    return np.ascontiguousarray(rows(rows(np.asarray(z, np.float32)).T).T)
+
+
 def deblur_numpy(
     z: npt.ArrayLike,
     cfg: DeblurConfig | None = None,
@@ -507,21 +535,26 @@ def deblur_numpy(
     beta = cfg.step_mm if cfg.step_mm is not None else max(0.5, estimate_noise_mm_numpy(z, scale))
     s1 = sum(cfg.alpha ** abs(k) for k in range(-cfg.radius_px, cfg.radius_px + 1))
     norm = 1.0 + cfg.lam * 2.0 * (s1 * s1 - 1.0)
-    x = z.copy()
+    # the descent on z extended by its odd reflection where a surface steps across the border
+    ze = _reflected_numpy(z, cfg.radius_px, scale, REFLECTION_SIGNIFICANCE * beta)
+    my, mx = (ze.shape[0] - z.shape[0]) // 2, (ze.shape[1] - z.shape[1]) // 2
+    valid = ze > 0
+    x = ze.copy()
     scales = np.float32(1.0)
     if noise_profile is not None and noise_profile[1] > 0:
-        sigma = noise_at_depth(z, *noise_profile)
-        scales = (sigma / np.float32(np.median(sigma[mask]))).astype(np.float32)
+        sigma = noise_at_depth(ze, *noise_profile)
+        scales = (sigma / np.float32(np.median(sigma[valid]))).astype(np.float32)
     for _ in range(cfg.iterations):
         step = np.float32(beta / norm) * scales
-        d = x - z
+        d = x - ze
         data = (d > 0).astype(np.float32) - (d < 0).astype(np.float32)
         reg = btv_subgradient_numpy(
-            x, z, radius_px=cfg.radius_px, alpha=cfg.alpha, edge_mm=cfg.edge_mm
+            x, ze, radius_px=cfg.radius_px, alpha=cfg.alpha, edge_mm=cfg.edge_mm
         )
         x = x - step * (data + np.float32(cfg.lam) * reg)
-        x[~mask] = 0.0
+        x[~valid] = 0.0
         beta *= cfg.step_decay
+    x = x[my : my + z.shape[0], mx : mx + z.shape[1]].copy()
     np.maximum(x, np.float32(1e-3), out=x, where=mask)
     if cfg.smooth_sigma_mm is not None:
         sigma_px = cfg.smooth_sigma_px if cfg.smooth_sigma_px is not None else 0.5 * scale
