@@ -271,7 +271,9 @@ def failures(
         if _ok(a) and a > 0.2 * sensor.sigma:
             out.append(f"surface_static {a:.2f} > 0.2σ = {0.2 * sensor.sigma:g}")
     if toward_wall and _ok(up["bias"]) and abs(up["bias"]) >= 1.0:
-        out.append(f"bias {up['bias']:+.2f} mm, 1 or more in size")
+        out.append(
+            f"bias {up['bias']:+.2f} mm, 1 or more in size (surfaces {up['bias_surface']:+.2f})"
+        )
     if kinect_wall and up["surface_rmse"] > tm["surface_rmse"]:
         out.append(f"surface {up['surface_rmse']:.2f} > temporal mean {tm['surface_rmse']:.2f}")
     return out
@@ -332,7 +334,8 @@ def markdown(rows: list[dict[str, Any]], config: dict[str, Any]) -> str:
         f"{config['total_seconds']:.0f} s). Depths and errors in mm, shares in %. "
         "surface_moving / surface_static: surface RMSE (pixels > r px from a depth edge) on "
         "the moving parts of the truth (every pixel when the camera moves) / on the static "
-        "ones; bias: mean(output − truth) over all frames.",
+        "ones; bias: mean(output − truth) over all frames; bias_surface: the same on the "
+        "surface pixels.",
         "",
         "## Issue #13's done-when rules that upsr fails",
         "",

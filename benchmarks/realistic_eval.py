@@ -73,6 +73,7 @@ COLUMNS = (
     "missing",
     "invented",
     "bias",
+    "bias_surface",
     "bias_mid",
     "seconds",
 )
@@ -104,6 +105,9 @@ def score(estimate: np.ndarray, video: RealisticVideo, frames: slice = slice(Non
     m["surface_moving"] = rms(surface & moving)
     m["surface_static"] = rms(surface & ~moving)
     m["bias"] = float(err[both].mean()) if both.any() else math.nan
+    # (the edge band's wrong-side pixels are a metre off: the bias of the radial motion's
+    # compensation is the surfaces')
+    m["bias_surface"] = float(err[surface].mean()) if surface.any() else math.nan
     per_frame = [
         float(e[b].mean()) if b.any() else math.nan for e, b in zip(err, both, strict=True)
     ]
@@ -249,7 +253,8 @@ def markdown(rows: list[dict[str, Any]], config: dict[str, Any]) -> str:
         f"{config['frames']} frames, window N = {config['n']}. Depths and errors in mm, shares "
         "in %. surface_moving / surface_static: surface RMSE on the moving parts of the truth "
         "(all pixels when the camera moves) / on the static ones. bias: mean(output − truth) "
-        "over all frames; bias_mid: on the middle frame only, the one whose window is centred "
+        "over all frames; bias_surface: the same on the surface pixels (> r px from a depth "
+        "edge); bias_mid: on the middle frame only, the one whose window is centred "
         "(near the ends of a clip the windows are shifted inwards; with T = N every other "
         "frame's window is off-centre).",
         "",
