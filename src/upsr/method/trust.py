@@ -211,7 +211,7 @@ def _offset_kernel(
     """``out``: the offsets of :func:`_offset_from` of every frame but ``ref_index`` (0 for
     it); where ``weak`` is not empty (0, 0, 0), also those from min(signif, ``low``)
     standard errors (``low`` = ∞: none). Each pixel's neighbours on its surface are gathered
-    once for the N frames (25–30 % faster at 320×240 than per frame, the same output)."""
+    once for the N frames (a 320×240 window's 17 % faster on two threads, the same output)."""
     n, h, w = reg.shape
     both = weak.shape[0] > 0
     n_grid = (h + step - 1) // step
