@@ -33,11 +33,6 @@ def _small_median(buf, m):  # pragma: no cover - numba
     k = m // 2
     lower = np.float32(0.0)
     upper = np.float32(0.0)
-    # (found: 1 for the upper middle value, 2 for the lower one; the search stops once it
-    # has what it needs, half the candidates on average: every candidate with the rank
-    # property has the same value)
-    need = 1 if m % 2 == 1 else 3
-    found = 0
     for p in range(m):
         x = buf[p]
         below = 0
@@ -47,12 +42,8 @@ def _small_median(buf, m):  # pragma: no cover - numba
             up_to += buf[q] <= x
         if below <= k < up_to:
             upper = x
-            found |= 1
         if below <= k - 1 < up_to:
             lower = x
-            found |= 2
-        if found == need:
-            break
     return upper if m % 2 == 1 else 0.5 * (lower + upper)
 
 
