@@ -210,7 +210,9 @@ def test_the_offset_is_the_significant_median_of_the_differences(m_side):
     ref = np.full((m_side, m_side), 2000.0, np.float32)
     anc = np.zeros_like(ref)  # no surface test
     sig = np.full((1, m_side, m_side), signif, np.float32)
-    buf = np.empty(m, np.float32)
+    buf, us = np.empty(m, np.float32), np.empty(m, np.float32)  # (m samples in the image)
+    rows, cols = np.empty(m, np.int64), np.empty(m, np.int64)
+    scratch = (buf, rows, cols, us)
     found = weak_only = 0
     for _ in range(400):
         shift = rng.uniform(-2.0 * thr, 2.0 * thr)
@@ -219,10 +221,14 @@ def test_the_offset_is_the_significant_median_of_the_differences(m_side):
         med = float(np.median((reg[0] - ref).astype(np.float64)))
         want = med if abs(med) > thr else 0.0
         weak = med if abs(med) > thr / 2 else 0.0  # from min(signif, low) = 1 standard error
-        got = _offset_at(reg, ref, anc, 0, 0, 0, 100.0, sigma, 0.0, 2 * m_side, 1, buf, sig, 1.0)
+        got = _offset_at(
+            reg, ref, anc, 0, 0, 0, 100.0, sigma, 0.0, 2 * m_side, 1, *scratch, sig, 1.0
+        )
         assert got[0] == pytest.approx(want, abs=1e-3)
         assert got[1] == pytest.approx(weak, abs=1e-3)
-        only = _offset_at(reg, ref, anc, 0, 0, 0, 100.0, sigma, 0.0, 2 * m_side, 1, buf, sig, 9.0)
+        only = _offset_at(
+            reg, ref, anc, 0, 0, 0, 100.0, sigma, 0.0, 2 * m_side, 1, *scratch, sig, 9.0
+        )
         assert only == got[:1] * 2  # low above signif: the one test
         found += want != 0.0
         weak_only += weak != 0.0 and want == 0.0

@@ -315,11 +315,13 @@ def _state_offsets(
 def _again_kernel(shifted, meas, anchor, edge, sigma, power, radius, signif, ys, xs, out):
     # pragma: no cover - numba
     """``_offset_at`` of the ``shifted`` state at the pixels (ys[q], xs[q]) only, into out[q]."""
-    buf = np.empty((2 * radius + 1) ** 2, np.float32)
+    size = (2 * radius + 1) ** 2
+    buf, us = np.empty(size, np.float32), np.empty(size, np.float32)
+    rows, cols = np.empty(size, np.int64), np.empty(size, np.int64)
     for q in range(ys.size):
         out[q] = _offset_at(
-            shifted, meas, anchor, 0, ys[q], xs[q], edge, sigma, power, radius, 1, buf, signif,
-            np.inf,
+            shifted, meas, anchor, 0, ys[q], xs[q], edge, sigma, power, radius, 1, buf, rows,
+            cols, us, signif, np.inf,
         )[0]  # fmt: skip
 
 

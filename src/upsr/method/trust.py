@@ -191,13 +191,12 @@ def _offset_from(reg_k, rows, cols, us, n, edge, sigma, power, buf, signif, low)
 
 
 @nb.njit(cache=True, nogil=True)
-def _offset_at(reg, ref, anc, k, i, j, edge, sigma, power, radius, stride, buf, signif, low):
-    # pragma: no cover - numba
-    """:func:`_offset_from` of frame k at one pixel (i, j) (its own neighbours)."""
-    size = buf.size
-    rows = np.empty(size, np.int64)
-    cols = np.empty(size, np.int64)
-    us = np.empty(size, np.float32)
+def _offset_at(
+    reg, ref, anc, k, i, j, edge, sigma, power, radius, stride, buf, rows, cols, us, signif, low
+):  # pragma: no cover - numba
+    """:func:`_offset_from` of frame k at one pixel (i, j) (its own neighbours; ``buf``,
+    ``rows``, ``cols``, ``us``: scratch of (2·radius + 1)² values each, allocated once by
+    the caller)."""
     n = _surface_neighbours(ref, anc, i, j, edge, radius, stride, rows, cols, us)
     return _offset_from(reg[k], rows, cols, us, n, edge, sigma, power, buf, signif[k, i, j], low)
 
