@@ -140,8 +140,9 @@ def test_upsr_follows_a_slanted_wall_that_the_frames_cannot_resolve(mode, deblur
     def rms(est):
         return float(np.sqrt(np.mean((est[inner] - truth[None][inner]) ** 2)))
 
-    # the staircase of steps of 60 and 20 mm (18 mm rms; the deblurring rounds it off)
-    assert rms(off) > (5.0 if deblur else 17.0)
+    # the staircase of steps of 60 and 20 mm (18 mm rms; the deblurring and the final
+    # smoothing along the staircase's own slope round it off to 3.0–4.5 mm)
+    assert rms(off) > (2.5 if deblur else 17.0)
     assert rms(on) < (0.3 * rms(off) if deblur else 0.01)
     assert (on > 0).all()
 

@@ -460,8 +460,11 @@ def _deblur(
     scale: int = 1,
     noise_row_step: int = 1,
     noise_profile: tuple[float, float] | None = None,
+    smooth: bool = True,
 ) -> np.ndarray:
-    """:func:`deblur` of a checked float32 depth image (the finishing's call, every frame)."""
+    """:func:`deblur` of a checked float32 depth image (the finishing's call, every frame,
+    with ``smooth`` False: the pipeline smooths each output frame last,
+    :func:`upsr.method.finishing.smooth_output`)."""
     cfg = cfg or DeblurConfig()
     z = np.ascontiguousarray(z, np.float32)
     mask = z > 0
@@ -516,7 +519,9 @@ def _deblur(
     # a pixel the descent took to 0 or below (no step schedule should) keeps the fused depth:
     # never a depth of a micrometre where z measured one
     np.copyto(x, z, where=mask & ~(x > 0))
-    if cfg.smooth_sigma_mm is not None:
+    if smooth and cfg.smooth_sigma_mm is not None:
         sigma_px = cfg.smooth_sigma_px if cfg.smooth_sigma_px is not None else 0.5 * scale
-        x = smooth_surfaces(x, cfg.smooth_sigma_mm, sigma_px)
+        x = smooth_surfaces(
+            x, cfg.smooth_sigma_mm, sigma_px, baseline_px=scale, edge_mm=cfg.edge_mm
+        )
     return x

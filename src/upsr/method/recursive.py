@@ -561,7 +561,7 @@ class RecursiveUPSR(TwoStagePipeline):
                 fused,
                 meas,
                 anchor,
-                cfg,
+                self._front.fixed_config,  # type: ignore[union-attr]
                 edge_mm=self._front.edge_mm,  # type: ignore[union-attr]
                 noise_mm=noise,
                 measured=f,

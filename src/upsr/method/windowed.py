@@ -402,7 +402,7 @@ class UPSR:
                 fused, front.fixed_config, noise_profile=stats.trust_noise_profile
             )
             return expand(finish_frame(
-                finished, fused, lowres[ref], anchor, cfg, edge_mm=front.edge_mm,
+                finished, fused, lowres[ref], anchor, front.fixed_config, edge_mm=front.edge_mm,
                 noise_mm=reach_noise, measured=measured,
             ), stats.knee_mm)  # fmt: skip
 

@@ -493,6 +493,7 @@ def deblur_numpy(
     *,
     scale: int = 1,
     noise_profile: tuple[float, float] | None = None,
+    smooth: bool = True,
 ) -> np.ndarray:
     """BTV-L1 deblurring with B = I in plain NumPy: the reference of
     :func:`upsr.method.deblurring.deblur` (same step rule, same result up to sign ties).
@@ -512,6 +513,8 @@ def deblur_numpy(
         :func:`upsr.method.deblurring.deblur`).
     scale : int
         SR factor r (the lag of the noise estimate, the default smoothing std).
+    smooth : bool
+        The final smoothing (False: the pipeline's, which smooths each output frame last).
 
     Returns
     -------
@@ -556,9 +559,11 @@ def deblur_numpy(
         beta *= cfg.step_decay
     x = x[my : my + z.shape[0], mx : mx + z.shape[1]].copy()
     np.maximum(x, np.float32(1e-3), out=x, where=mask)
-    if cfg.smooth_sigma_mm is not None:
+    if smooth and cfg.smooth_sigma_mm is not None:
         sigma_px = cfg.smooth_sigma_px if cfg.smooth_sigma_px is not None else 0.5 * scale
-        x = smooth_surfaces(x, cfg.smooth_sigma_mm, sigma_px)
+        x = smooth_surfaces(
+            x, cfg.smooth_sigma_mm, sigma_px, baseline_px=scale, edge_mm=cfg.edge_mm
+        )
     return x
 
 
@@ -616,16 +621,17 @@ def super_resolve_straightforward(frames: npt.ArrayLike, config: UPSRConfig) -> 
     edge_mm = front.edge_mm
     stats = fix_video_statistics(front, video[:n], cfg)  # (fixed_config: thresholds as fixed)
     trust_mm, reach_mm, fixed = stats.trust_noise_mm, stats.reach_noise_mm, front.fixed_config
+    profile = stats.trust_noise_profile
     out = np.empty((t_total, h * r, w * r), np.float32)
     for t in range(t_total):
         s = window_start(t, t_total, cfg)
         ref = t - s
         measured = video[s : s + n]
         lowres, anchor, tol, mixes = _abstaining(
-            measured, ref, stats.remove_mixed, cfg, edge_mm, trust_mm, stats.trust_noise_profile
+            measured, ref, stats.remove_mixed, cfg, edge_mm, trust_mm, profile
         )
         caps = None if anchor is None else state_caps(anchor, tol, float(n), reach_mm, cfg.trust_k,
-            noise_profile=stats.trust_noise_profile, tolerance_sigma_mm=trust_mm)  # fmt: skip
+            noise_profile=profile, tolerance_sigma_mm=trust_mm)  # fmt: skip
         up = [upsample_nearest(f, r) for f in lowres]
         pre = [front.prefilter(video[k]) for k in range(s, s + n)]
         guides = [front.guide(p) for p in pre]
@@ -647,7 +653,7 @@ def super_resolve_straightforward(frames: npt.ArrayLike, config: UPSRConfig) -> 
             back = flows_to_reference(ref, bwd, fwd, (h * r, w * r))
             guide = splat_nearest(lowres, np.stack(back), r, cfg.splat_radius_px)
         stack, offsets, followed = _checked_stack(
-            stack, lowres, maps, ref, cfg, edge_mm, reach_mm, anchor, stats.trust_noise_profile,
+            stack, lowres, maps, ref, cfg, edge_mm, reach_mm, anchor, profile,
             caps, tol, stats.remove_mixed,
         )  # fmt: skip
         fallback = only_own = None
@@ -671,13 +677,13 @@ def super_resolve_straightforward(frames: npt.ArrayLike, config: UPSRConfig) -> 
             keep_mean=stats.remove_mixed,
         )  # fmt: skip
         res = remove_speckles_opencv(
-            deblur_numpy(fused, fixed.deblur, scale=r, noise_profile=stats.trust_noise_profile),
+            deblur_numpy(fused, fixed.deblur, scale=r, noise_profile=profile, smooth=False),
             cfg.speckle_size_px,
             fixed.edge_mm,
         )
         # the rules beyond the paper after the deblurring, as the engine applies them
         out[t] = finish_frame(
-            res, fused, lowres[ref], anchor, cfg, edge_mm=edge_mm, noise_mm=reach_mm,
+            res, fused, lowres[ref], anchor, fixed, edge_mm=edge_mm, noise_mm=reach_mm,
             measured=measured[ref],
         )  # fmt: skip
     return out
