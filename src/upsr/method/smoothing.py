@@ -123,9 +123,9 @@ def smooth_surfaces(
 
 
 def _window(radius: int, sigma_px: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The offsets (dy, dx) of a circular window of ``radius`` px, its centre first, and
-    their spatial weights exp(−(dy² + dx²)/2σ²)."""
-    offsets = [(0, 0)] + [
+    """The offsets (dy, dx) of a circular window of ``radius`` px but its centre (weight 1,
+    residual 0: the kernel's start) and their spatial weights exp(−(dy² + dx²)/2σ²)."""
+    offsets = [
         (dy, dx)
         for dy in range(-radius, radius + 1)
         for dx in range(-radius, radius + 1)
@@ -176,7 +176,7 @@ def _smooth_kernel(depth, wp, pad, b, dys, dxs, weights, c, tol, out):  # pragma
         gx = np.empty(w, np.float32)
         s = np.empty(w, np.float32)
         num = np.zeros(w, np.float32)
-        den = np.zeros(w, np.float32)
+        den = np.ones(w, np.float32)  # (the pixel itself: weight 1, residual 0)
         row = wp[i + pad, pad : pad + w]
         drow = depth[i]
         up = wp[i + pad + b, pad : pad + w]
