@@ -77,7 +77,7 @@ def smooth_surfaces(
     sigma_px : float
         Spatial std (px), > 0.
     baseline_px : int, optional
-        Half baseline b of the slope's differences (px, ≥ 1); default ⌈2·sigma_px⌉ rounded,
+        Half baseline b of the slope's differences (px, ≥ 1); default 2·sigma_px rounded,
         r for the pipeline's r/2 (one low-res pixel: across the step between two r×r blocks).
     edge_mm : float, optional
         A step of more than this (mm) across ``baseline_px`` is an edge, not a slope
