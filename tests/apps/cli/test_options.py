@@ -33,6 +33,7 @@ METHOD_OPTIONS = {
     "--flow-scale",
     "--refine-preset",
     "--speckle-px",
+    "--smooth-mm",
     "--no-refine",
     "--keep-all-motion",
     "--fill-holes",
@@ -136,6 +137,8 @@ def test_config_from_options_maps_every_option() -> None:
     assert (cfg.refine_preset, cfg.speckle_size_px, cfg.refine) == ("ultrafast", 0, False)
     assert cfg.zero_motion_tolerance is None
     assert not config_from_options(2, None, no_deblur=True).deblur.enabled
+    assert config_from_options(2, None, smooth_mm=12.0).deblur.smooth_sigma_mm == 12.0
+    assert config_from_options(2, None, smooth_mm=0.0).deblur.smooth_sigma_mm is None
     assert dataclasses.replace(config_from_options(2, None), n_frames=9) == UPSRConfig.from_options(
         2, 9
     )
@@ -167,3 +170,28 @@ def test_edge_mm_sets_the_fusions_and_the_deblurrings_step(tmp_path, capsys) -> 
         rc, _, err = run_cli(capsys, "run", tmp_path / "in.npy", "-o", tmp_path / "b.npy", "-r",
                              "2", "--edge-mm", bad)  # fmt: skip
         assert rc == 2 and "--edge-mm must be a number > 0" in err, err
+
+
+def test_smooth_mm_sets_or_turns_off_the_final_smoothing(tmp_path, capsys) -> None:
+    """--smooth-mm MM: the final smoothing's range std (0: off); the same output as the API
+    given it; a bad value is one line."""
+    import numpy as np
+
+    import upsr
+    from tests.apps._util import run_cli
+
+    rng = np.random.default_rng(1)
+    ys, xs = np.mgrid[0:20, 0:24].astype(np.float32)
+    video = np.stack([1500 + 20 * ys + rng.normal(0, 5, xs.shape) for _ in range(4)])
+    np.save(tmp_path / "in.npy", video.astype(np.float32))
+    for value, smooth in (("0", None), ("12.5", 12.5)):
+        rc, _, err = run_cli(capsys, "run", tmp_path / "in.npy", "-o", tmp_path / "o.npy", "-r",
+                             "2", "-n", "3", "-q", "--overwrite", "--smooth-mm", value)  # fmt: skip
+        assert rc == 0, err
+        want = upsr.super_resolve(video, 2, 3, deblur_smooth_sigma_mm=smooth)
+        np.testing.assert_array_equal(np.load(tmp_path / "o.npy"), want)
+    assert not np.array_equal(want, upsr.super_resolve(video, 2, 3, deblur_smooth_sigma_mm=None))
+    for bad in ("-3", "nan"):
+        rc, _, err = run_cli(capsys, "run", tmp_path / "in.npy", "-o", tmp_path / "b.npy", "-r",
+                             "2", "--smooth-mm", bad)  # fmt: skip
+        assert rc == 2 and "--smooth-mm" in err and "Traceback" not in err, err

@@ -68,6 +68,7 @@ HELP_DEFAULTS: dict[str, Any] = {
     "flow_preset": "medium",
     "trust_k": 3.0,
     "edge_mm": 100.0,
+    "deblur.smooth_sigma_mm": 30.0,
     "fusion_estimator": "auto",
     "trust_noise_profile": "auto",
 }
@@ -370,6 +371,17 @@ EdgeMmOpt = Annotated[
         "1 m; at least 4x the noise]; a ToF camera nearer than 1 m: a tenth of its depth.",
     ),
 ]
+SmoothMmOpt = Annotated[
+    float | None,
+    typer.Option(
+        "--smooth-mm",
+        metavar="MM",
+        min=0.0,
+        help="Range std of the final smoothing of each surface along its plane [default: "
+        f"{_D['deblur.smooth_sigma_mm']:g}, times the median depth / 1 m for a scene nearer "
+        "than 1 m; at least the noise]; 0 turns it off (the blocks' own detail kept).",
+    ),
+]
 ValidRangeOpt = Annotated[
     str | None,
     typer.Option(
@@ -479,6 +491,7 @@ def config_from_options(
     flow_scale: int | None = None,
     refine_preset: Enum | None = None,
     speckle_px: int | None = None,
+    smooth_mm: float | None = None,
     no_deblur: bool = False,
     no_refine: bool = False,
     keep_all_motion: bool = False,
@@ -553,6 +566,10 @@ def config_from_options(
                       (no_thin_parts, "thin_parts")):  # fmt: skip
         if off:
             options[name] = False
+    if smooth_mm is not None:  # (0: off; otherwise scaled and floored as the default is)
+        if not math.isfinite(smooth_mm) or smooth_mm < 0:
+            raise InputError(f"--smooth-mm must be a number >= 0 (mm), got {smooth_mm:g}")
+        options["deblur_smooth_sigma_mm"] = smooth_mm if smooth_mm > 0 else None
     if valid_range is not None:
         options["valid_range_mm"] = parse_valid_range(valid_range)
     if edge_mm is not None:  # (the fusion's and the deblurring's: one step between surfaces)
@@ -601,6 +618,7 @@ METHOD_OPTIONS: tuple[tuple[str, Any, Any], ...] = (
     ("flow_scale", FlowScaleOpt, None),
     ("refine_preset", RefinePresetOpt, None),
     ("speckle_px", SpecklePxOpt, None),
+    ("smooth_mm", SmoothMmOpt, None),
     ("no_refine", NoRefineOpt, False),
     ("keep_all_motion", KeepAllMotionOpt, False),
     ("fill_holes", FillHolesOpt, False),
