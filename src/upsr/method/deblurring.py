@@ -33,7 +33,7 @@ import numpy.typing as npt
 from upsr.errors import InputError
 from upsr.method.config import DeblurConfig
 from upsr.method.noise import estimate_noise_mm, noise_at_depth
-from upsr.method.smoothing import smooth_surfaces
+from upsr.method.smoothing import smooth_output
 from upsr.method.validation import as_depth_frame
 
 __all__ = [
@@ -464,7 +464,7 @@ def _deblur(
 ) -> np.ndarray:
     """:func:`deblur` of a checked float32 depth image (the finishing's call, every frame,
     with ``smooth`` False: the pipeline smooths each output frame last,
-    :func:`upsr.method.finishing.smooth_output`)."""
+    :func:`upsr.method.smoothing.smooth_output`)."""
     cfg = cfg or DeblurConfig()
     z = np.ascontiguousarray(z, np.float32)
     mask = z > 0
@@ -519,9 +519,4 @@ def _deblur(
     # a pixel the descent took to 0 or below (no step schedule should) keeps the fused depth:
     # never a depth of a micrometre where z measured one
     np.copyto(x, z, where=mask & ~(x > 0))
-    if smooth and cfg.smooth_sigma_mm is not None:
-        sigma_px = cfg.smooth_sigma_px if cfg.smooth_sigma_px is not None else 0.5 * scale
-        x = smooth_surfaces(
-            x, cfg.smooth_sigma_mm, sigma_px, baseline_px=scale, edge_mm=cfg.edge_mm
-        )
-    return x
+    return smooth_output(x, cfg, scale) if smooth else x

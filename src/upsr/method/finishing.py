@@ -5,25 +5,26 @@
 isolated outliers); :func:`finish_frame`: the rules beyond the paper that keep the output
 honest afterwards (what the reference measured is never erased, removed input pixels are
 split between their neighbours, blocks follow the slope of their surface, each surface is
-smoothed along its plane (:func:`smooth_output`), optional hole filling).
+smoothed along its plane (:func:`upsr.method.smoothing.smooth_output`), optional hole
+filling).
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from upsr.method.config import DeblurConfig, UPSRConfig
+from upsr.method.config import UPSRConfig
 from upsr.method.consistency import clear_stale_fills
 from upsr.method.deblurring import _deblur
 from upsr.method.memory import level_to_reference
 from upsr.method.mixed import split_mixed_pixels
 from upsr.method.outliers import remove_speckles
 from upsr.method.slopes import follow_slopes
-from upsr.method.smoothing import smooth_surfaces
+from upsr.method.smoothing import smooth_output
 from upsr.method.thin import ThinParts
 from upsr.method.trust import fill_holes, reference_anchor, surface_support
 
-__all__ = ["NOISE_SAMPLE_PX", "finish_frame", "finish_fused", "settle_fused", "smooth_output"]
+__all__ = ["NOISE_SAMPLE_PX", "finish_frame", "finish_fused", "settle_fused"]
 
 #: The deblurring's first step comes from the noise of about this many output pixels (every
 #: k-th row of a larger output: the estimate is made anew for every frame). Both modes: at
@@ -98,7 +99,8 @@ def finish_fused(
     its first step from the noise of every k-th row, about :data:`NOISE_SAMPLE_PX` pixels,
     each pixel's step following the ``noise_profile`` where it grows with depth), then the
     removal of isolated outliers (:func:`upsr.method.outliers.remove_speckles`). Not the
-    deblurring's final smoothing: :func:`finish_frame` smooths last (:func:`smooth_output`)."""
+    deblurring's final smoothing: :func:`finish_frame` smooths last
+    (:func:`upsr.method.smoothing.smooth_output`)."""
     out = _deblur(
         fused_mm,
         cfg.deblur,
@@ -133,7 +135,7 @@ def finish_frame(
     (:func:`upsr.method.mixed.split_mixed_pixels`: never a hole where the camera measured
     something); with ``cfg.follow_slopes`` the blocks on one surface
     follow its slope (:func:`upsr.method.slopes.follow_slopes`); each surface is smoothed
-    along its plane (:func:`smooth_output`); with ``cfg.fill_holes`` the
+    along its plane (:func:`upsr.method.smoothing.smooth_output`); with ``cfg.fill_holes`` the
     pixels without depth are filled from the background side (invented depth).
 
     Parameters
@@ -184,24 +186,3 @@ def finish_frame(
     if cfg.fill_holes:
         out = fill_holes(out, r, iterations=64)  # invented depth (off by default)
     return out
-
-
-def smooth_output(
-    out: np.ndarray, cfg: DeblurConfig, scale: int, *, edge_mm: float | None = None
-) -> np.ndarray:
-    """The last step of an output frame (r·h, r·w) mm, beyond the paper: each surface smoothed
-    along its plane (:func:`upsr.method.smoothing.smooth_surfaces`, range std
-    ``cfg.smooth_sigma_mm``, spatial std ``cfg.smooth_sigma_px`` or r/2, the slope measured
-    across ±r px: one block, where it steps by at most ``edge_mm``, the video's edge
-    threshold; default ``cfg.edge_mm``), where the deblurring is on and
-    ``cfg.smooth_sigma_mm`` is set.
-
-    Last, after the blocks follow their slopes: on a staircase the slopes it measures would
-    be a block's steps (the realistic scenes' surface rmse, seed 0, windowed / recursive:
-    −4.3 / −4.4 % smoothing inside the deblurring, −9.6 / −9.2 % last; docs/notes/depth-rules.md).
-    """
-    if not (cfg.enabled and cfg.smooth_sigma_mm is not None):
-        return out
-    sigma_px = cfg.smooth_sigma_px if cfg.smooth_sigma_px is not None else 0.5 * scale
-    edge = cfg.edge_mm if edge_mm is None else edge_mm
-    return smooth_surfaces(out, cfg.smooth_sigma_mm, sigma_px, baseline_px=scale, edge_mm=edge)

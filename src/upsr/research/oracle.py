@@ -27,7 +27,7 @@ import numpy.typing as npt
 from upsr.method.config import DeblurConfig, UPSRConfig
 from upsr.method.deblurring import REFLECTION_SIGNIFICANCE
 from upsr.method.noise import noise_at_depth
-from upsr.method.smoothing import smooth_surfaces
+from upsr.method.smoothing import smooth_output
 from upsr.research._oracle_consistency import misregistered_numpy, registered_samples_numpy
 from upsr.research._oracle_edges import edge_votes_numpy
 from upsr.research._oracle_speckles import remove_speckles_opencv
@@ -559,12 +559,7 @@ def deblur_numpy(
         beta *= cfg.step_decay
     x = x[my : my + z.shape[0], mx : mx + z.shape[1]].copy()
     np.maximum(x, np.float32(1e-3), out=x, where=mask)
-    if smooth and cfg.smooth_sigma_mm is not None:
-        sigma_px = cfg.smooth_sigma_px if cfg.smooth_sigma_px is not None else 0.5 * scale
-        x = smooth_surfaces(
-            x, cfg.smooth_sigma_mm, sigma_px, baseline_px=scale, edge_mm=cfg.edge_mm
-        )
-    return x
+    return smooth_output(x, cfg, scale) if smooth else x
 
 
 def super_resolve_straightforward(frames: npt.ArrayLike, config: UPSRConfig) -> np.ndarray:

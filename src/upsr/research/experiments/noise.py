@@ -41,7 +41,8 @@ import numpy as np
 
 from upsr.errors import InputError
 from upsr.method.config import DeblurConfig, UPSRConfig
-from upsr.method.finishing import finish_fused, smooth_output
+from upsr.method.finishing import finish_fused
+from upsr.method.smoothing import smooth_output
 from upsr.method.windowed import super_resolve
 from upsr.research import baselines
 from upsr.research.experiments.common import (
@@ -145,7 +146,7 @@ def search_deblur(
 def _deblur_frame(fused: np.ndarray, cfg: DeblurConfig, r: int) -> np.ndarray:
     """UP-SR's last steps on a fused frame with ``cfg``
     (:func:`upsr.method.finishing.finish_fused`, then the final smoothing,
-    :func:`upsr.method.finishing.smooth_output`)."""
+    :func:`upsr.method.smoothing.smooth_output`)."""
     return smooth_output(finish_fused(fused, UPSRConfig(scale=r, deblur=cfg)), cfg, r)
 
 
