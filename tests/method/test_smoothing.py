@@ -161,3 +161,21 @@ def test_a_pixel_beside_an_edge_takes_no_slope_towards_it():
     noisy = ramp + np.random.default_rng(1).normal(0.0, 5.0, ramp.shape).astype(np.float32)
     out = smooth_surfaces(noisy, 30.0, 2.0, baseline_px=4, edge_mm=350.0)
     assert np.abs(out[:, :2] - ramp[:, :2]).mean() < np.abs(noisy[:, :2] - ramp[:, :2]).mean()
+
+
+def test_smooth_output_follows_the_deblurring_settings():
+    from upsr.method.config import DeblurConfig
+    from upsr.method.smoothing import smooth_output
+
+    x = _two_surfaces((20, 24), seed=3)
+    cfg = DeblurConfig()
+    np.testing.assert_array_equal(
+        smooth_output(x, cfg, 4),
+        smooth_surfaces(x, cfg.smooth_sigma_mm, 2.0, baseline_px=4, edge_mm=cfg.edge_mm),
+    )
+    np.testing.assert_array_equal(
+        smooth_output(x, cfg, 2, edge_mm=50.0),
+        smooth_surfaces(x, cfg.smooth_sigma_mm, 1.0, baseline_px=2, edge_mm=50.0),
+    )
+    for off in (DeblurConfig(smooth_sigma_mm=None), DeblurConfig(enabled=False)):
+        assert smooth_output(x, off, 4) is x
