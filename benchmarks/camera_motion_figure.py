@@ -30,6 +30,40 @@ from upsr.viz.colormaps import colorbar, colorize_depth, colorize_error, panel_g
 ERROR_MAX_MM = 100.0
 
 
+def outputs_grid(
+    low: np.ndarray,
+    truth: np.ndarray,
+    outputs: dict[str, tuple[str, np.ndarray]],
+    input_title: str,
+    error_max_mm: float,
+) -> np.ndarray:
+    """One frame's picture (BGR uint8): the input (h, w) and the truth (r·h, r·w) beside a
+    depth colour bar (1st and 99th percentiles of the truth), then each output's frame under
+    its title, then its error |output − truth| (0–``error_max_mm``; black: no depth) beside
+    an error colour bar. ``outputs``: name → (title, frame (r·h, r·w)), in display order."""
+    valid = truth[truth > 0]
+    vmin, vmax = float(np.percentile(valid, 1)), float(np.percentile(valid, 99))
+    h = truth.shape[0]
+    rows: list[list[tuple[str, np.ndarray]]] = [
+        [
+            (input_title, colorize_depth(low, vmin, vmax)),
+            (f"truth {truth.shape[1]}x{h}", colorize_depth(truth, vmin, vmax)),
+            ("", colorbar(h, vmin, vmax, "depth (mm)")),
+        ],
+        [],
+        [],
+    ]
+    for name, (title, out) in outputs.items():
+        rows[1].append((title, colorize_depth(out, vmin, vmax)))
+        err = np.where((out > 0) & (truth > 0), np.abs(out - truth), np.nan)
+        rows[2].append((f"|{name} - truth|", colorize_error(err, error_max_mm)))
+    rows[1].append(("", np.full((h, 8, 3), 255, np.uint8)))
+    rows[2].append(
+        ("", colorbar(h, 0.0, error_max_mm, "error (mm)", colormap=cv2.COLORMAP_VIRIDIS))
+    )
+    return panel_grid([p for row in rows for p in row], ncols=3, min_height_px=h)
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--seed", type=int, default=0)
@@ -45,31 +79,13 @@ def main(argv: Sequence[str] | None = None) -> int:
         ),
     }
     t = len(low) // 2
-    truth = video.truth[t]
-    valid = truth[truth > 0]
-    vmin, vmax = float(np.percentile(valid, 1)), float(np.percentile(valid, 99))
-    h = truth.shape[0]
-    rows: list[list[tuple[str, np.ndarray]]] = [
-        [
-            ("input 64x56", colorize_depth(low[t], vmin, vmax)),
-            ("truth 256x224", colorize_depth(truth, vmin, vmax)),
-            ("", colorbar(h, vmin, vmax, "depth (mm)")),
-        ],
-        [],
-        [],
-    ]
+    panels = {}
     for name, out in outs.items():
         m = evaluate(out, video.truth, 4)
         title = f"{name}: rmse {m['rmse']:.1f} mm, edge {100 * m['edge_accuracy']:.1f} %"
         print(title)
-        rows[1].append((title, colorize_depth(out[t], vmin, vmax)))
-        err = np.where((out[t] > 0) & (truth > 0), np.abs(out[t] - truth), np.nan)
-        rows[2].append((f"|{name} - truth|", colorize_error(err, ERROR_MAX_MM)))
-    rows[1].append(("", np.full((h, 8, 3), 255, np.uint8)))
-    rows[2].append(
-        ("", colorbar(h, 0.0, ERROR_MAX_MM, "error (mm)", colormap=cv2.COLORMAP_VIRIDIS))
-    )
-    grid = panel_grid([p for row in rows for p in row], ncols=3, min_height_px=h)
+        panels[name] = (title, out[t])
+    grid = outputs_grid(low[t], video.truth[t], panels, "input 64x56", ERROR_MAX_MM)
     write_png(args.out, grid)
     print(f"wrote {args.out}")
     return 0

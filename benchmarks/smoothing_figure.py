@@ -20,14 +20,12 @@ import sys
 from collections.abc import Sequence
 from pathlib import Path
 
-import cv2
-import numpy as np
-
 import upsr
+from camera_motion_figure import outputs_grid
 from outside_eval import LAPLACE10, sensor_input
 from outside_scenes import slanted
 from realistic_eval import score
-from upsr.viz.colormaps import colorbar, colorize_depth, colorize_error, panel_grid, write_png
+from upsr.viz.colormaps import write_png
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -43,31 +41,14 @@ def main(argv: Sequence[str] | None = None) -> int:
         "default": upsr.super_resolve(low, 4, 9),
     }
     t = len(low) // 2
-    truth = video.truth[t]
-    valid = truth[truth > 0]
-    vmin, vmax = float(np.percentile(valid, 1)), float(np.percentile(valid, 99))
-    h = truth.shape[0]
-    rows: list[list[tuple[str, np.ndarray]]] = [
-        [
-            ("input 64x56, Laplace 10 mm", colorize_depth(low[t], vmin, vmax)),
-            ("truth 256x224", colorize_depth(truth, vmin, vmax)),
-            ("", colorbar(h, vmin, vmax, "depth (mm)")),
-        ],
-        [],
-        [],
-    ]
+    panels = {}
     for name, out in outs.items():
-        m = score(out, video)
-        title = f"{name}: static surfaces {m['surface_static']:.2f} mm rmse"
+        title = f"{name}: static surfaces {score(out, video)['surface_static']:.2f} mm rmse"
         print(title)
-        rows[1].append((title, colorize_depth(out[t], vmin, vmax)))
-        err = np.where((out[t] > 0) & (truth > 0), np.abs(out[t] - truth), np.nan)
-        rows[2].append((f"|{name} - truth|", colorize_error(err, args.error_max)))
-    rows[1].append(("", np.full((h, 8, 3), 255, np.uint8)))
-    rows[2].append(
-        ("", colorbar(h, 0.0, args.error_max, "error (mm)", colormap=cv2.COLORMAP_VIRIDIS))
+        panels[name] = (title, out[t])
+    grid = outputs_grid(
+        low[t], video.truth[t], panels, "input 64x56, Laplace 10 mm", args.error_max
     )
-    grid = panel_grid([p for row in rows for p in row], ncols=3, min_height_px=h)
     write_png(args.out, grid)
     print(f"wrote {args.out}")
     return 0
