@@ -93,7 +93,7 @@ def smooth_surfaces(
     ----------
     C. Tomasi and R. Manduchi, "Bilateral filtering for gray and color images", ICCV 1998.
     """
-    x = np.asarray(depth_mm, dtype=np.float32)
+    x = np.ascontiguousarray(depth_mm, dtype=np.float32)
     if x.ndim != 2:
         raise InputError(f"smooth_surfaces expects a 2-D depth image, got shape {x.shape}")
     if not (sigma_mm > 0 and sigma_px > 0):
@@ -102,24 +102,20 @@ def smooth_surfaces(
         baseline_px = max(1, round(2.0 * sigma_px))
     if int(baseline_px) != baseline_px or baseline_px < 1:
         raise InputError(f"baseline_px must be a whole number ≥ 1, got {baseline_px}")
+    if edge_mm is None:
+        edge_mm = SAME_SURFACE_SIGMAS * float(sigma_mm)
+    if not edge_mm > 0:
+        raise InputError(f"edge_mm must be > 0, got {edge_mm}")
     radius = int(np.ceil(2.0 * sigma_px))
     dys, dxs, weights = _window(radius, float(sigma_px))
     h, w = x.shape
     pad = max(radius, int(baseline_px))
     wp = np.zeros((h + 2 * pad, w + 2 * pad), np.float32)
-    inner = wp[pad : pad + h, pad : pad + w]
-    valid = np.isfinite(x) & (x > 0)  # NaN, ±inf, ≤ 0: invalid
-    np.divide(np.float32(_INVERSE_UNIT), x, out=inner, where=valid)
+    _inverse_kernel(x, pad, wp)
     out = np.empty((h, w), np.float32)
     # (t/64 for the 64th power of the Taylor polynomial; e in mm from Δw · z²/unit)
     c = np.float32(1.0 / (2.0 * float(sigma_mm) ** 2 * 64.0))
-    if edge_mm is None:
-        edge_mm = SAME_SURFACE_SIGMAS * float(sigma_mm)
-    if not edge_mm > 0:
-        raise InputError(f"edge_mm must be > 0, got {edge_mm}")
-    tol = np.float32(edge_mm)
-    depth = np.where(valid, x, np.float32(0.0))
-    _smooth_kernel(depth, wp, pad, int(baseline_px), dys, dxs, weights, c, tol, out)
+    _smooth_kernel(x, wp, pad, int(baseline_px), dys, dxs, weights, c, np.float32(edge_mm), out)
     return out
 
 
@@ -175,6 +171,19 @@ def _window(radius: int, sigma_px: float) -> tuple[np.ndarray, np.ndarray, np.nd
     return dys, dxs, weights
 
 
+@nb.njit(cache=True, nogil=True, parallel=True)
+def _inverse_kernel(x, pad, wp):  # pragma: no cover - numba
+    """``wp[pad + i, pad + j]``: the inverse depth unit / x[i, j] where x is a depth (finite,
+    > 0), else left 0 (one pass; exact division, as NumPy's)."""
+    h, w = x.shape
+    unit = np.float32(_INVERSE_UNIT)
+    for i in nb.prange(h):
+        for j in range(w):
+            v = x[i, j]
+            if np.isfinite(v) and v > 0:
+                wp[pad + i, pad + j] = unit / v
+
+
 @nb.njit(cache=True, nogil=True, inline="always")
 def _slope(a, p, m, s, inv_b, tol):  # pragma: no cover - numba
     """The gradient of w at a pixel of inverse depth ``a`` > 0 from its neighbours ``p``
@@ -199,7 +208,8 @@ def _slope(a, p, m, s, inv_b, tol):  # pragma: no cover - numba
 def _smooth_kernel(depth, wp, pad, b, dys, dxs, weights, c, tol, out):  # pragma: no cover
     """The plane-following bilateral filter of the inverse depth ``wp`` (zero-padded by
     ``pad``) of ``depth`` into ``out`` (mm): each pixel's depth moved by the weighted mean of
-    its neighbours' residuals ŵ_q − w_p (a surface of one depth keeps it exactly)."""
+    its neighbours' residuals ŵ_q − w_p (a surface of one depth keeps it exactly). ``depth``
+    is read only where ``wp`` > 0 (elsewhere it may be NaN, ±inf or ≤ 0: out is 0 there)."""
     h, w = out.shape
     n = weights.size
     one = np.float32(1.0)
