@@ -450,7 +450,8 @@ def deblur(
     elif cfg is not None and not isinstance(cfg, DeblurConfig):
         raise InputError(f"cfg must be a DeblurConfig or a mapping of its options, not {cfg!r}")
     z = as_depth_frame(z, name="z")
-    return _deblur(z, cfg, scale=scale, noise_row_step=noise_row_step, noise_profile=noise_profile)
+    x = _deblur(z, cfg, scale=scale, noise_row_step=noise_row_step, noise_profile=noise_profile)
+    return smooth_output(x, cfg or DeblurConfig(), scale)
 
 
 def _deblur(
@@ -460,10 +461,9 @@ def _deblur(
     scale: int = 1,
     noise_row_step: int = 1,
     noise_profile: tuple[float, float] | None = None,
-    smooth: bool = True,
 ) -> np.ndarray:
-    """:func:`deblur` of a checked float32 depth image (the finishing's call, every frame,
-    with ``smooth`` False: the pipeline smooths each output frame last,
+    """:func:`deblur` of a checked float32 depth image without its final smoothing (the
+    finishing's call, every frame: the pipeline smooths each output frame last,
     :func:`upsr.method.smoothing.smooth_output`)."""
     cfg = cfg or DeblurConfig()
     z = np.ascontiguousarray(z, np.float32)
@@ -519,4 +519,4 @@ def _deblur(
     # a pixel the descent took to 0 or below (no step schedule should) keeps the fused depth:
     # never a depth of a micrometre where z measured one
     np.copyto(x, z, where=mask & ~(x > 0))
-    return smooth_output(x, cfg, scale) if smooth else x
+    return x

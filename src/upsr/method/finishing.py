@@ -107,7 +107,6 @@ def finish_fused(
         scale=cfg.scale,
         noise_row_step=max(1, fused_mm.size // NOISE_SAMPLE_PX),
         noise_profile=noise_profile,
-        smooth=False,
     )
     return remove_speckles(out, cfg.speckle_size_px, cfg.edge_mm)
 
